@@ -1,0 +1,137 @@
+// diffipc command-line interface: simulate, validate, bench.
+// Exit codes: 0 success, 1 bad input (one line naming the field or file),
+// 2 a simulation step failed (outputs of the committed steps are still written).
+
+#include "cli/bench.hpp"
+#include "forward/common/error.hpp"
+#include "forward/common/timer.hpp"
+#include "forward/io/output.hpp"
+#include "forward/scene/scene.hpp"
+#include "forward/simulation/simulator.hpp"
+
+#include <CLI/CLI.hpp>
+#include <nlohmann/json.hpp>
+
+#include <cstdio>
+#include <filesystem>
+#include <iostream>
+
+namespace fs = std::filesystem;
+using namespace diffipc;
+
+namespace {
+
+int simulate(const std::string& scene_path, std::string out_dir, int vtu_every, bool quiet)
+{
+    Scene scene = load_scene(scene_path);
+    if (out_dir.empty())
+        out_dir = scene.output.directory;
+    if (vtu_every >= 0)
+        scene.output.vtu_every = vtu_every;
+    std::error_code ec;
+    fs::create_directories(out_dir, ec);
+    if (ec || !fs::is_directory(out_dir))
+        throw InputError(out_dir, "cannot create output directory");
+
+    Simulator sim(std::move(scene));
+    const Scene& sc = sim.scene();
+    if (!quiet)
+        std::printf("diffipc: %s: %ld vertices, %ld elements, %d bodies, %s, dt = %g s, %d steps\n", scene_path.c_str(),
+            long(sim.mesh().num_vertices()), long(sim.mesh().num_elements()), int(sc.bodies.size()),
+            to_string(sc.time.integrator).c_str(), sc.time.dt, sc.time.steps);
+
+    std::vector<std::pair<double, std::string>> vtu_files;
+    auto write_frame = [&](int index, double t, const VectorXd& x, const VectorXd& v) {
+        const std::string name = "frame_" + std::to_string(index) + ".vtu";
+        write_vtu((fs::path(out_dir) / name).string(), sim, x, v);
+        vtu_files.emplace_back(t, name);
+    };
+    if (sc.output.vtu_every > 0)
+        write_frame(0, 0.0, sim.positions(), sim.velocities());
+
+    Timer since_print;
+    const int total = sc.time.steps;
+    sim.run([&](const StepRecord& r) {
+        if (sc.output.vtu_every > 0 && r.index % sc.output.vtu_every == 0)
+            write_frame(r.index, r.time, r.positions, r.velocities);
+        if (!quiet && (total <= 50 || since_print.seconds() > 1.0 || r.index == total)) {
+            std::printf("  step %d/%d  t = %.4g s  newton %d  residual %.2e  %.3f s/step  min volume ratio %.3f\n",
+                r.index, total, r.time, r.newton_iterations, r.residual, r.wall_time, r.min_volume_ratio);
+            std::fflush(stdout);
+            since_print = Timer();
+        }
+    });
+
+    const Trajectory& tr = sim.trajectory();
+    if (sc.output.hdf5)
+        write_hdf5((fs::path(out_dir) / "trajectory.h5").string(), sim.mesh(), tr);
+    if (!vtu_files.empty())
+        write_pvd((fs::path(out_dir) / "trajectory.pvd").string(), vtu_files);
+    write_json((fs::path(out_dir) / "summary.json").string(), summary_json(sim));
+
+    if (tr.final_status != StepStatus::CONVERGED) {
+        std::fprintf(stderr, "diffipc: %s\n", tr.failure_message.c_str());
+        return 2;
+    }
+    if (!quiet)
+        std::printf("diffipc: %zu steps converged in %.2f s (%d Newton iterations); wrote %s\n", tr.steps.size(),
+            tr.wall_time, tr.newton_iterations, out_dir.c_str());
+    return 0;
+}
+
+int validate(const std::string& scene_path)
+{
+    const Scene scene = load_scene(scene_path);
+    std::printf("%s: valid %dD scene, %zu bodies, %ld vertices, %ld elements, %s, %d steps of %g s\n",
+        scene_path.c_str(), scene.dim, scene.bodies.size(), long(scene.mesh.num_vertices()),
+        long(scene.mesh.num_elements()), to_string(scene.time.integrator).c_str(), scene.time.steps, scene.time.dt);
+    return 0;
+}
+
+} // namespace
+
+int main(int argc, char** argv)
+{
+    CLI::App app { "diffipc: differentiable IPC elastodynamics" };
+    app.require_subcommand(1);
+
+    std::string scene_path, out_dir;
+    int vtu_every = -1;
+    bool quiet = false;
+    auto* sim_cmd = app.add_subcommand("simulate", "Run a scene; writes trajectory.h5, summary.json and optional VTU files");
+    sim_cmd->add_option("scene", scene_path, "scene file (JSON)")->required();
+    sim_cmd->add_option("-o,--output", out_dir, "output directory (default: the scene's output.directory)");
+    sim_cmd->add_option("--vtu-every", vtu_every, "write a VTU frame every N steps (0: none; default: the scene's)");
+    sim_cmd->add_flag("-q,--quiet", quiet, "no progress output");
+
+    std::string validate_path;
+    auto* val_cmd = app.add_subcommand("validate", "Check a scene file and report what it contains");
+    val_cmd->add_option("scene", validate_path, "scene file (JSON)")->required();
+
+    BenchOptions bench_options;
+    auto* bench_cmd = app.add_subcommand("bench", "Run the fixed benchmark scenes and print per-phase timings");
+    bench_cmd->add_option("--size", bench_options.size, "small | full")->check(CLI::IsMember({ "small", "full" }));
+    bench_cmd->add_option("--steps", bench_options.steps, "time steps per scene (the first is a warm-up)");
+
+    try {
+        app.parse(argc, argv);
+    } catch (const CLI::ParseError& e) {
+        return app.exit(e);
+    }
+
+    try {
+        if (*sim_cmd)
+            return simulate(scene_path, out_dir, vtu_every, quiet);
+        if (*val_cmd)
+            return validate(validate_path);
+        if (*bench_cmd)
+            return run_bench(bench_options);
+    } catch (const InputError& e) {
+        std::fprintf(stderr, "diffipc: error: %s\n", e.what());
+        return 1;
+    } catch (const std::exception& e) {
+        std::fprintf(stderr, "diffipc: internal error: %s\n", e.what());
+        return 3;
+    }
+    return 0;
+}

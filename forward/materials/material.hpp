@@ -1,0 +1,53 @@
+#pragma once
+/// @file material.hpp
+/// Hyperelastic energy densities Psi(F; mu, lambda) with first Piola-Kirchhoff
+/// stress P = dPsi/dF and its derivative dP/dF. Lame parameters are passed per
+/// call so that every element can carry its own (they will be optimized).
+/// 2D models are plane strain: the same formulas with d = 2.
+///
+/// Flattening of F and P: index(i, j) = i * dim + j (row-major), so
+/// stress_derivative(F)(index(i,j), index(k,l)) = dP_ij / dF_kl.
+
+#include <Eigen/Core>
+
+#include <memory>
+#include <string>
+
+namespace diffipc {
+
+enum class MaterialModel { LINEAR, STVK, NEO_HOOKEAN, STABLE_NEO_HOOKEAN };
+
+/// @brief Parses "linear" | "stvk" | "neo_hookean" | "stable_neo_hookean".
+/// @throws InputError naming `field` for any other string.
+MaterialModel parse_material_model(const std::string& name, const std::string& field);
+std::string to_string(MaterialModel model);
+
+/// Lame parameters from Young's modulus E (Pa) and Poisson's ratio nu (3D and plane strain).
+inline double lame_mu(double E, double nu) { return E / (2.0 * (1.0 + nu)); }
+inline double lame_lambda(double E, double nu) { return E * nu / ((1.0 + nu) * (1.0 - 2.0 * nu)); }
+
+template <int dim> class Material {
+public:
+    using Mat = Eigen::Matrix<double, dim, dim>;
+    using Tensor = Eigen::Matrix<double, dim * dim, dim * dim>;
+    virtual ~Material() = default;
+
+    /// @brief Energy density (J/m^3) at deformation gradient F; +inf where the
+    /// model is undefined (J <= 0 for neo-Hookean).
+    virtual double energy_density(const Mat& F, double mu, double lambda) const = 0;
+    /// @brief First Piola-Kirchhoff stress P = dPsi/dF (Pa).
+    virtual Mat stress(const Mat& F, double mu, double lambda) const = 0;
+    /// @brief dP/dF as a dim^2 by dim^2 matrix in row-major flattening.
+    virtual Tensor stress_derivative(const Mat& F, double mu, double lambda) const = 0;
+    virtual MaterialModel model() const = 0;
+};
+
+template <int dim> std::unique_ptr<Material<dim>> make_material(MaterialModel model);
+
+/// @brief Replaces a symmetric matrix by its closest positive semi-definite
+/// matrix (negative eigenvalues set to zero). Matrices that already admit a
+/// Cholesky factorization are returned unchanged without an eigen-decomposition.
+template <int n> Eigen::Matrix<double, n, n> project_psd(const Eigen::Matrix<double, n, n>& A);
+Eigen::MatrixXd project_psd(const Eigen::MatrixXd& A);
+
+} // namespace diffipc

@@ -1,0 +1,60 @@
+#pragma once
+/// @file mesh.hpp
+/// Simplicial volume meshes: P1 triangles (2D) and tetrahedra (3D), possibly
+/// made of several bodies, with their boundary facets.
+
+#include "forward/common/types.hpp"
+
+#include <string>
+#include <vector>
+
+namespace diffipc {
+
+struct Mesh {
+    int dim = 0;
+    /// #V by dim list of rest positions (m).
+    Positions rest_positions;
+    /// #E by (dim+1) list of vertex indices, positively oriented.
+    MatrixXi elements;
+    /// #V body index of each vertex.
+    VectorXi vertex_body;
+    /// #E body index of each element.
+    VectorXi element_body;
+    /// #F by dim boundary facets (edges in 2D, triangles in 3D), oriented so
+    /// that the normal points out of the body.
+    MatrixXi boundary_facets;
+    /// #F body index of each boundary facet.
+    VectorXi facet_body;
+
+    Index num_vertices() const { return rest_positions.rows(); }
+    Index num_elements() const { return elements.rows(); }
+    Index num_dofs() const { return rest_positions.size(); }
+};
+
+/// @brief Structured mesh of an axis-aligned box.
+/// 2D: each cell is split into two triangles along its (min,min)-(max,max)
+/// diagonal. 3D: each cube into six tetrahedra sharing its main diagonal
+/// (Kuhn subdivision), which is conforming across cells.
+/// @param dim    2 or 3
+/// @param lower  dim-vector of the box minimum corner (m)
+/// @param upper  dim-vector of the box maximum corner (m)
+/// @param cells  dim-vector of cell counts per axis (each >= 1)
+Mesh box_mesh(int dim, const VectorXd& lower, const VectorXd& upper, const VectorXi& cells);
+
+/// @brief Signed volume (area in 2D) of element e at positions x.
+/// @param x #V by dim positions
+double signed_volume(const Positions& x, const MatrixXi& elements, Index e);
+
+/// @brief Fills boundary_facets and facet_body from the elements.
+void compute_boundary(Mesh& mesh);
+
+/// @brief Appends `other` to `mesh` (offsetting indices), giving its vertices,
+/// elements and facets the body index `body`.
+void append_mesh(Mesh& mesh, const Mesh& other, int body);
+
+/// @brief Throws InputError(field, ...) naming the first element whose volume
+/// is not positive (inverted) or is tiny relative to the mesh size (degenerate),
+/// and for non-finite coordinates or out-of-range indices.
+void validate_mesh(const Mesh& mesh, const std::string& field);
+
+} // namespace diffipc

@@ -1,0 +1,302 @@
+#include "forward/potentials/elastic_potential.hpp"
+
+#include "forward/common/error.hpp"
+#include "forward/solver/sparse_assembler.hpp"
+
+#include <Eigen/Dense>
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+#include <tbb/parallel_reduce.h>
+
+#include <array>
+#include <cmath>
+#include <limits>
+
+namespace diffipc {
+
+namespace {
+
+    template <int dim> struct Kernel {
+        static constexpr int L = dim * (dim + 1);
+        using Mat = Eigen::Matrix<double, dim, dim>;
+        using Tensor = Eigen::Matrix<double, dim * dim, dim * dim>;
+        using LocalVec = Eigen::Matrix<double, L, 1>;
+        using LocalMat = Eigen::Matrix<double, L, L>;
+        using Grad = Eigen::Matrix<double, dim + 1, dim, Eigen::RowMajor>;
+
+        /// F = sum_a x_a G_a^T with xe (dim+1) x dim rows of vertex positions.
+        static Mat deformation(const Grad& G, const Grad& xe) { return xe.transpose() * G; }
+
+        /// Local gradient: f_(a,i) = vol * sum_j P_ij G_aj.
+        static LocalVec gradient(const Grad& G, const Mat& P, double vol)
+        {
+            LocalVec g;
+            for (int a = 0; a <= dim; ++a)
+                for (int i = 0; i < dim; ++i) {
+                    double s = 0;
+                    for (int j = 0; j < dim; ++j)
+                        s += P(i, j) * G(a, j);
+                    g[a * dim + i] = vol * s;
+                }
+            return g;
+        }
+
+        /// Local Hessian: H_(a,i),(b,k) = vol * sum_jl A_(ij),(kl) G_aj G_bl, i.e. vol B^T A B.
+        static LocalMat hessian(const Grad& G, const Tensor& A, double vol)
+        {
+            Eigen::Matrix<double, dim * dim, L> B = Eigen::Matrix<double, dim * dim, L>::Zero();
+            for (int a = 0; a <= dim; ++a)
+                for (int i = 0; i < dim; ++i)
+                    for (int j = 0; j < dim; ++j)
+                        B(i * dim + j, a * dim + i) = G(a, j);
+            return vol * B.transpose() * A * B;
+        }
+    };
+
+    template <int dim> struct ElementData {
+        typename Kernel<dim>::Grad G;
+        double volume;
+    };
+
+    template <int dim> ElementData<dim> element_data(const MatrixXd& rest)
+    {
+        Eigen::Matrix<double, dim, dim> Dm;
+        for (int a = 0; a < dim; ++a)
+            Dm.col(a) = (rest.row(a + 1) - rest.row(0)).transpose();
+        const double det = Dm.determinant();
+        if (!(std::abs(det) > 0))
+            throw InputError("rest", "degenerate rest element");
+        const Eigen::Matrix<double, dim, dim> Dinv = Dm.inverse();
+        ElementData<dim> d;
+        d.volume = std::abs(det) / (dim == 2 ? 2.0 : 6.0);
+        d.G.row(0) = -Dinv.colwise().sum();
+        d.G.bottomRows(dim) = Dinv;
+        return d;
+    }
+
+    template <int dim> typename Kernel<dim>::Grad to_local(const MatrixXd& m)
+    {
+        if (m.rows() != dim + 1 || m.cols() != dim)
+            throw InputError("positions", "expected a " + std::to_string(dim + 1) + " by " + std::to_string(dim) + " matrix");
+        return m;
+    }
+
+} // namespace
+
+struct ElasticPotential::Impl {
+    std::unique_ptr<Material<2>> materials2[4];
+    std::unique_ptr<Material<3>> materials3[4];
+    Impl()
+    {
+        for (int m = 0; m < 4; ++m) {
+            materials2[m] = make_material<2>(MaterialModel(m));
+            materials3[m] = make_material<3>(MaterialModel(m));
+        }
+    }
+    template <int dim> const Material<dim>& material(MaterialModel m) const
+    {
+        if constexpr (dim == 2)
+            return *materials2[int(m)];
+        else
+            return *materials3[int(m)];
+    }
+};
+
+ElasticPotential::ElasticPotential(const FESpace& space, std::vector<MaterialModel> models, VectorXd mu, VectorXd lambda)
+    : m_space(space), m_models(std::move(models)), m_mu(std::move(mu)), m_lambda(std::move(lambda)),
+      m_impl(std::make_unique<Impl>())
+{
+}
+
+ElasticPotential::~ElasticPotential() = default;
+
+void ElasticPotential::set_lame_parameters(const VectorXd& mu, const VectorXd& lambda)
+{
+    if (mu.size() != m_space.num_elements() || lambda.size() != m_space.num_elements())
+        throw InputError("lame_parameters", "expected one value per element");
+    m_mu = mu;
+    m_lambda = lambda;
+}
+
+namespace {
+
+    template <int dim>
+    typename Kernel<dim>::Grad gather(const Mesh& mesh, Index e, const VectorXd& x)
+    {
+        typename Kernel<dim>::Grad xe;
+        for (int a = 0; a <= dim; ++a)
+            for (int i = 0; i < dim; ++i)
+                xe(a, i) = x[mesh.elements(e, a) * dim + i];
+        return xe;
+    }
+
+    template <int dim>
+    typename Kernel<dim>::Grad shape(const FESpace& space, Index e)
+    {
+        return Eigen::Map<const typename Kernel<dim>::Grad>(space.shape_gradients(e));
+    }
+
+    // Fixed grain and deterministic reduce: the sum order does not depend on scheduling.
+    constexpr Index GRAIN = 256;
+
+    template <int dim, typename MaterialOf>
+    double value_impl(const FESpace& space, const std::vector<MaterialModel>& models, const VectorXd& mu,
+        const VectorXd& lambda, const VectorXd& x, MaterialOf material)
+    {
+        const Mesh& mesh = space.mesh();
+        return tbb::parallel_deterministic_reduce(
+            tbb::blocked_range<Index>(0, space.num_elements(), GRAIN), 0.0,
+            [&](const tbb::blocked_range<Index>& r, double sum) {
+                for (Index e = r.begin(); e < r.end(); ++e) {
+                    const auto F = Kernel<dim>::deformation(shape<dim>(space, e), gather<dim>(mesh, e, x));
+                    sum += space.rest_volume(e) * material(models[size_t(e)]).energy_density(F, mu[e], lambda[e]);
+                }
+                return sum;
+            },
+            std::plus<double>());
+    }
+
+} // namespace
+
+double ElasticPotential::value(const VectorXd& x) const
+{
+    if (m_space.dim() == 2)
+        return value_impl<2>(m_space, m_models, m_mu, m_lambda, x,
+            [this](MaterialModel m) -> const Material<2>& { return m_impl->material<2>(m); });
+    return value_impl<3>(m_space, m_models, m_mu, m_lambda, x,
+        [this](MaterialModel m) -> const Material<3>& { return m_impl->material<3>(m); });
+}
+
+namespace {
+
+    template <int dim, typename MaterialOf>
+    void gradient_impl(const FESpace& space, const std::vector<MaterialModel>& models, const VectorXd& mu,
+        const VectorXd& lambda, const VectorXd& x, double weight, VectorXd& g, MaterialOf material)
+    {
+        constexpr int L = Kernel<dim>::L;
+        const Mesh& mesh = space.mesh();
+        const Index ne = space.num_elements();
+        std::vector<double> local(size_t(ne) * L);
+        tbb::parallel_for(tbb::blocked_range<Index>(0, ne, GRAIN), [&](const tbb::blocked_range<Index>& r) {
+            for (Index e = r.begin(); e < r.end(); ++e) {
+                const auto G = shape<dim>(space, e);
+                const auto F = Kernel<dim>::deformation(G, gather<dim>(mesh, e, x));
+                const auto P = material(models[size_t(e)]).stress(F, mu[e], lambda[e]);
+                Eigen::Map<typename Kernel<dim>::LocalVec>(local.data() + size_t(e) * L)
+                    = Kernel<dim>::gradient(G, P, weight * space.rest_volume(e));
+            }
+        });
+        for (Index e = 0; e < ne; ++e)
+            for (int a = 0; a <= dim; ++a)
+                for (int i = 0; i < dim; ++i)
+                    g[mesh.elements(e, a) * dim + i] += local[size_t(e) * L + size_t(a * dim + i)];
+    }
+
+    template <int dim, typename MaterialOf>
+    void hessian_impl(const FESpace& space, const std::vector<MaterialModel>& models, const VectorXd& mu,
+        const VectorXd& lambda, const VectorXd& x, double weight, bool project, SparseAssembler& H, MaterialOf material)
+    {
+        const Mesh& mesh = space.mesh();
+        for (const auto& color : H.colors())
+            tbb::parallel_for(tbb::blocked_range<size_t>(0, color.size(), 64), [&](const tbb::blocked_range<size_t>& r) {
+                for (size_t k = r.begin(); k < r.end(); ++k) {
+                    const Index e = color[k];
+                    const auto G = shape<dim>(space, e);
+                    const auto F = Kernel<dim>::deformation(G, gather<dim>(mesh, e, x));
+                    typename Kernel<dim>::Tensor A = material(models[size_t(e)]).stress_derivative(F, mu[e], lambda[e]);
+                    if (project)
+                        A = project_psd<dim * dim>(A);
+                    const typename Kernel<dim>::LocalMat Ke = Kernel<dim>::hessian(G, A, weight * space.rest_volume(e));
+                    H.add_element(e, Ke.data());
+                }
+            });
+    }
+
+} // namespace
+
+void ElasticPotential::add_gradient(const VectorXd& x, double weight, VectorXd& g) const
+{
+    if (m_space.dim() == 2)
+        gradient_impl<2>(m_space, m_models, m_mu, m_lambda, x, weight, g,
+            [this](MaterialModel m) -> const Material<2>& { return m_impl->material<2>(m); });
+    else
+        gradient_impl<3>(m_space, m_models, m_mu, m_lambda, x, weight, g,
+            [this](MaterialModel m) -> const Material<3>& { return m_impl->material<3>(m); });
+}
+
+void ElasticPotential::add_hessian(const VectorXd& x, double weight, bool project_to_psd, SparseAssembler& H) const
+{
+    if (m_space.dim() == 2)
+        hessian_impl<2>(m_space, m_models, m_mu, m_lambda, x, weight, project_to_psd, H,
+            [this](MaterialModel m) -> const Material<2>& { return m_impl->material<2>(m); });
+    else
+        hessian_impl<3>(m_space, m_models, m_mu, m_lambda, x, weight, project_to_psd, H,
+            [this](MaterialModel m) -> const Material<3>& { return m_impl->material<3>(m); });
+}
+
+double ElasticPotential::max_step(const VectorXd& x, const VectorXd& p) const
+{
+    return inversion_free_step(m_space.mesh(), x, p, 0.1);
+}
+
+MatrixXd ElasticPotential::element_stresses(const VectorXd& x) const
+{
+    const int d = m_space.dim();
+    MatrixXd S(m_space.num_elements(), d * d);
+    for (Index e = 0; e < m_space.num_elements(); ++e) {
+        if (d == 2) {
+            const auto F = Kernel<2>::deformation(shape<2>(m_space, e), gather<2>(m_space.mesh(), e, x));
+            const Eigen::Matrix2d P = m_impl->material<2>(m_models[size_t(e)]).stress(F, m_mu[e], m_lambda[e]);
+            S.row(e) = Eigen::Map<const Eigen::Matrix<double, 1, 4>>(Eigen::Matrix<double, 2, 2, Eigen::RowMajor>(P).data());
+        } else {
+            const auto F = Kernel<3>::deformation(shape<3>(m_space, e), gather<3>(m_space.mesh(), e, x));
+            const Eigen::Matrix3d P = m_impl->material<3>(m_models[size_t(e)]).stress(F, m_mu[e], m_lambda[e]);
+            S.row(e) = Eigen::Map<const Eigen::Matrix<double, 1, 9>>(Eigen::Matrix<double, 3, 3, Eigen::RowMajor>(P).data());
+        }
+    }
+    return S;
+}
+
+namespace {
+
+    template <int dim> double element_energy_impl(MaterialModel model, const MatrixXd& rest, const MatrixXd& deformed, double mu, double lambda)
+    {
+        const auto data = element_data<dim>(to_local<dim>(rest));
+        const auto F = Kernel<dim>::deformation(data.G, to_local<dim>(deformed));
+        return data.volume * make_material<dim>(model)->energy_density(F, mu, lambda);
+    }
+    template <int dim> VectorXd element_gradient_impl(MaterialModel model, const MatrixXd& rest, const MatrixXd& deformed, double mu, double lambda)
+    {
+        const auto data = element_data<dim>(to_local<dim>(rest));
+        const auto F = Kernel<dim>::deformation(data.G, to_local<dim>(deformed));
+        return Kernel<dim>::gradient(data.G, make_material<dim>(model)->stress(F, mu, lambda), data.volume);
+    }
+    template <int dim> MatrixXd element_hessian_impl(MaterialModel model, const MatrixXd& rest, const MatrixXd& deformed, double mu, double lambda, bool project)
+    {
+        const auto data = element_data<dim>(to_local<dim>(rest));
+        const auto F = Kernel<dim>::deformation(data.G, to_local<dim>(deformed));
+        typename Kernel<dim>::Tensor A = make_material<dim>(model)->stress_derivative(F, mu, lambda);
+        if (project)
+            A = project_psd<dim * dim>(A);
+        return Kernel<dim>::hessian(data.G, A, data.volume);
+    }
+
+} // namespace
+
+double element_energy(MaterialModel model, const MatrixXd& rest, const MatrixXd& deformed, double mu, double lambda)
+{
+    return rest.cols() == 2 ? element_energy_impl<2>(model, rest, deformed, mu, lambda)
+                            : element_energy_impl<3>(model, rest, deformed, mu, lambda);
+}
+VectorXd element_gradient(MaterialModel model, const MatrixXd& rest, const MatrixXd& deformed, double mu, double lambda)
+{
+    return rest.cols() == 2 ? element_gradient_impl<2>(model, rest, deformed, mu, lambda)
+                            : element_gradient_impl<3>(model, rest, deformed, mu, lambda);
+}
+MatrixXd element_hessian(MaterialModel model, const MatrixXd& rest, const MatrixXd& deformed, double mu, double lambda, bool project_to_psd)
+{
+    return rest.cols() == 2 ? element_hessian_impl<2>(model, rest, deformed, mu, lambda, project_to_psd)
+                            : element_hessian_impl<3>(model, rest, deformed, mu, lambda, project_to_psd);
+}
+
+} // namespace diffipc

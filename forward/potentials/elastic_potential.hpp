@@ -1,0 +1,59 @@
+#pragma once
+/// @file elastic_potential.hpp
+/// Total elastic energy Psi(x) = sum_e |e| psi_e(F_e(x)) over P1 elements, each
+/// element with its own material model and Lame parameters.
+
+#include "forward/fem/fe_space.hpp"
+#include "forward/materials/material.hpp"
+#include "forward/potentials/potential.hpp"
+
+#include <memory>
+#include <vector>
+
+namespace diffipc {
+
+class ElasticPotential : public Potential {
+public:
+    /// @param space   P1 space (must outlive the potential)
+    /// @param models  #E material model per element
+    /// @param mu      #E first Lame parameter per element (Pa)
+    /// @param lambda  #E second Lame parameter per element (Pa)
+    ElasticPotential(const FESpace& space, std::vector<MaterialModel> models, VectorXd mu, VectorXd lambda);
+    ~ElasticPotential() override;
+
+    std::string name() const override { return "elastic"; }
+    double value(const VectorXd& x) const override;
+    void add_gradient(const VectorXd& x, double weight, VectorXd& g) const override;
+    void add_hessian(const VectorXd& x, double weight, bool project_to_psd, SparseAssembler& H) const override;
+    /// Inversion bound: no element may lose more than 90% of its volume along the step.
+    double max_step(const VectorXd& x, const VectorXd& p) const override;
+
+    /// @brief Replaces the per-element Lame parameters (#E each).
+    void set_lame_parameters(const VectorXd& mu, const VectorXd& lambda);
+    const VectorXd& mu() const { return m_mu; }
+    const VectorXd& lambda() const { return m_lambda; }
+
+    /// @brief #E by dim*dim first Piola-Kirchhoff stress per element (row-major flattening).
+    MatrixXd element_stresses(const VectorXd& x) const;
+
+private:
+    struct Impl;
+    const FESpace& m_space;
+    std::vector<MaterialModel> m_models;
+    VectorXd m_mu, m_lambda;
+    std::unique_ptr<Impl> m_impl;
+};
+
+/// @name Element-level energy, gradient and Hessian of one P1 element.
+/// @param rest      (dim+1) by dim rest vertex positions (row per vertex)
+/// @param deformed  (dim+1) by dim deformed vertex positions
+/// @param mu, lambda Lame parameters (Pa)
+/// Gradients and Hessians are w.r.t. the deformed positions flattened vertex-major.
+/// @{
+double element_energy(MaterialModel model, const MatrixXd& rest, const MatrixXd& deformed, double mu, double lambda);
+VectorXd element_gradient(MaterialModel model, const MatrixXd& rest, const MatrixXd& deformed, double mu, double lambda);
+MatrixXd element_hessian(MaterialModel model, const MatrixXd& rest, const MatrixXd& deformed, double mu, double lambda,
+    bool project_to_psd);
+/// @}
+
+} // namespace diffipc

@@ -1,0 +1,39 @@
+#pragma once
+/// @file potential.hpp
+/// A potential is one scalar energy term of the incremental potential, a
+/// function of the deformed positions x (flattened vertex-major, #V*dim).
+/// The Problem sums only the potentials a scene needs. Later issues add
+/// contact, friction and parameter derivatives behind the same interface.
+
+#include "forward/common/types.hpp"
+
+#include <string>
+
+namespace diffipc {
+
+class SparseAssembler;
+
+class Potential {
+public:
+    virtual ~Potential() = default;
+    virtual std::string name() const = 0;
+
+    /// @brief Energy at x (J); +inf where undefined (an inverted element).
+    virtual double value(const VectorXd& x) const = 0;
+    /// @brief Adds weight * dE/dx to g (length #V*dim).
+    virtual void add_gradient(const VectorXd& x, double weight, VectorXd& g) const = 0;
+    /// @brief Adds weight * d2E/dx2 into the assembler's pattern; with
+    /// `project_to_psd` each local contribution is made positive semi-definite
+    /// first (the Newton search matrix), without it the true Hessian is added.
+    virtual void add_hessian(const VectorXd& x, double weight, bool project_to_psd, SparseAssembler& H) const = 0;
+    /// @brief Largest t in (0, 1] such that x + s p stays valid for this term
+    /// for all s in [0, t] (1 if this term has no restriction).
+    virtual double max_step(const VectorXd& x, const VectorXd& p) const
+    {
+        (void)x;
+        (void)p;
+        return 1.0;
+    }
+};
+
+} // namespace diffipc

@@ -1,0 +1,339 @@
+#include "forward/scene/scene.hpp"
+
+#include "forward/mesh/gmsh_reader.hpp"
+#include "forward/scene/json_field.hpp"
+
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+namespace diffipc {
+
+std::string to_string(IntegratorType type)
+{
+    switch (type) {
+    case IntegratorType::STATIC:
+        return "static";
+    case IntegratorType::IMPLICIT_EULER:
+        return "implicit_euler";
+    case IntegratorType::BDF2:
+        return "bdf2";
+    case IntegratorType::NEWMARK:
+        return "newmark";
+    }
+    return "unknown";
+}
+
+bool BoxRegion::contains(const Eigen::Ref<const VectorXd>& p, double tolerance) const
+{
+    for (Index a = 0; a < p.size(); ++a)
+        if (p[a] < lower[a] - tolerance || p[a] > upper[a] + tolerance)
+            return false;
+    return true;
+}
+
+namespace {
+
+    namespace fs = std::filesystem;
+
+    MaterialSpec parse_material(const JsonField& f)
+    {
+        f.require_object({ "model", "E", "nu", "density" });
+        MaterialSpec m;
+        m.model = parse_material_model(f["model"].string(), f.path() + ".model");
+        m.youngs_modulus = f["E"].number();
+        if (!(m.youngs_modulus > 0))
+            f["E"].fail("Young's modulus must be positive");
+        m.poisson_ratio = f["nu"].number();
+        if (!(m.poisson_ratio > -1.0 && m.poisson_ratio < 0.5))
+            f["nu"].fail("Poisson's ratio must lie in (-1, 0.5), got " + f["nu"].json().dump());
+        m.density = f["density"].positive();
+        return m;
+    }
+
+    Mesh parse_mesh(const JsonField& f, int dim, const std::string& base_directory, std::string& source)
+    {
+        f.require_object({ "box", "file" });
+        if (f.has("box") == f.has("file"))
+            f.fail("give exactly one of \"box\" or \"file\"");
+        Mesh mesh;
+        if (f.has("box")) {
+            const JsonField box = f["box"];
+            box.require_object({ "min", "max", "cells" });
+            const VectorXd lower = box["min"].vector(dim), upper = box["max"].vector(dim);
+            const VectorXi cells = box["cells"].int_vector(dim, 1);
+            for (int a = 0; a < dim; ++a)
+                if (!(upper[a] > lower[a]))
+                    box["max"].fail("must exceed \"min\" in every component");
+            if (cells.cast<double>().prod() > 5e7)
+                box["cells"].fail("too many cells");
+            source = "box";
+            mesh = box_mesh(dim, lower, upper, cells);
+        } else {
+            fs::path p(f["file"].string());
+            if (p.is_relative())
+                p = fs::path(base_directory) / p;
+            if (!fs::is_regular_file(p))
+                f["file"].fail("cannot open mesh file '" + p.string() + "'");
+            const std::string ext = p.extension().string();
+            if (ext != ".msh")
+                f["file"].fail("unsupported mesh format '" + ext + "' (expected a gmsh .msh file)");
+            source = p.string();
+            mesh = read_gmsh(p.string(), dim);
+        }
+        validate_mesh(mesh, f.path());
+        return mesh;
+    }
+
+    int parse_body_reference(const JsonField& f, const std::vector<BodySpec>& bodies)
+    {
+        if (f.json().is_number_integer()) {
+            const int b = f.integer(0);
+            if (b >= int(bodies.size()))
+                f.fail("body index " + std::to_string(b) + " out of range (" + std::to_string(bodies.size())
+                    + " bodies)");
+            return b;
+        }
+        const std::string name = f.string();
+        for (size_t b = 0; b < bodies.size(); ++b)
+            if (bodies[b].name == name)
+                return int(b);
+        f.fail("no body named '" + name + "'");
+    }
+
+    BoxRegion parse_region(const JsonField& f, int dim)
+    {
+        f.require_object({ "min", "max" });
+        BoxRegion r { f["min"].vector(dim), f["max"].vector(dim) };
+        for (int a = 0; a < dim; ++a)
+            if (r.upper[a] < r.lower[a])
+                f["max"].fail("must not be below \"min\" in any component");
+        return r;
+    }
+
+    Expression parse_expression(const JsonField& f)
+    {
+        if (f.json().is_number())
+            return Expression(f.number());
+        if (f.json().is_string())
+            return Expression(f.string(), f.path());
+        f.fail("expected a number or an expression string");
+    }
+
+} // namespace
+
+Scene parse_scene(const nlohmann::json& document, const std::string& base_directory, const std::string& source)
+{
+    Scene scene;
+    scene.source = source;
+    const JsonField root(document, "");
+    root.require_object(
+        { "dimension", "bodies", "gravity", "dirichlet", "neumann", "time", "mass", "solver", "output", "description" });
+    if (root.has("description"))
+        root["description"].string();
+
+    const JsonField dim_field = root["dimension"];
+    scene.dim = dim_field.integer(2);
+    if (scene.dim != 2 && scene.dim != 3)
+        dim_field.fail("must be 2 or 3");
+    const int dim = scene.dim;
+
+    const JsonField bodies = root["bodies"];
+    bodies.require_array(1);
+    scene.mesh.dim = dim;
+    for (size_t b = 0; b < bodies.size(); ++b) {
+        const JsonField bf = bodies.at(b);
+        bf.require_object({ "name", "mesh", "material", "initial_velocity", "translation" });
+        BodySpec body;
+        body.name = bf.has("name") ? bf["name"].string() : "body" + std::to_string(b);
+        for (const auto& other : scene.bodies)
+            if (other.name == body.name)
+                bf["name"].fail("duplicate body name '" + body.name + "'");
+        body.material = parse_material(bf["material"]);
+        body.initial_velocity = bf.has("initial_velocity") ? bf["initial_velocity"].vector(dim) : VectorXd::Zero(dim);
+        body.translation = bf.has("translation") ? bf["translation"].vector(dim) : VectorXd::Zero(dim);
+        Mesh mesh = parse_mesh(bf["mesh"], dim, base_directory, body.mesh_source);
+        mesh.rest_positions.rowwise() += body.translation.transpose();
+        append_mesh(scene.mesh, mesh, int(b));
+        scene.bodies.push_back(std::move(body));
+    }
+
+    scene.gravity = root.has("gravity") ? root["gravity"].vector(dim) : VectorXd::Zero(dim);
+
+    const Eigen::RowVectorXd extent
+        = scene.mesh.rest_positions.colwise().maxCoeff() - scene.mesh.rest_positions.colwise().minCoeff();
+    const double region_tolerance = 1e-9 * extent.norm();
+
+    if (root.has("dirichlet")) {
+        const JsonField list = root["dirichlet"];
+        list.require_array();
+        for (size_t i = 0; i < list.size(); ++i) {
+            const JsonField f = list.at(i);
+            f.require_object({ "body", "region", "displacement" });
+            DirichletSpec d;
+            d.field = f.path();
+            d.body = parse_body_reference(f["body"], scene.bodies);
+            d.region = parse_region(f["region"], dim);
+            const JsonField disp = f["displacement"];
+            disp.require_array();
+            if (int(disp.size()) != dim)
+                disp.fail("expected " + std::to_string(dim) + " entries (expression, number or null)");
+            bool any = false;
+            for (int a = 0; a < dim; ++a) {
+                const JsonField c = disp.at(size_t(a));
+                if (c.json().is_null())
+                    d.displacement.emplace_back(std::nullopt);
+                else {
+                    d.displacement.emplace_back(parse_expression(c));
+                    any = true;
+                }
+            }
+            if (!any)
+                disp.fail("all components are null: nothing is prescribed");
+            bool selected = false;
+            for (Index v = 0; v < scene.mesh.num_vertices() && !selected; ++v)
+                selected = scene.mesh.vertex_body[v] == d.body
+                    && d.region.contains(scene.mesh.rest_positions.row(v).transpose(), region_tolerance);
+            if (!selected)
+                f["region"].fail("selects no vertex of body '" + scene.bodies[size_t(d.body)].name + "'");
+            scene.dirichlet.push_back(std::move(d));
+        }
+    }
+
+    if (root.has("neumann")) {
+        const JsonField list = root["neumann"];
+        list.require_array();
+        for (size_t i = 0; i < list.size(); ++i) {
+            const JsonField f = list.at(i);
+            f.require_object({ "body", "region", "traction" });
+            NeumannSpec n;
+            n.field = f.path();
+            n.body = parse_body_reference(f["body"], scene.bodies);
+            n.region = parse_region(f["region"], dim);
+            const JsonField tr = f["traction"];
+            tr.require_array();
+            if (int(tr.size()) != dim)
+                tr.fail("expected " + std::to_string(dim) + " entries (expression or number)");
+            for (int a = 0; a < dim; ++a)
+                n.traction.push_back(parse_expression(tr.at(size_t(a))));
+            bool selected = false;
+            for (Index fc = 0; fc < scene.mesh.boundary_facets.rows() && !selected; ++fc) {
+                if (scene.mesh.facet_body[fc] != n.body)
+                    continue;
+                bool inside = true;
+                for (int a = 0; a < dim; ++a)
+                    inside = inside
+                        && n.region.contains(
+                            scene.mesh.rest_positions.row(scene.mesh.boundary_facets(fc, a)).transpose(),
+                            region_tolerance);
+                selected = inside;
+            }
+            if (!selected)
+                f["region"].fail("selects no boundary facet of body '" + scene.bodies[size_t(n.body)].name + "'");
+            scene.neumann.push_back(std::move(n));
+        }
+    }
+
+    const JsonField time = root["time"];
+    time.require_object({ "integrator", "dt", "steps" });
+    {
+        const std::string name = time["integrator"].string();
+        if (name == "static")
+            scene.time.integrator = IntegratorType::STATIC;
+        else if (name == "implicit_euler")
+            scene.time.integrator = IntegratorType::IMPLICIT_EULER;
+        else if (name == "bdf2")
+            scene.time.integrator = IntegratorType::BDF2;
+        else if (name == "newmark")
+            scene.time.integrator = IntegratorType::NEWMARK;
+        else
+            time["integrator"].fail("unknown integrator '" + name + "' (expected static, implicit_euler, bdf2 or newmark)");
+        scene.time.dt = time["dt"].positive();
+        scene.time.steps = time["steps"].integer(1);
+    }
+
+    if (root.has("mass")) {
+        const std::string m = root["mass"].string();
+        if (m == "lumped")
+            scene.mass = MassType::LUMPED;
+        else if (m == "consistent")
+            scene.mass = MassType::CONSISTENT;
+        else
+            root["mass"].fail("expected \"lumped\" or \"consistent\"");
+    }
+
+    if (root.has("solver")) {
+        const JsonField s = root["solver"];
+        s.require_object({ "residual_tolerance", "step_tolerance", "max_iterations", "linear_solver",
+            "line_search_max_halvings", "armijo" });
+        if (s.has("residual_tolerance"))
+            scene.solver.residual_tolerance = s["residual_tolerance"].positive();
+        if (s.has("step_tolerance")) {
+            scene.solver.step_tolerance = s["step_tolerance"].number();
+            if (scene.solver.step_tolerance < 0)
+                s["step_tolerance"].fail("must be >= 0 (0 disables the step criterion)");
+        }
+        if (s.has("max_iterations"))
+            scene.solver.max_iterations = s["max_iterations"].integer(1);
+        if (s.has("line_search_max_halvings"))
+            scene.solver.line_search_max_halvings = s["line_search_max_halvings"].integer(1);
+        if (s.has("armijo")) {
+            scene.solver.armijo = s["armijo"].number();
+            if (!(scene.solver.armijo > 0 && scene.solver.armijo < 0.5))
+                s["armijo"].fail("must lie in (0, 0.5)");
+        }
+        if (s.has("linear_solver")) {
+            const std::string l = s["linear_solver"].string();
+            if (l == "cholmod")
+                scene.solver.linear_solver = LinearSolverType::CHOLMOD;
+            else if (l == "ldlt")
+                scene.solver.linear_solver = LinearSolverType::LDLT;
+            else
+                s["linear_solver"].fail("expected \"cholmod\" or \"ldlt\"");
+        }
+    }
+
+    if (root.has("output")) {
+        const JsonField o = root["output"];
+        o.require_object({ "directory", "vtu_every", "hdf5" });
+        if (o.has("directory"))
+            scene.output.directory = o["directory"].string();
+        if (o.has("vtu_every"))
+            scene.output.vtu_every = o["vtu_every"].integer(0);
+        if (o.has("hdf5"))
+            scene.output.hdf5 = o["hdf5"].boolean();
+    }
+    return scene;
+}
+
+Scene parse_scene_text(const std::string& text, const std::string& base_directory, const std::string& source)
+{
+    nlohmann::json document;
+    try {
+        document = nlohmann::json::parse(text);
+    } catch (const nlohmann::json::parse_error& e) {
+        throw InputError(source, std::string("invalid JSON: ") + e.what());
+    }
+    return parse_scene(document, base_directory, source);
+}
+
+Scene load_scene(const std::string& path)
+{
+    std::ifstream in(path);
+    if (!in)
+        throw InputError(path, "cannot open scene file");
+    std::stringstream ss;
+    ss << in.rdbuf();
+    const std::string base = fs::path(path).parent_path().string();
+    try {
+        return parse_scene_text(ss.str(), base.empty() ? "." : base, path);
+    } catch (const InputError& e) {
+        if (e.field() == path)
+            throw;
+        const std::string what = e.what();
+        const std::string message = e.field().empty() ? what : what.substr(e.field().size() + 2);
+        throw InputError(path + ": " + e.field(), message);
+    }
+}
+
+} // namespace diffipc

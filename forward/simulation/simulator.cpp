@@ -1,0 +1,271 @@
+#include "forward/simulation/simulator.hpp"
+
+#include "forward/common/error.hpp"
+#include "forward/common/timer.hpp"
+
+#include <Eigen/Geometry>
+#include "forward/solver/newton.hpp"
+
+#include <Eigen/SparseCholesky>
+
+#include <cmath>
+
+namespace diffipc {
+
+Simulator::Simulator(Scene scene) : m_scene(std::move(scene))
+{
+    const Mesh& mesh = m_scene.mesh;
+    const int d = mesh.dim;
+    const Index ne = mesh.num_elements(), n = mesh.num_dofs();
+    m_space = std::make_unique<FESpace>(mesh);
+
+    std::vector<MaterialModel> models(static_cast<size_t>(ne));
+    VectorXd mu(ne), lambda(ne), density(ne);
+    double mean_E = 0;
+    for (Index e = 0; e < ne; ++e) {
+        const MaterialSpec& m = m_scene.bodies[size_t(mesh.element_body[e])].material;
+        models[size_t(e)] = m.model;
+        mu[e] = lame_mu(m.youngs_modulus, m.poisson_ratio);
+        lambda[e] = lame_lambda(m.youngs_modulus, m.poisson_ratio);
+        density[e] = m.density;
+        mean_E += m.youngs_modulus / double(ne);
+    }
+    double mean_volume = 0;
+    for (double v : m_space->rest_volumes())
+        mean_volume += v / double(ne);
+    m_force_scale = mean_E * std::pow(mean_volume, double(d - 1) / d);
+    const Eigen::RowVectorXd extent = mesh.rest_positions.colwise().maxCoeff() - mesh.rest_positions.colwise().minCoeff();
+    m_bbox_diagonal = extent.norm();
+
+    m_elastic = std::make_unique<ElasticPotential>(*m_space, models, mu, lambda);
+    m_inertia = std::make_unique<InertiaPotential>(*m_space, density, m_scene.mass == MassType::CONSISTENT);
+    m_external = std::make_unique<ExternalForcePotential>(flatten(mesh.rest_positions));
+    m_integrator = TimeIntegrator::create(m_scene.time.integrator, m_scene.time.dt);
+    const double w = m_integrator->potential_weight();
+    if (m_integrator->dynamic())
+        m_problem.add(m_inertia.get(), 1.0);
+    m_problem.add(m_elastic.get(), w);
+    m_problem.add(m_external.get(), w);
+    m_assembler.build(d, mesh.num_vertices(), mesh.elements);
+    m_linear = std::make_unique<LinearSolver>(m_scene.solver.linear_solver);
+
+    // Dirichlet dofs: later entries override earlier ones on the same dof.
+    const double tol = 1e-9 * m_bbox_diagonal;
+    std::vector<int> owner(size_t(n), -1);
+    for (size_t k = 0; k < m_scene.dirichlet.size(); ++k) {
+        const DirichletSpec& spec = m_scene.dirichlet[k];
+        for (Index v = 0; v < mesh.num_vertices(); ++v) {
+            if (mesh.vertex_body[v] != spec.body || !spec.region.contains(mesh.rest_positions.row(v).transpose(), tol))
+                continue;
+            for (int a = 0; a < d; ++a)
+                if (spec.displacement[size_t(a)])
+                    owner[size_t(v * d + a)] = int(k);
+        }
+    }
+    m_constrained.assign(size_t(n), 0);
+    for (Index i = 0; i < n; ++i) {
+        if (owner[size_t(i)] < 0)
+            continue;
+        m_constrained[size_t(i)] = 1;
+        Eigen::Vector3d rest = Eigen::Vector3d::Zero();
+        rest.head(d) = mesh.rest_positions.row(i / d).transpose();
+        m_dirichlet.push_back({ i, &*m_scene.dirichlet[size_t(owner[size_t(i)])].displacement[size_t(i % d)], rest });
+    }
+
+    // Neumann: boundary facets whose vertices all lie in the region.
+    for (size_t k = 0; k < m_scene.neumann.size(); ++k) {
+        const NeumannSpec& spec = m_scene.neumann[k];
+        for (Index f = 0; f < mesh.boundary_facets.rows(); ++f) {
+            if (mesh.facet_body[f] != spec.body)
+                continue;
+            bool inside = true;
+            Eigen::Vector3d centroid = Eigen::Vector3d::Zero();
+            Eigen::Matrix3d corners = Eigen::Matrix3d::Zero();
+            for (int a = 0; a < d; ++a) {
+                const Index v = mesh.boundary_facets(f, a);
+                inside = inside && spec.region.contains(mesh.rest_positions.row(v).transpose(), tol);
+                corners.col(a).head(d) = mesh.rest_positions.row(v).transpose();
+                centroid += corners.col(a) / d;
+            }
+            if (!inside)
+                continue;
+            const double area = d == 2 ? (corners.col(1) - corners.col(0)).norm()
+                                       : 0.5 * (corners.col(1) - corners.col(0)).cross(corners.col(2) - corners.col(0)).norm();
+            m_loaded_facets.push_back({ f, int(k), area, centroid });
+        }
+    }
+
+    m_gravity_forces = VectorXd::Zero(n);
+    const VectorXd& masses = m_inertia->lumped_masses();
+    for (Index v = 0; v < mesh.num_vertices(); ++v)
+        for (int a = 0; a < d; ++a)
+            m_gravity_forces[v * d + a] = masses[v] * m_scene.gravity[a];
+
+    // Initial state: rest positions with Dirichlet values at t = 0; body
+    // velocities, with the prescribed rate on Dirichlet dofs.
+    VectorXd x0 = flatten(mesh.rest_positions);
+    dirichlet_targets(0.0, x0);
+    VectorXd v0(n);
+    for (Index v = 0; v < mesh.num_vertices(); ++v)
+        v0.segment(v * d, d) = m_scene.bodies[size_t(mesh.vertex_body[v])].initial_velocity;
+    {
+        const double dt = m_scene.time.dt * 1e-3;
+        VectorXd x1 = x0;
+        dirichlet_targets(dt, x1);
+        for (const auto& dd : m_dirichlet)
+            v0[dd.dof] = (x1[dd.dof] - x0[dd.dof]) / dt;
+    }
+    VectorXd a0 = VectorXd::Zero(n);
+    if (m_scene.time.integrator == IntegratorType::NEWMARK && std::isfinite(m_elastic->value(x0))) {
+        // a0 = M^-1 (f_ext(0) - grad Psi(x0)) on free dofs, 0 on Dirichlet dofs.
+        VectorXd f = external_forces(0.0);
+        VectorXd grad = VectorXd::Zero(n);
+        m_elastic->add_gradient(x0, 1.0, grad);
+        f -= grad;
+        if (!m_inertia->consistent()) {
+            for (Index i = 0; i < n; ++i)
+                a0[i] = m_constrained[size_t(i)] ? 0.0 : f[i] / masses[i / d];
+        } else {
+            SparseMatrixd M = m_inertia->consistent_matrix();
+            for (Index k = 0; k < M.outerSize(); ++k)
+                for (SparseMatrixd::InnerIterator it(M, k); it; ++it)
+                    if (m_constrained[size_t(it.row())] || m_constrained[size_t(it.col())])
+                        it.valueRef() = it.row() == it.col() ? 1.0 : 0.0;
+            for (Index i = 0; i < n; ++i)
+                if (m_constrained[size_t(i)])
+                    f[i] = 0;
+            Eigen::SimplicialLDLT<SparseMatrixd> ldlt(M);
+            a0 = ldlt.solve(f);
+        }
+    }
+    m_integrator->initialize(x0, v0, a0);
+    m_trajectory.initial_time = 0;
+    m_trajectory.initial_positions = x0;
+    m_trajectory.initial_velocities = v0;
+    m_trajectory.initial_accelerations = a0;
+}
+
+Simulator::~Simulator() = default;
+
+double Simulator::time() const { return steps_done() * m_scene.time.dt; }
+
+void Simulator::dirichlet_targets(double t, VectorXd& x) const
+{
+    for (const auto& dd : m_dirichlet)
+        x[dd.dof] = dd.rest[dd.dof % m_scene.dim] + (*dd.expression)(t, dd.rest[0], dd.rest[1], dd.rest[2]);
+}
+
+VectorXd Simulator::external_forces(double t) const
+{
+    const int d = m_scene.dim;
+    VectorXd f = m_gravity_forces;
+    for (const auto& lf : m_loaded_facets) {
+        const NeumannSpec& spec = m_scene.neumann[size_t(lf.spec)];
+        for (int c = 0; c < d; ++c) {
+            const double traction = spec.traction[size_t(c)](t, lf.centroid[0], lf.centroid[1], lf.centroid[2]);
+            for (int a = 0; a < d; ++a)
+                f[m_scene.mesh.boundary_facets(lf.facet, a) * d + c] += traction * lf.area / d;
+        }
+    }
+    return f;
+}
+
+void Simulator::set_element_materials(const VectorXd& youngs_modulus, const VectorXd& poisson_ratio)
+{
+    const Index ne = m_space->num_elements();
+    if (steps_done() > 0)
+        throw InputError("materials", "per-element materials can only be set before the first step");
+    if (youngs_modulus.size() != ne || poisson_ratio.size() != ne)
+        throw InputError("materials", "expected " + std::to_string(ne) + " values (one per element)");
+    VectorXd mu(ne), lambda(ne);
+    for (Index e = 0; e < ne; ++e) {
+        if (!(youngs_modulus[e] > 0) || !std::isfinite(youngs_modulus[e]))
+            throw InputError("materials.E[" + std::to_string(e) + "]", "Young's modulus must be positive and finite");
+        if (!(poisson_ratio[e] > -1 && poisson_ratio[e] < 0.5))
+            throw InputError("materials.nu[" + std::to_string(e) + "]", "Poisson's ratio must lie in (-1, 0.5)");
+        mu[e] = lame_mu(youngs_modulus[e], poisson_ratio[e]);
+        lambda[e] = lame_lambda(youngs_modulus[e], poisson_ratio[e]);
+    }
+    m_elastic->set_lame_parameters(mu, lambda);
+}
+
+StepStatus Simulator::step()
+{
+    Timer wall;
+    const int index = steps_done() + 1;
+    const double t_next = index * m_scene.time.dt;
+    const double w = m_integrator->potential_weight();
+    m_problem.set_weight(m_elastic.get(), w);
+    m_problem.set_weight(m_external.get(), w);
+    m_inertia->set_target(m_integrator->inertial_target());
+
+    StepRecord record;
+    record.index = index;
+    record.time = t_next;
+    VectorXd target = m_integrator->positions();
+    try {
+        m_external->set_force(external_forces(t_next));
+        dirichlet_targets(t_next, target);
+    } catch (const InputError& e) {
+        // A boundary expression that is not finite at this time: not committable.
+        record.status = StepStatus::NON_FINITE;
+        m_last_attempt = record;
+        m_trajectory.final_status = record.status;
+        m_trajectory.failed_step = index;
+        m_trajectory.failure_message = e.what();
+        return record.status;
+    }
+
+    NewtonSettings settings;
+    settings.residual_tolerance = m_scene.solver.residual_tolerance;
+    settings.step_tolerance = m_scene.solver.step_tolerance;
+    settings.max_iterations = m_scene.solver.max_iterations;
+    settings.line_search_max_halvings = m_scene.solver.line_search_max_halvings;
+    settings.armijo = m_scene.solver.armijo;
+    const NewtonSolver newton(m_problem, m_assembler, *m_linear, settings);
+
+    VectorXd x = m_integrator->positions();
+    const double step_scale = m_integrator->dynamic() ? m_scene.time.dt : m_bbox_diagonal;
+    const NewtonResult result = newton.solve(x, target, m_constrained, w * m_force_scale, step_scale);
+
+    record.status = result.status;
+    record.newton_iterations = result.iterations;
+    record.residual = result.residual;
+    record.newton_step = result.newton_step;
+    record.linear_fallbacks = result.linear_fallbacks;
+    record.phases = result.times;
+    m_trajectory.phases += result.times;
+    m_trajectory.newton_iterations += result.iterations;
+    if (result.status == StepStatus::CONVERGED) {
+        record.positions = x;
+        m_integrator->update(x, record.velocities, record.accelerations);
+        record.min_volume_ratio = m_space->min_volume_ratio(x);
+        m_integrator->commit(record.positions, record.velocities, record.accelerations);
+    } else {
+        record.min_volume_ratio = m_space->min_volume_ratio(m_integrator->positions());
+        m_trajectory.final_status = result.status;
+        m_trajectory.failed_step = index;
+        m_trajectory.failure_message = "step " + std::to_string(index) + " (t = " + std::to_string(t_next)
+            + " s) failed: " + to_string(result.status) + " after " + std::to_string(result.iterations)
+            + " Newton iterations, residual " + std::to_string(result.residual);
+    }
+    record.wall_time = wall.seconds();
+    m_trajectory.wall_time += record.wall_time;
+    m_last_attempt = record;
+    if (result.status == StepStatus::CONVERGED)
+        m_trajectory.steps.push_back(std::move(record));
+    return result.status;
+}
+
+const Trajectory& Simulator::run(const std::function<void(const StepRecord&)>& progress)
+{
+    while (steps_done() < m_scene.time.steps) {
+        if (step() != StepStatus::CONVERGED)
+            break;
+        if (progress)
+            progress(m_trajectory.steps.back());
+    }
+    return m_trajectory;
+}
+
+} // namespace diffipc

@@ -1,0 +1,97 @@
+#pragma once
+/// @file simulator.hpp
+/// Runs a scene: builds the FE space and the potentials it needs, then takes
+/// transactional time steps (only a converged Newton solve commits).
+
+#include "forward/fem/fe_space.hpp"
+#include "forward/potentials/elastic_potential.hpp"
+#include "forward/potentials/inertia_potential.hpp"
+#include "forward/scene/scene.hpp"
+#include "forward/simulation/step_record.hpp"
+#include "forward/solver/linear_solver.hpp"
+#include "forward/solver/problem.hpp"
+#include "forward/solver/sparse_assembler.hpp"
+#include "forward/time/integrator.hpp"
+
+#include <functional>
+#include <memory>
+
+namespace diffipc {
+
+class Simulator {
+public:
+    explicit Simulator(Scene scene);
+    ~Simulator();
+    Simulator(const Simulator&) = delete;
+    Simulator& operator=(const Simulator&) = delete;
+
+    const Scene& scene() const { return m_scene; }
+    const Mesh& mesh() const { return m_scene.mesh; }
+    const FESpace& space() const { return *m_space; }
+    const Problem& problem() const { return m_problem; }
+    const ElasticPotential& elastic() const { return *m_elastic; }
+
+    /// @brief Attempts the next time step. On CONVERGED the step is committed
+    /// and recorded; otherwise the state is unchanged and the status returned
+    /// (the attempt's diagnostics are in last_attempt()).
+    StepStatus step();
+    /// @brief Runs the remaining steps, stopping at the first failure.
+    /// @param progress called after every committed step
+    const Trajectory& run(const std::function<void(const StepRecord&)>& progress = {});
+
+    const Trajectory& trajectory() const { return m_trajectory; }
+    const StepRecord& last_attempt() const { return m_last_attempt; }
+    int steps_done() const { return int(m_trajectory.steps.size()); }
+    double time() const;
+
+    /// Current committed positions, velocities (flattened #V*dim).
+    const VectorXd& positions() const { return m_integrator->positions(); }
+    const VectorXd& velocities() const { return m_integrator->velocities(); }
+
+    /// Force scale (N) of the residual: mean E times mean element volume^((d-1)/d).
+    double force_scale() const { return m_force_scale; }
+    /// Nodal external forces (gravity + tractions) at time t, flattened.
+    VectorXd external_forces(double t) const;
+    /// Dirichlet flags per dof.
+    const std::vector<char>& constrained() const { return m_constrained; }
+
+    /// @brief Per-element Young's modulus and Poisson's ratio (#E each);
+    /// only before the first step.
+    void set_element_materials(const VectorXd& youngs_modulus, const VectorXd& poisson_ratio);
+
+private:
+    void dirichlet_targets(double t, VectorXd& x) const;
+
+    Scene m_scene;
+    std::unique_ptr<FESpace> m_space;
+    std::unique_ptr<ElasticPotential> m_elastic;
+    std::unique_ptr<InertiaPotential> m_inertia;
+    std::unique_ptr<ExternalForcePotential> m_external;
+    Problem m_problem;
+    SparseAssembler m_assembler;
+    std::unique_ptr<LinearSolver> m_linear;
+    std::unique_ptr<TimeIntegrator> m_integrator;
+
+    struct DirichletDof {
+        Index dof;
+        const Expression* expression;
+        Eigen::Vector3d rest;
+    };
+    std::vector<DirichletDof> m_dirichlet;
+    std::vector<char> m_constrained;
+    struct LoadedFacet {
+        Index facet;
+        int spec;
+        double area;
+        Eigen::Vector3d centroid;
+    };
+    std::vector<LoadedFacet> m_loaded_facets;
+    VectorXd m_gravity_forces;
+    double m_force_scale = 1;
+    double m_bbox_diagonal = 1;
+
+    Trajectory m_trajectory;
+    StepRecord m_last_attempt;
+};
+
+} // namespace diffipc

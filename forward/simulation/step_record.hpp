@@ -1,0 +1,45 @@
+#pragma once
+/// @file step_record.hpp
+/// What a committed time step leaves behind for output and, later, for the
+/// adjoint: the converged state and the solver's diagnostics. Contact and
+/// friction issues extend it with their active sets and lagged data.
+
+#include "forward/common/types.hpp"
+#include "forward/solver/status.hpp"
+
+#include <string>
+#include <vector>
+
+namespace diffipc {
+
+struct StepRecord {
+    int index = 0;      ///< 1-based step number
+    double time = 0;    ///< t_{n+1} (s)
+    VectorXd positions; ///< #V*dim deformed positions x_{n+1} (m), flattened vertex-major
+    VectorXd velocities;    ///< #V*dim (m/s)
+    VectorXd accelerations; ///< #V*dim (m/s^2); the scheme's a_{n+1} (exact for Newmark)
+    StepStatus status = StepStatus::CONVERGED;
+    int newton_iterations = 0;
+    double residual = 0;    ///< force residual relative to the force scale (docs/math.md)
+    double newton_step = 0; ///< last Newton step (m/s dynamic, relative to bbox static)
+    double min_volume_ratio = 1; ///< min over elements of volume / rest volume
+    double wall_time = 0;   ///< s
+    int linear_fallbacks = 0;
+    PhaseTimes phases;
+};
+
+/// A run: the initial state and every committed step, in order.
+struct Trajectory {
+    double initial_time = 0;
+    VectorXd initial_positions, initial_velocities, initial_accelerations;
+    std::vector<StepRecord> steps;
+    /// CONVERGED if every attempted step converged; otherwise the status of the failed step.
+    StepStatus final_status = StepStatus::CONVERGED;
+    int failed_step = 0; ///< index of the step that failed (0: none)
+    std::string failure_message;
+    PhaseTimes phases;
+    double wall_time = 0;
+    int newton_iterations = 0;
+};
+
+} // namespace diffipc

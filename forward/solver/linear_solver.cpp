@@ -1,0 +1,51 @@
+#include "forward/solver/linear_solver.hpp"
+
+#include "forward/scene/scene.hpp"
+
+#include <Eigen/CholmodSupport>
+
+namespace diffipc {
+
+struct LinearSolver::Impl {
+    Eigen::CholmodSupernodalLLT<SparseMatrixd, Eigen::Lower> llt;
+    Eigen::CholmodSimplicialLDLT<SparseMatrixd, Eigen::Lower> ldlt;
+    bool llt_analyzed = false, ldlt_analyzed = false, last_ldlt = false;
+};
+
+LinearSolver::LinearSolver(LinearSolverType type) : m_impl(std::make_unique<Impl>()), m_type(type) {}
+LinearSolver::~LinearSolver() = default;
+
+bool LinearSolver::factorize(const SparseMatrixd& A)
+{
+    m_used_fallback = false;
+    if (m_type == LinearSolverType::CHOLMOD) {
+        if (!m_impl->llt_analyzed) {
+            m_impl->llt.analyzePattern(A);
+            m_impl->llt_analyzed = true;
+            ++m_analyses;
+        }
+        m_impl->llt.factorize(A);
+        if (m_impl->llt.info() == Eigen::Success) {
+            m_impl->last_ldlt = false;
+            return true;
+        }
+        m_used_fallback = true;
+    }
+    if (!m_impl->ldlt_analyzed) {
+        m_impl->ldlt.analyzePattern(A);
+        m_impl->ldlt_analyzed = true;
+        ++m_analyses;
+    }
+    m_impl->ldlt.factorize(A);
+    m_impl->last_ldlt = true;
+    return m_impl->ldlt.info() == Eigen::Success;
+}
+
+VectorXd LinearSolver::solve(const VectorXd& b) const
+{
+    if (m_impl->last_ldlt)
+        return m_impl->ldlt.solve(b);
+    return m_impl->llt.solve(b);
+}
+
+} // namespace diffipc

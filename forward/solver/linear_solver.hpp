@@ -1,0 +1,38 @@
+#pragma once
+/// @file linear_solver.hpp
+/// Sparse symmetric solves for Newton: CHOLMOD supernodal Cholesky with the
+/// symbolic analysis done once for the fixed pattern and reused across
+/// iterations and time steps; if the numeric Cholesky fails (matrix not
+/// positive definite) CHOLMOD's LDL^T is tried on the same pattern.
+
+#include "forward/common/types.hpp"
+
+#include <memory>
+
+namespace diffipc {
+
+enum class LinearSolverType;
+
+class LinearSolver {
+public:
+    explicit LinearSolver(LinearSolverType type);
+    ~LinearSolver();
+
+    /// @brief Numeric factorization of the lower triangle of A (symbolic
+    /// analysis on the first call only). Returns false on breakdown.
+    bool factorize(const SparseMatrixd& A);
+    /// @brief Solves A x = b with the last successful factorization.
+    VectorXd solve(const VectorXd& b) const;
+    /// True if the last factorization had to fall back to LDL^T.
+    bool used_fallback() const { return m_used_fallback; }
+    int analyses() const { return m_analyses; }
+
+private:
+    struct Impl;
+    std::unique_ptr<Impl> m_impl;
+    LinearSolverType m_type;
+    bool m_used_fallback = false;
+    int m_analyses = 0;
+};
+
+} // namespace diffipc

@@ -1,0 +1,139 @@
+#include "forward/solver/newton.hpp"
+
+#include "forward/common/timer.hpp"
+
+#include <cmath>
+
+namespace diffipc {
+
+NewtonResult NewtonSolver::solve(VectorXd& x, const VectorXd& target, const std::vector<char>& constrained,
+    double force_scale, double step_scale) const
+{
+    NewtonResult result;
+    const Index n = x.size();
+    VectorXd g(n), p(n), rhs(n), pD(n);
+
+    double energy;
+    {
+        Timer t;
+        energy = m_problem.energy(x);
+        t.add_to(result.times.line_search);
+    }
+    if (!std::isfinite(energy)) {
+        result.status = StepStatus::INVALID_INITIAL_STATE;
+        return result;
+    }
+
+    for (int it = 0;; ++it) {
+        {
+            Timer t;
+            m_problem.gradient(x, g);
+            t.add_to(result.times.assembly);
+        }
+        if (!g.allFinite()) {
+            result.status = StepStatus::NON_FINITE;
+            return result;
+        }
+        double gmax = 0, dmax = 0;
+        for (Index i = 0; i < n; ++i) {
+            if (constrained[size_t(i)]) {
+                pD[i] = target[i] - x[i];
+                dmax = std::max(dmax, std::abs(pD[i]));
+            } else {
+                pD[i] = 0;
+                gmax = std::max(gmax, std::abs(g[i]));
+            }
+        }
+        const bool lifting = dmax > 0;
+        result.residual = gmax / force_scale;
+        if (!lifting && result.residual <= m_settings.residual_tolerance
+            && (m_settings.step_tolerance <= 0 || it == 0 || result.newton_step <= m_settings.step_tolerance)) {
+            result.status = StepStatus::CONVERGED;
+            return result;
+        }
+        if (it >= m_settings.max_iterations) {
+            result.status = StepStatus::NEWTON_EXHAUSTED;
+            return result;
+        }
+
+        {
+            Timer t;
+            m_problem.hessian(x, /*project_to_psd=*/true, m_assembler);
+            rhs = -g;
+            if (lifting) {
+                // Free rows see the coupling to the prescribed motion: -(g_F + H_FD p_D).
+                const VectorXd coupling = m_assembler.matrix().selfadjointView<Eigen::Lower>() * pD;
+                rhs -= coupling;
+            }
+            for (Index i = 0; i < n; ++i)
+                if (constrained[size_t(i)])
+                    rhs[i] = pD[i];
+            m_assembler.apply_constraints(constrained);
+            t.add_to(result.times.assembly);
+        }
+        {
+            Timer t;
+            const bool ok = m_linear.factorize(m_assembler.matrix());
+            t.add_to(result.times.factorization);
+            result.linear_fallbacks += m_linear.used_fallback();
+            if (!ok) {
+                result.status = StepStatus::LINEAR_BREAKDOWN;
+                return result;
+            }
+        }
+        {
+            Timer t;
+            p = m_linear.solve(rhs);
+            t.add_to(result.times.solve);
+        }
+        if (!p.allFinite()) {
+            result.status = StepStatus::LINEAR_BREAKDOWN;
+            return result;
+        }
+        double slope = g.dot(p);
+        if (!lifting && !(slope < 0)) {
+            // An indefinite LDL^T can return an ascent direction: use the negative gradient instead.
+            for (Index i = 0; i < n; ++i)
+                p[i] = constrained[size_t(i)] ? 0.0 : -g[i];
+            slope = g.dot(p);
+            ++result.gradient_steps;
+        }
+
+        Timer ls;
+        double alpha = std::min(1.0, m_problem.max_step(x, p));
+        bool accepted = false;
+        double new_energy = energy;
+        VectorXd trial(n);
+        // Differences below this are round-off in the energy sum.
+        const double roundoff = 1e-13 * std::abs(energy);
+        for (int h = 0; h <= m_settings.line_search_max_halvings && alpha > 0; ++h, alpha *= 0.5) {
+            trial = x + alpha * p;
+            new_energy = m_problem.energy(trial);
+            if (!std::isfinite(new_energy))
+                continue;
+            if (lifting || new_energy <= energy + m_settings.armijo * alpha * slope + roundoff) {
+                accepted = true;
+                break;
+            }
+        }
+        ls.add_to(result.times.line_search);
+        if (!accepted) {
+            result.status = StepStatus::LINE_SEARCH_EXHAUSTED;
+            return result;
+        }
+        result.newton_step = alpha * p.lpNorm<Eigen::Infinity>() / step_scale;
+        x = trial;
+        if (lifting && alpha >= 1.0) {
+            // x_D + (target - x_D) need not round to target: snap so lifting ends exactly.
+            for (Index i = 0; i < n; ++i)
+                if (constrained[size_t(i)])
+                    x[i] = target[i];
+            energy = m_problem.energy(x);
+        } else {
+            energy = new_energy;
+        }
+        result.iterations = it + 1;
+    }
+}
+
+} // namespace diffipc

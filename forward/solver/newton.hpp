@@ -1,0 +1,57 @@
+#pragma once
+/// @file newton.hpp
+/// Projected Newton on the incremental potential with Dirichlet lifting,
+/// inversion-bounded backtracking line search and separate convergence measures.
+
+#include "forward/solver/linear_solver.hpp"
+#include "forward/solver/problem.hpp"
+#include "forward/solver/status.hpp"
+
+#include <vector>
+
+namespace diffipc {
+
+struct NewtonSettings {
+    double residual_tolerance = 1e-8;
+    double step_tolerance = 0; ///< 0: not used
+    int max_iterations = 100;
+    int line_search_max_halvings = 40;
+    double armijo = 1e-4;
+};
+
+struct NewtonResult {
+    StepStatus status = StepStatus::NEWTON_EXHAUSTED;
+    int iterations = 0;        ///< Newton steps taken
+    double residual = 0;       ///< max |free-dof gradient| / force scale, at the last iterate
+    double newton_step = 0;    ///< max |last step| / step scale
+    int linear_fallbacks = 0;  ///< factorizations that needed LDL^T
+    int gradient_steps = 0;    ///< iterations that fell back to the negative gradient
+    PhaseTimes times;
+};
+
+class NewtonSolver {
+public:
+    NewtonSolver(const Problem& problem, SparseAssembler& assembler, LinearSolver& linear, NewtonSettings settings)
+        : m_problem(problem), m_assembler(assembler), m_linear(linear), m_settings(settings)
+    {
+    }
+
+    /// @brief Minimizes the problem's energy over the free dofs, moving the
+    /// constrained dofs to their targets first ("lifting" iterations whose
+    /// step is only bounded, not Armijo-tested, since the constraint changes).
+    /// @param x           in: start (feasible); out: last iterate
+    /// @param target      #dofs, target values of the constrained dofs
+    /// @param constrained #dofs flags
+    /// @param force_scale the residual is max|g_free| / force_scale
+    /// @param step_scale  the Newton step is max|alpha p| / step_scale
+    NewtonResult solve(VectorXd& x, const VectorXd& target, const std::vector<char>& constrained, double force_scale,
+        double step_scale) const;
+
+private:
+    const Problem& m_problem;
+    SparseAssembler& m_assembler;
+    LinearSolver& m_linear;
+    NewtonSettings m_settings;
+};
+
+} // namespace diffipc

@@ -1,0 +1,60 @@
+#include "forward/solver/problem.hpp"
+
+#include <algorithm>
+#include <stdexcept>
+
+namespace diffipc {
+
+void Problem::set_weight(const Potential* potential, double weight)
+{
+    for (auto& t : m_terms)
+        if (t.potential == potential) {
+            t.weight = weight;
+            return;
+        }
+    throw std::logic_error("Problem::set_weight: potential not in the problem");
+}
+
+double Problem::weight(const Potential* potential) const
+{
+    for (const auto& t : m_terms)
+        if (t.potential == potential)
+            return t.weight;
+    return 0.0;
+}
+
+double Problem::energy(const VectorXd& x) const
+{
+    double e = 0;
+    for (const auto& t : m_terms)
+        if (t.weight != 0)
+            e += t.weight * t.potential->value(x);
+    return e;
+}
+
+void Problem::gradient(const VectorXd& x, VectorXd& g) const
+{
+    g.setZero(x.size());
+    for (const auto& t : m_terms)
+        if (t.weight != 0)
+            t.potential->add_gradient(x, t.weight, g);
+}
+
+void Problem::hessian(const VectorXd& x, bool project_to_psd, SparseAssembler& H) const
+{
+    H.set_zero();
+    for (const auto& t : m_terms)
+        if (t.weight != 0)
+            t.potential->add_hessian(x, t.weight, project_to_psd, H);
+}
+
+double Problem::max_step(const VectorXd& x, const VectorXd& p) const
+{
+    double s = 1.0;
+    for (const auto& t : m_terms)
+        if (t.weight != 0)
+            s = std::min(s, t.potential->max_step(x, p));
+    return s;
+}
+
+} // namespace diffipc

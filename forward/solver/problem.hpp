@@ -1,0 +1,37 @@
+#pragma once
+/// @file problem.hpp
+/// The incremental potential of one time step as a weighted sum of the
+/// potentials the scene needs: E(x) = sum_k w_k E_k(x). The time integrator
+/// sets the weights (1 for inertia, c h^2 for the rest; 1 for all in a static solve).
+
+#include "forward/potentials/potential.hpp"
+#include "forward/solver/sparse_assembler.hpp"
+
+#include <vector>
+
+namespace diffipc {
+
+class Problem {
+public:
+    void add(Potential* potential, double weight) { m_terms.push_back({ potential, weight }); }
+    void set_weight(const Potential* potential, double weight);
+    double weight(const Potential* potential) const;
+
+    double energy(const VectorXd& x) const;
+    void gradient(const VectorXd& x, VectorXd& g) const;
+    /// Assembles the (projected or true) Hessian into H's fixed pattern (H is zeroed first).
+    void hessian(const VectorXd& x, bool project_to_psd, SparseAssembler& H) const;
+    /// Largest admissible step along p, the minimum over the potentials.
+    double max_step(const VectorXd& x, const VectorXd& p) const;
+
+    struct Term {
+        Potential* potential;
+        double weight;
+    };
+    const std::vector<Term>& terms() const { return m_terms; }
+
+private:
+    std::vector<Term> m_terms;
+};
+
+} // namespace diffipc

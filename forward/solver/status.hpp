@@ -1,0 +1,58 @@
+#pragma once
+#include <string>
+
+namespace diffipc {
+
+/// Outcome of one time step. Only CONVERGED commits; every other value leaves
+/// the committed state untouched. Values are stable: they are written to HDF5.
+enum class StepStatus {
+    CONVERGED = 0,
+    INVALID_INITIAL_STATE = 1, ///< start of the step infeasible (inverted element, non-finite energy)
+    CCD_UNRESOLVED = 2,        ///< reserved for contact
+    LINEAR_BREAKDOWN = 3,      ///< Cholesky and LDL^T both failed, or a non-finite solution
+    LINE_SEARCH_EXHAUSTED = 4, ///< no acceptable step length along the direction
+    NEWTON_EXHAUSTED = 5,      ///< iteration cap reached before convergence
+    FRICTION_EXHAUSTED = 6,    ///< reserved for friction lagging
+    NON_FINITE = 7,            ///< a non-finite gradient or energy appeared during the solve
+};
+
+inline std::string to_string(StepStatus s)
+{
+    switch (s) {
+    case StepStatus::CONVERGED:
+        return "CONVERGED";
+    case StepStatus::INVALID_INITIAL_STATE:
+        return "INVALID_INITIAL_STATE";
+    case StepStatus::CCD_UNRESOLVED:
+        return "CCD_UNRESOLVED";
+    case StepStatus::LINEAR_BREAKDOWN:
+        return "LINEAR_BREAKDOWN";
+    case StepStatus::LINE_SEARCH_EXHAUSTED:
+        return "LINE_SEARCH_EXHAUSTED";
+    case StepStatus::NEWTON_EXHAUSTED:
+        return "NEWTON_EXHAUSTED";
+    case StepStatus::FRICTION_EXHAUSTED:
+        return "FRICTION_EXHAUSTED";
+    case StepStatus::NON_FINITE:
+        return "NON_FINITE";
+    }
+    return "UNKNOWN";
+}
+
+/// Wall time (s) per solver phase.
+struct PhaseTimes {
+    double assembly = 0;      ///< gradient and Hessian assembly
+    double factorization = 0; ///< numeric factorization (symbolic analysis included on first use)
+    double solve = 0;         ///< triangular solves
+    double line_search = 0;   ///< energy evaluations and the step bound
+    PhaseTimes& operator+=(const PhaseTimes& o)
+    {
+        assembly += o.assembly;
+        factorization += o.factorization;
+        solve += o.solve;
+        line_search += o.line_search;
+        return *this;
+    }
+};
+
+} // namespace diffipc

@@ -1,0 +1,47 @@
+#pragma once
+/// @file integrator.hpp
+/// Time integrators as incremental potentials (docs/math.md):
+/// E(x) = 1/2 (x - x~)^T M (x - x~) + c h^2 [Psi(x) - f^T (x - X)].
+/// Each integrator gives x~ and c h^2 from its history, and the velocity (and
+/// acceleration) at a new position. Static drops inertia (weight 1 on the rest).
+
+#include "forward/common/types.hpp"
+#include "forward/scene/scene.hpp"
+
+#include <memory>
+
+namespace diffipc {
+
+class TimeIntegrator {
+public:
+    virtual ~TimeIntegrator() = default;
+    static std::unique_ptr<TimeIntegrator> create(IntegratorType type, double dt);
+
+    virtual IntegratorType type() const = 0;
+    bool dynamic() const { return type() != IntegratorType::STATIC; }
+    double dt() const { return m_dt; }
+
+    /// @brief Sets the state at t0: positions, velocities, accelerations (flattened).
+    virtual void initialize(const VectorXd& x0, const VectorXd& v0, const VectorXd& a0);
+    /// Inertial target x~ for the next step.
+    virtual VectorXd inertial_target() const = 0;
+    /// Weight c h^2 of the non-inertial potentials (1 for static).
+    virtual double potential_weight() const = 0;
+    /// @brief Velocity and acceleration that the scheme assigns to x_next.
+    virtual void update(const VectorXd& x_next, VectorXd& v_next, VectorXd& a_next) const = 0;
+    /// @brief Shifts the history after a committed step.
+    virtual void commit(const VectorXd& x_next, const VectorXd& v_next, const VectorXd& a_next);
+
+    const VectorXd& positions() const { return m_x; }
+    const VectorXd& velocities() const { return m_v; }
+    const VectorXd& accelerations() const { return m_a; }
+
+protected:
+    explicit TimeIntegrator(double dt) : m_dt(dt) {}
+    double m_dt;
+    VectorXd m_x, m_v, m_a;
+    VectorXd m_x_prev, m_v_prev;
+    int m_steps = 0;
+};
+
+} // namespace diffipc
