@@ -199,8 +199,9 @@ nlohmann::json summary_json(const Simulator& simulator)
         { "dofs", simulator.mesh().num_dofs() }, { "bodies", simulator.scene().bodies.size() },
         { "newton_iterations", tr.newton_iterations } };
     double min_ratio = 1, max_residual = 0;
-    int fallbacks = 0;
+    int fallbacks = 0, roundoff = 0;
     for (const auto& s : tr.steps) {
+        roundoff += s.roundoff_limited;
         min_ratio = std::min(min_ratio, s.min_volume_ratio);
         max_residual = std::max(max_residual, s.residual);
         fallbacks += s.linear_fallbacks;
@@ -208,6 +209,7 @@ nlohmann::json summary_json(const Simulator& simulator)
     j["min_volume_ratio"] = min_ratio;
     j["max_residual"] = max_residual;
     j["linear_fallbacks"] = fallbacks;
+    j["roundoff_limited_steps"] = roundoff;
     j["wall_time"] = { { "total", tr.wall_time }, { "assembly", tr.phases.assembly },
         { "factorization", tr.phases.factorization }, { "solve", tr.phases.solve },
         { "line_search", tr.phases.line_search } };

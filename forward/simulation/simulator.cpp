@@ -233,6 +233,7 @@ StepStatus Simulator::step()
     record.residual = result.residual;
     record.newton_step = result.newton_step;
     record.linear_fallbacks = result.linear_fallbacks;
+    record.roundoff_limited = result.roundoff_limited;
     record.phases = result.times;
     m_trajectory.phases += result.times;
     m_trajectory.newton_iterations += result.iterations;

@@ -25,6 +25,9 @@ struct StepRecord {
     double min_volume_ratio = 1; ///< min over elements of volume / rest volume
     double wall_time = 0;   ///< s
     int linear_fallbacks = 0;
+    /// Newton stopped because its step fell below the round-off of x while the
+    /// residual was above tolerance (the residual is then at its floor).
+    bool roundoff_limited = false;
     PhaseTimes phases;
 };
 

@@ -3,8 +3,14 @@
 #include "forward/common/timer.hpp"
 
 #include <cmath>
+#include <limits>
 
 namespace diffipc {
+
+namespace {
+    constexpr double ROUNDOFF_STEP = 128 * std::numeric_limits<double>::epsilon();
+    constexpr double ENERGY_RESOLUTION = 1e-10;
+}
 
 NewtonResult NewtonSolver::solve(VectorXd& x, const VectorXd& target, const std::vector<char>& constrained,
     double force_scale, double step_scale) const
@@ -90,6 +96,14 @@ NewtonResult NewtonSolver::solve(VectorXd& x, const VectorXd& target, const std:
             result.status = StepStatus::LINEAR_BREAKDOWN;
             return result;
         }
+        if (!lifting && p.lpNorm<Eigen::Infinity>() <= ROUNDOFF_STEP * x.lpNorm<Eigen::Infinity>()) {
+            // The remaining correction is within a few hundred ulps of the positions:
+            // the residual is at its round-off floor (a tiny dt makes M (x - x~) / h^2
+            // dominate it), and further iterations cannot improve x.
+            result.status = StepStatus::CONVERGED;
+            result.roundoff_limited = true;
+            return result;
+        }
         double slope = g.dot(p);
         if (!lifting && !(slope < 0)) {
             // An indefinite LDL^T can return an ascent direction: use the negative gradient instead.
@@ -106,6 +120,9 @@ NewtonResult NewtonSolver::solve(VectorXd& x, const VectorXd& target, const std:
         VectorXd trial(n);
         // Differences below this are round-off in the energy sum.
         const double roundoff = 1e-13 * std::abs(energy);
+        // Near the solution the predicted decrease can drop below what the energy
+        // sum resolves; there a full step is judged by the free-dof gradient instead.
+        const bool unresolvable = !lifting && std::abs(alpha * slope) < ENERGY_RESOLUTION * std::abs(energy);
         for (int h = 0; h <= m_settings.line_search_max_halvings && alpha > 0; ++h, alpha *= 0.5) {
             trial = x + alpha * p;
             new_energy = m_problem.energy(trial);
@@ -114,6 +131,19 @@ NewtonResult NewtonSolver::solve(VectorXd& x, const VectorXd& target, const std:
             if (lifting || new_energy <= energy + m_settings.armijo * alpha * slope + roundoff) {
                 accepted = true;
                 break;
+            }
+            if (unresolvable && h == 0) {
+                VectorXd g_trial(n);
+                m_problem.gradient(trial, g_trial);
+                double trial_max = 0;
+                for (Index i = 0; i < n; ++i)
+                    if (!constrained[size_t(i)])
+                        trial_max = std::max(trial_max, std::abs(g_trial[i]));
+                if (g_trial.allFinite() && trial_max < 0.5 * gmax) {
+                    accepted = true;
+                    result.roundoff_limited = true;
+                    break;
+                }
             }
         }
         ls.add_to(result.times.line_search);

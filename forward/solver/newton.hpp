@@ -26,6 +26,9 @@ struct NewtonResult {
     double newton_step = 0;    ///< max |last step| / step scale
     int linear_fallbacks = 0;  ///< factorizations that needed LDL^T
     int gradient_steps = 0;    ///< iterations that fell back to the negative gradient
+    /// Converged because the full Newton step fell below the round-off of x
+    /// while the residual was still above its tolerance.
+    bool roundoff_limited = false;
     PhaseTimes times;
 };
 
