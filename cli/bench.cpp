@@ -20,14 +20,15 @@ namespace {
         nlohmann::json scene;
     };
 
-    nlohmann::json beam(int dim, const std::string& model, std::vector<int> cells, std::vector<double> extent, int steps)
+    nlohmann::json beam(int dim, const std::string& model, std::vector<int> cells, std::vector<double> extent, int steps,
+        double E = 1e6, double dt = 0.01)
     {
         nlohmann::json s;
         s["dimension"] = dim;
         std::vector<double> lo(size_t(dim), 0.0);
         s["bodies"] = { { { "name", "beam" },
             { "mesh", { { "box", { { "min", lo }, { "max", extent }, { "cells", cells } } } } },
-            { "material", { { "model", model }, { "E", 1e6 }, { "nu", 0.3 }, { "density", 1000 } } } } };
+            { "material", { { "model", model }, { "E", E }, { "nu", 0.3 }, { "density", 1000 } } } } };
         std::vector<double> g(size_t(dim), 0.0);
         g[1] = -9.81;
         s["gravity"] = g;
@@ -36,7 +37,7 @@ namespace {
         rmax[0] = 1e-9;
         std::vector<nlohmann::json> zero(size_t(dim), 0);
         s["dirichlet"] = { { { "body", "beam" }, { "region", { { "min", rmin }, { "max", rmax } } }, { "displacement", zero } } };
-        s["time"] = { { "integrator", "implicit_euler" }, { "dt", 0.01 }, { "steps", steps } };
+        s["time"] = { { "integrator", "implicit_euler" }, { "dt", dt }, { "steps", steps } };
         s["solver"] = { { "residual_tolerance", 1e-6 } };
         return s;
     }
@@ -50,6 +51,9 @@ int run_bench(const BenchOptions& options)
     if (full) {
         // 40 x 14 x 15 cubes, 6 tets each: 50,400 tetrahedra.
         scenes.push_back({ "3d-beam-50k-neo_hookean", beam(3, "neo_hookean", { 40, 14, 15 }, { 4.0, 1.4, 1.5 }, options.steps) });
+        // Soft and with large steps: large rotations, many elements need PSD projection.
+        scenes.push_back({ "3d-beam-50k-neo_hookean-large-deformation",
+            beam(3, "neo_hookean", { 40, 14, 15 }, { 4.0, 1.4, 1.5 }, options.steps, 2e4, 0.1) });
         scenes.push_back({ "2d-beam-20k-neo_hookean", beam(2, "neo_hookean", { 200, 50 }, { 4.0, 1.0 }, options.steps) });
     } else {
         scenes.push_back({ "3d-beam-2k-neo_hookean", beam(3, "neo_hookean", { 12, 5, 6 }, { 4.0, 1.4, 1.5 }, options.steps) });

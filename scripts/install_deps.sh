@@ -8,7 +8,7 @@ PACKAGES=(
   libhdf5-dev libtbb-dev
   nlohmann-json3-dev libcli11-dev libspdlog-dev libfmt-dev libmuparser-dev
   libgtest-dev libgmock-dev libbenchmark-dev
-  pybind11-dev python3-dev python3-numpy python3-pytest python3-h5py python3-scipy
+  pybind11-dev python3-dev python3-numpy python3-pytest python3-h5py python3-scipy python3-meshio
 )
 
 missing=()

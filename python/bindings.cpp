@@ -1,0 +1,150 @@
+// pybind11 bindings: scenes from files or dicts, simulation with numpy
+// trajectories, and element-level energy/gradient/Hessian for testing.
+// InputError becomes ValueError with the message naming the field.
+
+#include "forward/common/error.hpp"
+#include "forward/io/output.hpp"
+#include "forward/potentials/elastic_potential.hpp"
+#include "forward/scene/scene.hpp"
+#include "forward/simulation/simulator.hpp"
+
+#include <nlohmann/json.hpp>
+#include <pybind11/eigen.h>
+#include <pybind11/functional.h>
+#include <pybind11/numpy.h>
+#include <pybind11/pybind11.h>
+#include <pybind11/stl.h>
+
+namespace py = pybind11;
+using namespace diffipc;
+
+namespace {
+
+/// [T+1, N, d] array from the initial state and a per-step member.
+py::array_t<double> stack(const Trajectory& tr, const VectorXd& initial, VectorXd StepRecord::*member, int dim)
+{
+    const ssize_t T = ssize_t(tr.steps.size()), N = ssize_t(initial.size() / dim);
+    py::array_t<double> out({ T + 1, N, ssize_t(dim) });
+    double* p = out.mutable_data();
+    std::copy(initial.data(), initial.data() + initial.size(), p);
+    for (ssize_t k = 0; k < T; ++k) {
+        const VectorXd& v = tr.steps[size_t(k)].*member;
+        if (v.size() == initial.size())
+            std::copy(v.data(), v.data() + v.size(), p + (k + 1) * N * dim);
+        else
+            std::fill(p + (k + 1) * N * dim, p + (k + 2) * N * dim, 0.0);
+    }
+    return out;
+}
+
+template <typename T, typename F> py::array_t<T> per_step(const Trajectory& tr, F f)
+{
+    py::array_t<T> out(ssize_t(tr.steps.size()));
+    for (size_t k = 0; k < tr.steps.size(); ++k)
+        out.mutable_data()[k] = f(tr.steps[k]);
+    return out;
+}
+
+py::dict trajectory_dict(const Simulator& sim)
+{
+    const Trajectory& tr = sim.trajectory();
+    const int d = sim.mesh().dim;
+    py::dict out;
+    std::vector<double> time { tr.initial_time };
+    for (const auto& s : tr.steps)
+        time.push_back(s.time);
+    out["time"] = py::array_t<double>(ssize_t(time.size()), time.data());
+    out["positions"] = stack(tr, tr.initial_positions, &StepRecord::positions, d);
+    out["velocities"] = stack(tr, tr.initial_velocities, &StepRecord::velocities, d);
+    out["accelerations"] = stack(tr, tr.initial_accelerations, &StepRecord::accelerations, d);
+    out["status"] = per_step<int>(tr, [](const StepRecord& s) { return int(s.status); });
+    out["newton_iterations"] = per_step<int>(tr, [](const StepRecord& s) { return s.newton_iterations; });
+    out["residual"] = per_step<double>(tr, [](const StepRecord& s) { return s.residual; });
+    out["newton_step"] = per_step<double>(tr, [](const StepRecord& s) { return s.newton_step; });
+    out["min_volume_ratio"] = per_step<double>(tr, [](const StepRecord& s) { return s.min_volume_ratio; });
+    out["wall_time"] = per_step<double>(tr, [](const StepRecord& s) { return s.wall_time; });
+    out["final_status"] = to_string(tr.final_status);
+    out["failed_step"] = tr.failed_step;
+    out["failure_message"] = tr.failure_message;
+    return out;
+}
+
+Scene scene_from_json_text(const std::string& text, const std::string& base_directory)
+{
+    return parse_scene_text(text, base_directory, "<dict>");
+}
+
+} // namespace
+
+PYBIND11_MODULE(_diffipc, m)
+{
+    m.doc() = "diffipc: differentiable IPC elastodynamics (forward solver)";
+    py::register_exception<InputError>(m, "InputError", PyExc_ValueError);
+
+    py::class_<Scene>(m, "Scene", "A validated scene (see docs/scene_format.md)")
+        .def_readonly("dimension", &Scene::dim)
+        .def_property_readonly("num_vertices", [](const Scene& s) { return s.mesh.num_vertices(); })
+        .def_property_readonly("num_elements", [](const Scene& s) { return s.mesh.num_elements(); })
+        .def_property_readonly("rest_positions", [](const Scene& s) { return MatrixXd(s.mesh.rest_positions); })
+        .def_property_readonly("elements", [](const Scene& s) { return Eigen::MatrixXi(s.mesh.elements); })
+        .def_property_readonly("boundary_facets", [](const Scene& s) { return Eigen::MatrixXi(s.mesh.boundary_facets); })
+        .def_property_readonly("vertex_body", [](const Scene& s) { return Eigen::VectorXi(s.mesh.vertex_body); })
+        .def_property_readonly("steps", [](const Scene& s) { return s.time.steps; })
+        .def_property_readonly("dt", [](const Scene& s) { return s.time.dt; })
+        .def_property_readonly("integrator", [](const Scene& s) { return to_string(s.time.integrator); });
+
+    m.def("load_scene", &load_scene, py::arg("path"), "Read and validate a JSON scene file.");
+    m.def("_scene_from_json_text", &scene_from_json_text, py::arg("text"), py::arg("base_directory"));
+
+    py::class_<Simulator>(m, "Simulator", "Transactional time stepping of a scene.")
+        .def(py::init<Scene>(), py::arg("scene"))
+        .def(
+            "step", [](Simulator& s) { return to_string(s.step()); },
+            "Attempt one time step; returns the status name (only CONVERGED commits).")
+        .def(
+            "run",
+            [](Simulator& s, const std::function<void(int, double)>& progress) {
+                {
+                    py::gil_scoped_release release;
+                    s.run([&](const StepRecord& r) {
+                        if (progress) {
+                            py::gil_scoped_acquire acquire;
+                            progress(r.index, r.time);
+                        }
+                    });
+                }
+                return trajectory_dict(s);
+            },
+            py::arg("progress") = std::function<void(int, double)>(),
+            "Run the remaining steps; returns the trajectory as a dict of numpy arrays.")
+        .def("trajectory", &trajectory_dict, "The committed trajectory as a dict of numpy arrays.")
+        .def_property_readonly("steps_done", &Simulator::steps_done)
+        .def_property_readonly("time", &Simulator::time)
+        .def_property_readonly("positions", [](const Simulator& s) { return MatrixXd(unflatten(s.positions(), s.mesh().dim)); })
+        .def_property_readonly("velocities", [](const Simulator& s) { return MatrixXd(unflatten(s.velocities(), s.mesh().dim)); })
+        .def_property_readonly("force_scale", &Simulator::force_scale)
+        .def("energy", [](const Simulator& s, const MatrixXd& x) {
+            const Positions p = x;
+            return s.problem().energy(flatten(p));
+        }, py::arg("positions"), "Incremental potential of the last prepared step at #V by dim positions.")
+        .def("set_element_materials", &Simulator::set_element_materials, py::arg("E"), py::arg("nu"),
+            "Per-element Young's modulus and Poisson's ratio (before the first step).")
+        .def("write_hdf5", [](const Simulator& s, const std::string& path) { write_hdf5(path, s.mesh(), s.trajectory()); })
+        .def("summary", [](const Simulator& s) { return summary_json(s).dump(); });
+
+    auto model = [](const std::string& name) { return parse_material_model(name, "model"); };
+    m.def("lame_parameters", [](double E, double nu) { return std::make_pair(lame_mu(E, nu), lame_lambda(E, nu)); },
+        py::arg("E"), py::arg("nu"), "(mu, lambda) from Young's modulus and Poisson's ratio.");
+    m.def("element_energy", [model](const std::string& name, const MatrixXd& rest, const MatrixXd& deformed, double mu, double lambda) {
+        return element_energy(model(name), rest, deformed, mu, lambda);
+    }, py::arg("model"), py::arg("rest"), py::arg("deformed"), py::arg("mu"), py::arg("lam"),
+        "Elastic energy (J) of one P1 element; rest/deformed are (dim+1) by dim.");
+    m.def("element_gradient", [model](const std::string& name, const MatrixXd& rest, const MatrixXd& deformed, double mu, double lambda) {
+        return element_gradient(model(name), rest, deformed, mu, lambda);
+    }, py::arg("model"), py::arg("rest"), py::arg("deformed"), py::arg("mu"), py::arg("lam"),
+        "Gradient w.r.t. deformed positions flattened vertex-major.");
+    m.def("element_hessian", [model](const std::string& name, const MatrixXd& rest, const MatrixXd& deformed, double mu, double lambda, bool project) {
+        return element_hessian(model(name), rest, deformed, mu, lambda, project);
+    }, py::arg("model"), py::arg("rest"), py::arg("deformed"), py::arg("mu"), py::arg("lam"), py::arg("project_to_psd") = false,
+        "Hessian w.r.t. deformed positions flattened vertex-major (optionally PSD-projected).");
+}

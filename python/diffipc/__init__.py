@@ -1,0 +1,61 @@
+"""diffipc: differentiable Incremental Potential Contact elastodynamics.
+
+Forward solver for now: load a scene (file path or dict), run it, get the
+trajectory as numpy arrays. Bad input raises ValueError naming the field.
+"""
+
+import json
+import os
+
+from ._diffipc import (  # noqa: F401
+    InputError,
+    Scene,
+    Simulator,
+    element_energy,
+    element_gradient,
+    element_hessian,
+    lame_parameters,
+    load_scene,
+    _scene_from_json_text,
+)
+
+
+def scene(source, base_directory=None):
+    """Return a validated Scene from a path to a JSON file or from a dict.
+
+    Relative mesh paths in a dict are resolved against ``base_directory``
+    (default: the current directory).
+    """
+    if isinstance(source, Scene):
+        return source
+    if isinstance(source, (str, os.PathLike)):
+        return load_scene(os.fspath(source))
+    if isinstance(source, dict):
+        try:
+            text = json.dumps(source, allow_nan=False)
+        except ValueError as e:
+            raise ValueError(f"<dict>: scene contains a NaN or infinite number ({e})") from None
+        except TypeError as e:
+            raise ValueError(f"<dict>: scene is not JSON-serializable ({e})") from None
+        return _scene_from_json_text(text, os.fspath(base_directory or os.getcwd()))
+    raise TypeError("scene source must be a path, a dict or a Scene")
+
+
+def simulate(source, progress=None):
+    """Run a scene to its end (or its first failed step); returns (simulator, trajectory dict)."""
+    sim = Simulator(scene(source))
+    trajectory = sim.run(progress) if progress else sim.run()
+    return sim, trajectory
+
+
+def to_meshio(sim_or_scene, positions=None):
+    """A meshio.Mesh of the scene's elements at the given #V by dim positions (rest by default)."""
+    import meshio
+    import numpy as np
+
+    sc = sim_or_scene
+    if isinstance(sim_or_scene, Simulator):
+        raise TypeError("pass the Scene; positions come from the trajectory")
+    points = np.asarray(positions if positions is not None else sc.rest_positions, dtype=float)
+    cell_type = "triangle" if sc.dimension == 2 else "tetra"
+    return meshio.Mesh(points, [(cell_type, np.asarray(sc.elements))])

@@ -1,0 +1,96 @@
+import json
+import subprocess
+
+import numpy as np
+import pytest
+
+from conftest import box_scene
+
+
+def run(cli, *args, cwd=None):
+    return subprocess.run([cli, *map(str, args)], capture_output=True, text=True, cwd=cwd, timeout=600)
+
+
+def test_simulate_writes_hdf5_summary_and_vtu(cli, tmp_path):
+    h5py = pytest.importorskip("h5py")
+    s = box_scene(dim=3, steps=4)
+    s["gravity"] = [0, -9.81, 0]
+    s["output"] = {"vtu_every": 2}
+    scene = tmp_path / "scene.json"
+    scene.write_text(json.dumps(s))
+    out = tmp_path / "out"
+    r = run(cli, "simulate", scene, "-o", out)
+    assert r.returncode == 0, r.stderr
+    assert "step 4/4" in r.stdout
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["status"] == "CONVERGED"
+    assert summary["steps_committed"] == 4
+    for phase in ("assembly", "factorization", "solve", "line_search"):
+        assert summary["wall_time"][phase] >= 0
+    with h5py.File(out / "trajectory.h5", "r") as f:
+        N = f["mesh/rest_positions"].shape[0]
+        assert f["time"].shape == (5,)
+        assert f["positions"].shape == (5, N, 3)
+        assert f["velocities"].shape == (5, N, 3)
+        for name in ("status", "newton_iterations", "residual", "min_volume_ratio"):
+            assert f[name].shape == (4,)
+        assert (f["status"][:] == 0).all()
+        assert f["mesh/elements"].shape[1] == 4
+        assert f["mesh/body"].shape == (N,)
+        np.testing.assert_allclose(f["positions"][0], f["mesh/rest_positions"][:])
+    pvd = (out / "trajectory.pvd").read_text()
+    assert pvd.count("<DataSet") == 3  # frames 0, 2, 4
+    assert (out / "frame_4.vtu").read_text().startswith("<?xml")
+
+
+def test_validate_and_help(cli, root):
+    r = run(cli, "validate", root / "studies" / "101_cantilever" / "scene.json")
+    assert r.returncode == 0 and "valid 3D scene" in r.stdout
+    for sub in ("simulate", "validate", "bench"):
+        r = run(cli, sub, "--help")
+        assert r.returncode == 0 and "Usage" in r.stdout
+
+
+BAD = [
+    ("E", lambda s: s["bodies"][0]["material"].__setitem__("E", -1.0)),
+    ("dt", lambda s: s["time"].__setitem__("dt", 0)),
+    ("mesh.file", lambda s: s["bodies"][0].__setitem__("mesh", {"file": "missing.msh"})),
+    ("dimension", lambda s: s.__setitem__("dimension", 5)),
+]
+
+
+@pytest.mark.parametrize("field, mutate", BAD)
+def test_bad_scene_exits_nonzero_with_one_line(cli, tmp_path, field, mutate):
+    s = box_scene()
+    mutate(s)
+    scene = tmp_path / "bad.json"
+    scene.write_text(json.dumps(s))
+    for sub in ("simulate", "validate"):
+        r = run(cli, sub, scene, *(["-o", tmp_path / "o"] if sub == "simulate" else []))
+        assert r.returncode == 1
+        lines = r.stderr.strip().splitlines()
+        assert len(lines) == 1 and field in lines[0] and str(scene) in lines[0], r.stderr
+
+
+def test_malformed_json_and_missing_file(cli, tmp_path):
+    bad = tmp_path / "broken.json"
+    bad.write_text("{ not json")
+    r = run(cli, "validate", bad)
+    assert r.returncode == 1 and "invalid JSON" in r.stderr
+    r = run(cli, "validate", tmp_path / "nope.json")
+    assert r.returncode == 1 and "cannot open" in r.stderr
+
+
+def test_failed_step_exits_2_and_keeps_committed_steps(cli, tmp_path):
+    s = box_scene(dim=2, steps=3, dt=0.05)
+    s["gravity"] = [0, -9.81]
+    s["dirichlet"] = [{"body": 0, "region": {"min": [-1, -1], "max": [0, 1]}, "displacement": [0, 0]}]
+    s["solver"] = {"residual_tolerance": 1e-12, "max_iterations": 1}
+    scene = tmp_path / "s.json"
+    scene.write_text(json.dumps(s))
+    r = run(cli, "simulate", scene, "-o", tmp_path / "o", "-q")
+    assert r.returncode == 2
+    assert "NEWTON_EXHAUSTED" in r.stderr
+    summary = json.loads((tmp_path / "o" / "summary.json").read_text())
+    assert summary["status"] == "NEWTON_EXHAUSTED"
+    assert summary["failed_step"] == 1
