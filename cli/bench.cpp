@@ -20,8 +20,8 @@ namespace {
         nlohmann::json scene;
     };
 
-    nlohmann::json beam(int dim, const std::string& model, std::vector<int> cells, std::vector<double> extent, int steps,
-        double E = 1e6, double dt = 0.01)
+    nlohmann::json beam(int dim, const std::string& model, std::vector<int> cells, std::vector<double> extent,
+        int steps, double E = 1e6, double dt = 0.01)
     {
         nlohmann::json s;
         s["dimension"] = dim;
@@ -36,7 +36,8 @@ namespace {
         rmin[0] = -1e-9;
         rmax[0] = 1e-9;
         std::vector<nlohmann::json> zero(size_t(dim), 0);
-        s["dirichlet"] = { { { "body", "beam" }, { "region", { { "min", rmin }, { "max", rmax } } }, { "displacement", zero } } };
+        s["dirichlet"]
+            = { { { "body", "beam" }, { "region", { { "min", rmin }, { "max", rmax } } }, { "displacement", zero } } };
         s["time"] = { { "integrator", "implicit_euler" }, { "dt", dt }, { "steps", steps } };
         s["solver"] = { { "residual_tolerance", 1e-6 } };
         return s;
@@ -50,21 +51,24 @@ int run_bench(const BenchOptions& options)
     std::vector<BenchScene> scenes;
     if (full) {
         // 40 x 14 x 15 cubes, 6 tets each: 50,400 tetrahedra.
-        scenes.push_back({ "3d-beam-50k-neo_hookean", beam(3, "neo_hookean", { 40, 14, 15 }, { 4.0, 1.4, 1.5 }, options.steps) });
+        scenes.push_back(
+            { "3d-beam-50k-neo_hookean", beam(3, "neo_hookean", { 40, 14, 15 }, { 4.0, 1.4, 1.5 }, options.steps) });
         // Soft and with large steps: large rotations, many elements need PSD projection.
         scenes.push_back({ "3d-beam-50k-neo_hookean-large-deformation",
             beam(3, "neo_hookean", { 40, 14, 15 }, { 4.0, 1.4, 1.5 }, options.steps, 2e4, 0.1) });
-        scenes.push_back({ "2d-beam-20k-neo_hookean", beam(2, "neo_hookean", { 200, 50 }, { 4.0, 1.0 }, options.steps) });
+        scenes.push_back(
+            { "2d-beam-20k-neo_hookean", beam(2, "neo_hookean", { 200, 50 }, { 4.0, 1.0 }, options.steps) });
     } else {
-        scenes.push_back({ "3d-beam-2k-neo_hookean", beam(3, "neo_hookean", { 12, 5, 6 }, { 4.0, 1.4, 1.5 }, options.steps) });
+        scenes.push_back(
+            { "3d-beam-2k-neo_hookean", beam(3, "neo_hookean", { 12, 5, 6 }, { 4.0, 1.4, 1.5 }, options.steps) });
         scenes.push_back({ "2d-beam-2k-neo_hookean", beam(2, "neo_hookean", { 40, 25 }, { 4.0, 1.0 }, options.steps) });
     }
     std::printf("diffipc bench (%s), %u hardware threads\n", options.size.c_str(), std::thread::hardware_concurrency());
     for (const auto& b : scenes) {
         Simulator sim(parse_scene(b.scene, ".", b.name));
         std::printf("\n%s: %ld vertices, %ld elements, %ld dofs, %d steps (first is warm-up: symbolic analysis)\n",
-            b.name.c_str(), long(sim.mesh().num_vertices()), long(sim.mesh().num_elements()), long(sim.mesh().num_dofs()),
-            options.steps);
+            b.name.c_str(), long(sim.mesh().num_vertices()), long(sim.mesh().num_elements()),
+            long(sim.mesh().num_dofs()), options.steps);
         if (sim.step() != StepStatus::CONVERGED) {
             std::printf("  warm-up step failed: %s\n", sim.trajectory().failure_message.c_str());
             continue;
@@ -95,7 +99,8 @@ int run_bench(const BenchOptions& options)
         std::printf("    assembly           %8.4f s  (%4.1f%%)\n", p.assembly / iterations, 100 * p.assembly / wall);
         std::printf("    factorization      %8.4f s  (%4.1f%%)\n", factorization, 100 * p.factorization / wall);
         std::printf("    solve              %8.4f s  (%4.1f%%)\n", p.solve / iterations, 100 * p.solve / wall);
-        std::printf("    line search        %8.4f s  (%4.1f%%)\n", p.line_search / iterations, 100 * p.line_search / wall);
+        std::printf(
+            "    line search        %8.4f s  (%4.1f%%)\n", p.line_search / iterations, 100 * p.line_search / wall);
         std::printf("  ratio (Newton iteration) / (numeric factorization): %.2f\n", per_iteration / factorization);
         std::printf("  ratio (assembly + line search) / (factorization):   %.2f\n",
             (p.assembly + p.line_search) / p.factorization);

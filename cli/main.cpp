@@ -98,7 +98,8 @@ int main(int argc, char** argv)
     std::string scene_path, out_dir;
     int vtu_every = -1;
     bool quiet = false;
-    auto* sim_cmd = app.add_subcommand("simulate", "Run a scene; writes trajectory.h5, summary.json and optional VTU files");
+    auto* sim_cmd
+        = app.add_subcommand("simulate", "Run a scene; writes trajectory.h5, summary.json and optional VTU files");
     sim_cmd->add_option("scene", scene_path, "scene file (JSON)")->required();
     sim_cmd->add_option("-o,--output", out_dir, "output directory (default: the scene's output.directory)");
     sim_cmd->add_option("--vtu-every", vtu_every, "write a VTU frame every N steps (0: none; default: the scene's)");

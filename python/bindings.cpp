@@ -87,7 +87,8 @@ PYBIND11_MODULE(_diffipc, m)
         .def_property_readonly("num_elements", [](const Scene& s) { return s.mesh.num_elements(); })
         .def_property_readonly("rest_positions", [](const Scene& s) { return MatrixXd(s.mesh.rest_positions); })
         .def_property_readonly("elements", [](const Scene& s) { return Eigen::MatrixXi(s.mesh.elements); })
-        .def_property_readonly("boundary_facets", [](const Scene& s) { return Eigen::MatrixXi(s.mesh.boundary_facets); })
+        .def_property_readonly(
+            "boundary_facets", [](const Scene& s) { return Eigen::MatrixXi(s.mesh.boundary_facets); })
         .def_property_readonly("vertex_body", [](const Scene& s) { return Eigen::VectorXi(s.mesh.vertex_body); })
         .def_property_readonly("steps", [](const Scene& s) { return s.time.steps; })
         .def_property_readonly("dt", [](const Scene& s) { return s.time.dt; })
@@ -120,31 +121,47 @@ PYBIND11_MODULE(_diffipc, m)
         .def("trajectory", &trajectory_dict, "The committed trajectory as a dict of numpy arrays.")
         .def_property_readonly("steps_done", &Simulator::steps_done)
         .def_property_readonly("time", &Simulator::time)
-        .def_property_readonly("positions", [](const Simulator& s) { return MatrixXd(unflatten(s.positions(), s.mesh().dim)); })
-        .def_property_readonly("velocities", [](const Simulator& s) { return MatrixXd(unflatten(s.velocities(), s.mesh().dim)); })
+        .def_property_readonly(
+            "positions", [](const Simulator& s) { return MatrixXd(unflatten(s.positions(), s.mesh().dim)); })
+        .def_property_readonly(
+            "velocities", [](const Simulator& s) { return MatrixXd(unflatten(s.velocities(), s.mesh().dim)); })
         .def_property_readonly("force_scale", &Simulator::force_scale)
-        .def("energy", [](const Simulator& s, const MatrixXd& x) {
-            const Positions p = x;
-            return s.problem().energy(flatten(p));
-        }, py::arg("positions"), "Incremental potential of the last prepared step at #V by dim positions.")
+        .def(
+            "energy",
+            [](const Simulator& s, const MatrixXd& x) {
+                const Positions p = x;
+                return s.problem().energy(flatten(p));
+            },
+            py::arg("positions"), "Incremental potential of the last prepared step at #V by dim positions.")
         .def("set_element_materials", &Simulator::set_element_materials, py::arg("E"), py::arg("nu"),
             "Per-element Young's modulus and Poisson's ratio (before the first step).")
-        .def("write_hdf5", [](const Simulator& s, const std::string& path) { write_hdf5(path, s.mesh(), s.trajectory()); })
+        .def("write_hdf5",
+            [](const Simulator& s, const std::string& path) { write_hdf5(path, s.mesh(), s.trajectory()); })
         .def("summary", [](const Simulator& s) { return summary_json(s).dump(); });
 
     auto model = [](const std::string& name) { return parse_material_model(name, "model"); };
-    m.def("lame_parameters", [](double E, double nu) { return std::make_pair(lame_mu(E, nu), lame_lambda(E, nu)); },
+    m.def(
+        "lame_parameters", [](double E, double nu) { return std::make_pair(lame_mu(E, nu), lame_lambda(E, nu)); },
         py::arg("E"), py::arg("nu"), "(mu, lambda) from Young's modulus and Poisson's ratio.");
-    m.def("element_energy", [model](const std::string& name, const MatrixXd& rest, const MatrixXd& deformed, double mu, double lambda) {
-        return element_energy(model(name), rest, deformed, mu, lambda);
-    }, py::arg("model"), py::arg("rest"), py::arg("deformed"), py::arg("mu"), py::arg("lam"),
+    m.def(
+        "element_energy",
+        [model](const std::string& name, const MatrixXd& rest, const MatrixXd& deformed, double mu, double lambda) {
+            return element_energy(model(name), rest, deformed, mu, lambda);
+        },
+        py::arg("model"), py::arg("rest"), py::arg("deformed"), py::arg("mu"), py::arg("lam"),
         "Elastic energy (J) of one P1 element; rest/deformed are (dim+1) by dim.");
-    m.def("element_gradient", [model](const std::string& name, const MatrixXd& rest, const MatrixXd& deformed, double mu, double lambda) {
-        return element_gradient(model(name), rest, deformed, mu, lambda);
-    }, py::arg("model"), py::arg("rest"), py::arg("deformed"), py::arg("mu"), py::arg("lam"),
+    m.def(
+        "element_gradient",
+        [model](const std::string& name, const MatrixXd& rest, const MatrixXd& deformed, double mu, double lambda) {
+            return element_gradient(model(name), rest, deformed, mu, lambda);
+        },
+        py::arg("model"), py::arg("rest"), py::arg("deformed"), py::arg("mu"), py::arg("lam"),
         "Gradient w.r.t. deformed positions flattened vertex-major.");
-    m.def("element_hessian", [model](const std::string& name, const MatrixXd& rest, const MatrixXd& deformed, double mu, double lambda, bool project) {
-        return element_hessian(model(name), rest, deformed, mu, lambda, project);
-    }, py::arg("model"), py::arg("rest"), py::arg("deformed"), py::arg("mu"), py::arg("lam"), py::arg("project_to_psd") = false,
+    m.def(
+        "element_hessian",
+        [model](const std::string& name, const MatrixXd& rest, const MatrixXd& deformed, double mu, double lambda,
+            bool project) { return element_hessian(model(name), rest, deformed, mu, lambda, project); },
+        py::arg("model"), py::arg("rest"), py::arg("deformed"), py::arg("mu"), py::arg("lam"),
+        py::arg("project_to_psd") = false,
         "Hessian w.r.t. deformed positions flattened vertex-major (optionally PSD-projected).");
 }

@@ -18,10 +18,7 @@ using Positions = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::R
 using SparseMatrixd = Eigen::SparseMatrix<double, Eigen::ColMajor, int>;
 
 /// Flattened vertex-major view of a row-major #V by dim matrix.
-inline Eigen::Map<const VectorXd> flatten(const Positions& P)
-{
-    return Eigen::Map<const VectorXd>(P.data(), P.size());
-}
+inline Eigen::Map<const VectorXd> flatten(const Positions& P) { return Eigen::Map<const VectorXd>(P.data(), P.size()); }
 inline Eigen::Map<VectorXd> flatten(Positions& P) { return Eigen::Map<VectorXd>(P.data(), P.size()); }
 
 /// Reshape a flattened vertex-major vector into #V by dim.

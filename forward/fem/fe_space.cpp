@@ -1,8 +1,8 @@
 #include "forward/fem/fe_space.hpp"
 
 #include <Eigen/Dense>
-#include <tbb/parallel_reduce.h>
 #include <tbb/blocked_range.h>
+#include <tbb/parallel_reduce.h>
 
 #include <algorithm>
 #include <cmath>
@@ -10,7 +10,9 @@
 
 namespace diffipc {
 
-FESpace::FESpace(const Mesh& mesh) : m_mesh(mesh), m_dim(mesh.dim)
+FESpace::FESpace(const Mesh& mesh)
+    : m_mesh(mesh)
+    , m_dim(mesh.dim)
 {
     const Index ne = mesh.num_elements();
     const int d = m_dim;
@@ -19,8 +21,9 @@ FESpace::FESpace(const Mesh& mesh) : m_mesh(mesh), m_dim(mesh.dim)
     for (Index e = 0; e < ne; ++e) {
         Eigen::MatrixXd Dm(d, d);
         for (int a = 0; a < d; ++a)
-            Dm.col(a) = (mesh.rest_positions.row(mesh.elements(e, a + 1)) - mesh.rest_positions.row(mesh.elements(e, 0)))
-                            .transpose();
+            Dm.col(a)
+                = (mesh.rest_positions.row(mesh.elements(e, a + 1)) - mesh.rest_positions.row(mesh.elements(e, 0)))
+                      .transpose();
         const double det = Dm.determinant();
         m_volumes[size_t(e)] = std::abs(det) / (d == 2 ? 2.0 : 6.0);
         const Eigen::MatrixXd Dinv = Dm.inverse();
@@ -67,8 +70,8 @@ SparseMatrixd FESpace::consistent_mass(const VectorXd& density) const
         for (int a = 0; a <= d; ++a)
             for (int b = 0; b <= d; ++b)
                 for (int c = 0; c < d; ++c)
-                    triplets.emplace_back(m_mesh.elements(e, a) * d + c, m_mesh.elements(e, b) * d + c,
-                        base * (a == b ? 2.0 : 1.0));
+                    triplets.emplace_back(
+                        m_mesh.elements(e, a) * d + c, m_mesh.elements(e, b) * d + c, base * (a == b ? 2.0 : 1.0));
     }
     SparseMatrixd M(m_mesh.num_dofs(), m_mesh.num_dofs());
     M.setFromTriplets(triplets.begin(), triplets.end());

@@ -21,7 +21,10 @@ public:
     double rest_volume(Index e) const { return m_volumes[size_t(e)]; }
     const std::vector<double>& rest_volumes() const { return m_volumes; }
     /// (dim+1) by dim matrix G with G(a, j) = dN_a/dX_j, stored row-major.
-    const double* shape_gradients(Index e) const { return m_gradients.data() + size_t(e) * size_t((m_dim + 1) * m_dim); }
+    const double* shape_gradients(Index e) const
+    {
+        return m_gradients.data() + size_t(e) * size_t((m_dim + 1) * m_dim);
+    }
 
     /// @brief Deformation gradient F = sum_a x_a G_a^T of element e (dim by dim, row-major output).
     /// @param x flattened deformed positions

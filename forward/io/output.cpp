@@ -16,7 +16,8 @@ namespace {
 
     class H5File {
     public:
-        explicit H5File(const std::string& path) : m_path(path)
+        explicit H5File(const std::string& path)
+            : m_path(path)
         {
             m_id = H5Fcreate(path.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT);
             if (m_id < 0)
@@ -40,8 +41,8 @@ namespace {
     template <> hid_t h5_type<int>() { return H5T_NATIVE_INT; }
 
     template <typename T>
-    void write_dataset(const H5File& file, hid_t group, const std::string& name, const std::vector<hsize_t>& dims,
-        const T* data)
+    void write_dataset(
+        const H5File& file, hid_t group, const std::string& name, const std::vector<hsize_t>& dims, const T* data)
     {
         const hid_t space = H5Screate_simple(int(dims.size()), dims.data(), nullptr);
         const hid_t set = H5Dcreate2(group, name.c_str(), h5_type<T>(), space, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
@@ -64,8 +65,8 @@ void write_hdf5(const std::string& path, const Mesh& mesh, const Trajectory& tra
     const hsize_t T = trajectory.steps.size(), N = hsize_t(mesh.num_vertices()), d = hsize_t(mesh.dim);
 
     std::vector<double> time { trajectory.initial_time };
-    std::vector<double> positions(trajectory.initial_positions.data(),
-        trajectory.initial_positions.data() + trajectory.initial_positions.size());
+    std::vector<double> positions(
+        trajectory.initial_positions.data(), trajectory.initial_positions.data() + trajectory.initial_positions.size());
     std::vector<double> velocities(trajectory.initial_velocities.data(),
         trajectory.initial_velocities.data() + trajectory.initial_velocities.size());
     std::vector<int> status, iterations;
@@ -210,9 +211,9 @@ nlohmann::json summary_json(const Simulator& simulator)
     j["max_residual"] = max_residual;
     j["linear_fallbacks"] = fallbacks;
     j["roundoff_limited_steps"] = roundoff;
-    j["wall_time"] = { { "total", tr.wall_time }, { "assembly", tr.phases.assembly },
-        { "factorization", tr.phases.factorization }, { "solve", tr.phases.solve },
-        { "line_search", tr.phases.line_search } };
+    j["wall_time"]
+        = { { "total", tr.wall_time }, { "assembly", tr.phases.assembly }, { "factorization", tr.phases.factorization },
+              { "solve", tr.phases.solve }, { "line_search", tr.phases.line_search } };
     return j;
 }
 

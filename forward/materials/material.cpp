@@ -19,8 +19,8 @@ MaterialModel parse_material_model(const std::string& name, const std::string& f
         return MaterialModel::NEO_HOOKEAN;
     if (name == "stable_neo_hookean")
         return MaterialModel::STABLE_NEO_HOOKEAN;
-    throw InputError(field, "unknown material model '" + name
-            + "' (expected linear, stvk, neo_hookean or stable_neo_hookean)");
+    throw InputError(
+        field, "unknown material model '" + name + "' (expected linear, stvk, neo_hookean or stable_neo_hookean)");
 }
 
 std::string to_string(MaterialModel model)
@@ -236,28 +236,27 @@ template <int dim> std::unique_ptr<Material<dim>> make_material(MaterialModel mo
 template std::unique_ptr<Material<2>> make_material<2>(MaterialModel);
 template std::unique_ptr<Material<3>> make_material<3>(MaterialModel);
 
+namespace {
+    template <typename Matrix> Matrix project_psd_impl(const Matrix& A)
+    {
+        Eigen::LLT<Matrix> llt(A);
+        if (llt.info() == Eigen::Success)
+            return A;
+        Eigen::SelfAdjointEigenSolver<Matrix> eig(A);
+        const auto d = eig.eigenvalues().cwiseMax(0.0).eval();
+        return eig.eigenvectors() * d.asDiagonal() * eig.eigenvectors().transpose();
+    }
+} // namespace
+
 template <int n> Eigen::Matrix<double, n, n> project_psd(const Eigen::Matrix<double, n, n>& A)
 {
-    Eigen::LLT<Eigen::Matrix<double, n, n>> llt(A);
-    if (llt.info() == Eigen::Success)
-        return A;
-    Eigen::SelfAdjointEigenSolver<Eigen::Matrix<double, n, n>> eig(A);
-    const Eigen::Matrix<double, n, 1> d = eig.eigenvalues().cwiseMax(0.0);
-    return eig.eigenvectors() * d.asDiagonal() * eig.eigenvectors().transpose();
+    return project_psd_impl(A);
 }
 template Eigen::Matrix<double, 4, 4> project_psd<4>(const Eigen::Matrix<double, 4, 4>&);
 template Eigen::Matrix<double, 9, 9> project_psd<9>(const Eigen::Matrix<double, 9, 9>&);
 template Eigen::Matrix<double, 6, 6> project_psd<6>(const Eigen::Matrix<double, 6, 6>&);
 template Eigen::Matrix<double, 12, 12> project_psd<12>(const Eigen::Matrix<double, 12, 12>&);
 
-Eigen::MatrixXd project_psd(const Eigen::MatrixXd& A)
-{
-    Eigen::LLT<Eigen::MatrixXd> llt(A);
-    if (llt.info() == Eigen::Success)
-        return A;
-    Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(A);
-    const Eigen::VectorXd d = eig.eigenvalues().cwiseMax(0.0);
-    return eig.eigenvectors() * d.asDiagonal() * eig.eigenvectors().transpose();
-}
+Eigen::MatrixXd project_psd(const Eigen::MatrixXd& A) { return project_psd_impl(A); }
 
 } // namespace diffipc

@@ -14,7 +14,9 @@ namespace {
 
     class LineReader {
     public:
-        explicit LineReader(const std::string& path) : m_path(path), m_in(path)
+        explicit LineReader(const std::string& path)
+            : m_path(path)
+            , m_in(path)
         {
             if (!m_in)
                 throw InputError(path, "cannot open mesh file");

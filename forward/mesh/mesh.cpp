@@ -40,8 +40,8 @@ Mesh box_mesh(int dim, const VectorXd& lower, const VectorXd& upper, const Vecto
     } else {
         // Kuhn subdivision: one tet per permutation of the axes, walking from
         // corner 000 to 111 one unit step per axis.
-        const std::array<std::array<int, 3>, 6> perms { { { 0, 1, 2 }, { 0, 2, 1 }, { 1, 0, 2 },
-            { 1, 2, 0 }, { 2, 0, 1 }, { 2, 1, 0 } } };
+        const std::array<std::array<int, 3>, 6> perms { { { 0, 1, 2 }, { 0, 2, 1 }, { 1, 0, 2 }, { 1, 2, 0 },
+            { 2, 0, 1 }, { 2, 1, 0 } } };
         for (int k = 0; k < nz; ++k)
             for (int j = 0; j < ny; ++j)
                 for (int i = 0; i < nx; ++i)
@@ -170,11 +170,11 @@ void validate_mesh(const Mesh& mesh, const std::string& field)
     for (Index e = 0; e < mesh.num_elements(); ++e) {
         const double v = signed_volume(mesh.rest_positions, mesh.elements, e);
         if (v < -tiny)
-            throw InputError(field, "element " + std::to_string(e) + " is inverted (signed volume "
-                    + std::to_string(v) + ")");
+            throw InputError(
+                field, "element " + std::to_string(e) + " is inverted (signed volume " + std::to_string(v) + ")");
         if (v <= tiny)
-            throw InputError(field, "element " + std::to_string(e) + " is degenerate (volume "
-                    + std::to_string(v) + ")");
+            throw InputError(
+                field, "element " + std::to_string(e) + " is degenerate (volume " + std::to_string(v) + ")");
     }
 }
 

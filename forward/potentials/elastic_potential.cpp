@@ -77,7 +77,8 @@ namespace {
     template <int dim> typename Kernel<dim>::Grad to_local(const MatrixXd& m)
     {
         if (m.rows() != dim + 1 || m.cols() != dim)
-            throw InputError("positions", "expected a " + std::to_string(dim + 1) + " by " + std::to_string(dim) + " matrix");
+            throw InputError(
+                "positions", "expected a " + std::to_string(dim + 1) + " by " + std::to_string(dim) + " matrix");
         return m;
     }
 
@@ -102,9 +103,13 @@ struct ElasticPotential::Impl {
     }
 };
 
-ElasticPotential::ElasticPotential(const FESpace& space, std::vector<MaterialModel> models, VectorXd mu, VectorXd lambda)
-    : m_space(space), m_models(std::move(models)), m_mu(std::move(mu)), m_lambda(std::move(lambda)),
-      m_impl(std::make_unique<Impl>())
+ElasticPotential::ElasticPotential(
+    const FESpace& space, std::vector<MaterialModel> models, VectorXd mu, VectorXd lambda)
+    : m_space(space)
+    , m_models(std::move(models))
+    , m_mu(std::move(mu))
+    , m_lambda(std::move(lambda))
+    , m_impl(std::make_unique<Impl>())
 {
 }
 
@@ -120,8 +125,7 @@ void ElasticPotential::set_lame_parameters(const VectorXd& mu, const VectorXd& l
 
 namespace {
 
-    template <int dim>
-    typename Kernel<dim>::Grad gather(const Mesh& mesh, Index e, const VectorXd& x)
+    template <int dim> typename Kernel<dim>::Grad gather(const Mesh& mesh, Index e, const VectorXd& x)
     {
         typename Kernel<dim>::Grad xe;
         for (int a = 0; a <= dim; ++a)
@@ -130,8 +134,7 @@ namespace {
         return xe;
     }
 
-    template <int dim>
-    typename Kernel<dim>::Grad shape(const FESpace& space, Index e)
+    template <int dim> typename Kernel<dim>::Grad shape(const FESpace& space, Index e)
     {
         return Eigen::Map<const typename Kernel<dim>::Grad>(space.shape_gradients(e));
     }
@@ -198,18 +201,21 @@ namespace {
     {
         const Mesh& mesh = space.mesh();
         for (const auto& color : H.colors())
-            tbb::parallel_for(tbb::blocked_range<size_t>(0, color.size(), 64), [&](const tbb::blocked_range<size_t>& r) {
-                for (size_t k = r.begin(); k < r.end(); ++k) {
-                    const Index e = color[k];
-                    const auto G = shape<dim>(space, e);
-                    const auto F = Kernel<dim>::deformation(G, gather<dim>(mesh, e, x));
-                    typename Kernel<dim>::Tensor A = material(models[size_t(e)]).stress_derivative(F, mu[e], lambda[e]);
-                    if (project)
-                        A = project_psd<dim * dim>(A);
-                    const typename Kernel<dim>::LocalMat Ke = Kernel<dim>::hessian(G, A, weight * space.rest_volume(e));
-                    H.add_element(e, Ke.data());
-                }
-            });
+            tbb::parallel_for(
+                tbb::blocked_range<size_t>(0, color.size(), 64), [&](const tbb::blocked_range<size_t>& r) {
+                    for (size_t k = r.begin(); k < r.end(); ++k) {
+                        const Index e = color[k];
+                        const auto G = shape<dim>(space, e);
+                        const auto F = Kernel<dim>::deformation(G, gather<dim>(mesh, e, x));
+                        typename Kernel<dim>::Tensor A
+                            = material(models[size_t(e)]).stress_derivative(F, mu[e], lambda[e]);
+                        if (project)
+                            A = project_psd<dim * dim>(A);
+                        const typename Kernel<dim>::LocalMat Ke
+                            = Kernel<dim>::hessian(G, A, weight * space.rest_volume(e));
+                        H.add_element(e, Ke.data());
+                    }
+                });
     }
 
 } // namespace
@@ -247,11 +253,13 @@ MatrixXd ElasticPotential::element_stresses(const VectorXd& x) const
         if (d == 2) {
             const auto F = Kernel<2>::deformation(shape<2>(m_space, e), gather<2>(m_space.mesh(), e, x));
             const Eigen::Matrix2d P = m_impl->material<2>(m_models[size_t(e)]).stress(F, m_mu[e], m_lambda[e]);
-            S.row(e) = Eigen::Map<const Eigen::Matrix<double, 1, 4>>(Eigen::Matrix<double, 2, 2, Eigen::RowMajor>(P).data());
+            S.row(e)
+                = Eigen::Map<const Eigen::Matrix<double, 1, 4>>(Eigen::Matrix<double, 2, 2, Eigen::RowMajor>(P).data());
         } else {
             const auto F = Kernel<3>::deformation(shape<3>(m_space, e), gather<3>(m_space.mesh(), e, x));
             const Eigen::Matrix3d P = m_impl->material<3>(m_models[size_t(e)]).stress(F, m_mu[e], m_lambda[e]);
-            S.row(e) = Eigen::Map<const Eigen::Matrix<double, 1, 9>>(Eigen::Matrix<double, 3, 3, Eigen::RowMajor>(P).data());
+            S.row(e)
+                = Eigen::Map<const Eigen::Matrix<double, 1, 9>>(Eigen::Matrix<double, 3, 3, Eigen::RowMajor>(P).data());
         }
     }
     return S;
@@ -259,19 +267,25 @@ MatrixXd ElasticPotential::element_stresses(const VectorXd& x) const
 
 namespace {
 
-    template <int dim> double element_energy_impl(MaterialModel model, const MatrixXd& rest, const MatrixXd& deformed, double mu, double lambda)
+    template <int dim>
+    double element_energy_impl(
+        MaterialModel model, const MatrixXd& rest, const MatrixXd& deformed, double mu, double lambda)
     {
         const auto data = element_data<dim>(to_local<dim>(rest));
         const auto F = Kernel<dim>::deformation(data.G, to_local<dim>(deformed));
         return data.volume * make_material<dim>(model)->energy_density(F, mu, lambda);
     }
-    template <int dim> VectorXd element_gradient_impl(MaterialModel model, const MatrixXd& rest, const MatrixXd& deformed, double mu, double lambda)
+    template <int dim>
+    VectorXd element_gradient_impl(
+        MaterialModel model, const MatrixXd& rest, const MatrixXd& deformed, double mu, double lambda)
     {
         const auto data = element_data<dim>(to_local<dim>(rest));
         const auto F = Kernel<dim>::deformation(data.G, to_local<dim>(deformed));
         return Kernel<dim>::gradient(data.G, make_material<dim>(model)->stress(F, mu, lambda), data.volume);
     }
-    template <int dim> MatrixXd element_hessian_impl(MaterialModel model, const MatrixXd& rest, const MatrixXd& deformed, double mu, double lambda, bool project)
+    template <int dim>
+    MatrixXd element_hessian_impl(
+        MaterialModel model, const MatrixXd& rest, const MatrixXd& deformed, double mu, double lambda, bool project)
     {
         const auto data = element_data<dim>(to_local<dim>(rest));
         const auto F = Kernel<dim>::deformation(data.G, to_local<dim>(deformed));
@@ -293,7 +307,8 @@ VectorXd element_gradient(MaterialModel model, const MatrixXd& rest, const Matri
     return rest.cols() == 2 ? element_gradient_impl<2>(model, rest, deformed, mu, lambda)
                             : element_gradient_impl<3>(model, rest, deformed, mu, lambda);
 }
-MatrixXd element_hessian(MaterialModel model, const MatrixXd& rest, const MatrixXd& deformed, double mu, double lambda, bool project_to_psd)
+MatrixXd element_hessian(
+    MaterialModel model, const MatrixXd& rest, const MatrixXd& deformed, double mu, double lambda, bool project_to_psd)
 {
     return rest.cols() == 2 ? element_hessian_impl<2>(model, rest, deformed, mu, lambda, project_to_psd)
                             : element_hessian_impl<3>(model, rest, deformed, mu, lambda, project_to_psd);

@@ -51,9 +51,10 @@ private:
 /// Gradients and Hessians are w.r.t. the deformed positions flattened vertex-major.
 /// @{
 double element_energy(MaterialModel model, const MatrixXd& rest, const MatrixXd& deformed, double mu, double lambda);
-VectorXd element_gradient(MaterialModel model, const MatrixXd& rest, const MatrixXd& deformed, double mu, double lambda);
-MatrixXd element_hessian(MaterialModel model, const MatrixXd& rest, const MatrixXd& deformed, double mu, double lambda,
-    bool project_to_psd);
+VectorXd element_gradient(
+    MaterialModel model, const MatrixXd& rest, const MatrixXd& deformed, double mu, double lambda);
+MatrixXd element_hessian(
+    MaterialModel model, const MatrixXd& rest, const MatrixXd& deformed, double mu, double lambda, bool project_to_psd);
 /// @}
 
 } // namespace diffipc

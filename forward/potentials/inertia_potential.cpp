@@ -5,7 +5,10 @@
 namespace diffipc {
 
 InertiaPotential::InertiaPotential(const FESpace& space, const VectorXd& density, bool consistent)
-    : m_space(space), m_consistent(consistent), m_lumped(space.lumped_masses(density)), m_density(density)
+    : m_space(space)
+    , m_consistent(consistent)
+    , m_lumped(space.lumped_masses(density))
+    , m_density(density)
 {
     if (consistent)
         m_matrix = space.consistent_mass(density);

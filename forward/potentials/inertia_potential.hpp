@@ -40,11 +40,15 @@ private:
 /// Work of external forces, -f^T (x - X): constant forces (gravity, tractions) per step.
 class ExternalForcePotential : public Potential {
 public:
-    explicit ExternalForcePotential(const VectorXd& rest) : m_rest(rest), m_force(VectorXd::Zero(rest.size())) {}
+    explicit ExternalForcePotential(const VectorXd& rest)
+        : m_rest(rest)
+        , m_force(VectorXd::Zero(rest.size()))
+    {
+    }
     std::string name() const override { return "external_force"; }
     double value(const VectorXd& x) const override { return -m_force.dot(x - m_rest); }
     void add_gradient(const VectorXd&, double weight, VectorXd& g) const override { g -= weight * m_force; }
-    void add_hessian(const VectorXd&, double, bool, SparseAssembler&) const override {}
+    void add_hessian(const VectorXd&, double, bool, SparseAssembler&) const override { }
     /// Flattened nodal forces (N), #V*dim.
     void set_force(const VectorXd& f) { m_force = f; }
     const VectorXd& force() const { return m_force; }

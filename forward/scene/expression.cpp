@@ -24,7 +24,9 @@ struct Expression::Impl {
 };
 
 Expression::Expression(const std::string& text, const std::string& field)
-    : m_text(text), m_field(field), m_constant(false)
+    : m_text(text)
+    , m_field(field)
+    , m_constant(false)
 {
     try {
         m_impl = std::make_unique<Impl>(text);
@@ -35,10 +37,18 @@ Expression::Expression(const std::string& text, const std::string& field)
     (*this)(0.0);
 }
 
-Expression::Expression(double value) : m_text(std::to_string(value)), m_constant(true), m_value(value) {}
+Expression::Expression(double value)
+    : m_text(std::to_string(value))
+    , m_constant(true)
+    , m_value(value)
+{
+}
 
 Expression::Expression(const Expression& other)
-    : m_text(other.m_text), m_field(other.m_field), m_constant(other.m_constant), m_value(other.m_value)
+    : m_text(other.m_text)
+    , m_field(other.m_field)
+    , m_constant(other.m_constant)
+    , m_value(other.m_value)
 {
     if (other.m_impl)
         m_impl = std::make_unique<Impl>(m_text);

@@ -36,8 +36,8 @@ void JsonField::require_object(std::initializer_list<const char*> allowed) const
             list += list.empty() ? a : std::string(", ") + a;
         }
         if (!known)
-            throw InputError(m_path.empty() ? it.key() : m_path + "." + it.key(),
-                "unknown field (allowed here: " + list + ")");
+            throw InputError(
+                m_path.empty() ? it.key() : m_path + "." + it.key(), "unknown field (allowed here: " + list + ")");
     }
 }
 
@@ -51,6 +51,8 @@ void JsonField::require_array(size_t min_size) const
 
 double JsonField::number() const
 {
+    if (m_value.is_string() && m_value.get<std::string>().rfind(NON_FINITE_MARK, 0) == 0)
+        fail("number " + m_value.get<std::string>().substr(std::string(NON_FINITE_MARK).size()) + " is not finite");
     if (!m_value.is_number())
         fail("expected a number, got " + type_name(m_value));
     const double v = m_value.get<double>();

@@ -13,9 +13,16 @@
 
 namespace diffipc {
 
+/// Stands in for a number that overflowed a double while the text was parsed.
+inline constexpr const char* NON_FINITE_MARK = "<non-finite number> ";
+
 class JsonField {
 public:
-    JsonField(const nlohmann::json& value, std::string path) : m_value(value), m_path(std::move(path)) {}
+    JsonField(const nlohmann::json& value, std::string path)
+        : m_value(value)
+        , m_path(std::move(path))
+    {
+    }
 
     const nlohmann::json& json() const { return m_value; }
     const std::string& path() const { return m_path; }
@@ -33,15 +40,18 @@ public:
     void require_object(std::initializer_list<const char*> allowed) const;
     void require_array(size_t min_size = 0) const;
 
-    double number() const;                       ///< finite number
-    double positive() const;                     ///< finite and > 0
-    int integer(int min_value) const;            ///< integer >= min_value
+    double number() const; ///< finite number
+    double positive() const; ///< finite and > 0
+    int integer(int min_value) const; ///< integer >= min_value
     bool boolean() const;
     std::string string() const;
-    VectorXd vector(int size) const;             ///< array of `size` finite numbers
+    VectorXd vector(int size) const; ///< array of `size` finite numbers
     VectorXi int_vector(int size, int min_value) const;
 
-    double number_or(const std::string& key, double fallback) const { return has(key) ? (*this)[key].number() : fallback; }
+    double number_or(const std::string& key, double fallback) const
+    {
+        return has(key) ? (*this)[key].number() : fallback;
+    }
 
 private:
     const nlohmann::json& m_value;

@@ -90,8 +90,8 @@ namespace {
         if (f.json().is_number_integer()) {
             const int b = f.integer(0);
             if (b >= int(bodies.size()))
-                f.fail("body index " + std::to_string(b) + " out of range (" + std::to_string(bodies.size())
-                    + " bodies)");
+                f.fail(
+                    "body index " + std::to_string(b) + " out of range (" + std::to_string(bodies.size()) + " bodies)");
             return b;
         }
         const std::string name = f.string();
@@ -120,6 +120,24 @@ namespace {
         f.fail("expected a number or an expression string");
     }
 
+    /// One expression (or, if allowed, null) per component.
+    std::vector<std::optional<Expression>> parse_components(const JsonField& f, int dim, bool allow_null)
+    {
+        f.require_array();
+        if (int(f.size()) != dim)
+            f.fail("expected " + std::to_string(dim) + " entries (expression or number"
+                + (allow_null ? " or null)" : ")"));
+        std::vector<std::optional<Expression>> out;
+        for (int a = 0; a < dim; ++a) {
+            const JsonField c = f.at(size_t(a));
+            if (allow_null && c.json().is_null())
+                out.emplace_back(std::nullopt);
+            else
+                out.emplace_back(parse_expression(c));
+        }
+        return out;
+    }
+
 } // namespace
 
 Scene parse_scene(const nlohmann::json& document, const std::string& base_directory, const std::string& source)
@@ -127,8 +145,8 @@ Scene parse_scene(const nlohmann::json& document, const std::string& base_direct
     Scene scene;
     scene.source = source;
     const JsonField root(document, "");
-    root.require_object(
-        { "dimension", "bodies", "gravity", "dirichlet", "neumann", "time", "mass", "solver", "output", "description" });
+    root.require_object({ "dimension", "bodies", "gravity", "dirichlet", "neumann", "time", "mass", "solver", "output",
+        "description" });
     if (root.has("description"))
         root["description"].string();
 
@@ -175,19 +193,10 @@ Scene parse_scene(const nlohmann::json& document, const std::string& base_direct
             d.body = parse_body_reference(f["body"], scene.bodies);
             d.region = parse_region(f["region"], dim);
             const JsonField disp = f["displacement"];
-            disp.require_array();
-            if (int(disp.size()) != dim)
-                disp.fail("expected " + std::to_string(dim) + " entries (expression, number or null)");
+            d.displacement = parse_components(disp, dim, true);
             bool any = false;
-            for (int a = 0; a < dim; ++a) {
-                const JsonField c = disp.at(size_t(a));
-                if (c.json().is_null())
-                    d.displacement.emplace_back(std::nullopt);
-                else {
-                    d.displacement.emplace_back(parse_expression(c));
-                    any = true;
-                }
-            }
+            for (const auto& c : d.displacement)
+                any = any || c.has_value();
             if (!any)
                 disp.fail("all components are null: nothing is prescribed");
             bool selected = false;
@@ -210,12 +219,8 @@ Scene parse_scene(const nlohmann::json& document, const std::string& base_direct
             n.field = f.path();
             n.body = parse_body_reference(f["body"], scene.bodies);
             n.region = parse_region(f["region"], dim);
-            const JsonField tr = f["traction"];
-            tr.require_array();
-            if (int(tr.size()) != dim)
-                tr.fail("expected " + std::to_string(dim) + " entries (expression or number)");
-            for (int a = 0; a < dim; ++a)
-                n.traction.push_back(parse_expression(tr.at(size_t(a))));
+            for (auto& c : parse_components(f["traction"], dim, false))
+                n.traction.push_back(std::move(*c));
             bool selected = false;
             for (Index fc = 0; fc < scene.mesh.boundary_facets.rows() && !selected; ++fc) {
                 if (scene.mesh.facet_body[fc] != n.body)
@@ -247,7 +252,8 @@ Scene parse_scene(const nlohmann::json& document, const std::string& base_direct
         else if (name == "newmark")
             scene.time.integrator = IntegratorType::NEWMARK;
         else
-            time["integrator"].fail("unknown integrator '" + name + "' (expected static, implicit_euler, bdf2 or newmark)");
+            time["integrator"].fail(
+                "unknown integrator '" + name + "' (expected static, implicit_euler, bdf2 or newmark)");
         scene.time.dt = time["dt"].positive();
         scene.time.steps = time["steps"].integer(1);
     }
@@ -309,10 +315,23 @@ Scene parse_scene(const nlohmann::json& document, const std::string& base_direct
 Scene parse_scene_text(const std::string& text, const std::string& base_directory, const std::string& source)
 {
     nlohmann::json document;
-    try {
-        document = nlohmann::json::parse(text);
-    } catch (const nlohmann::json::parse_error& e) {
-        throw InputError(source, std::string("invalid JSON: ") + e.what());
+    std::string work = text;
+    for (int attempt = 0;; ++attempt) {
+        try {
+            document = nlohmann::json::parse(work);
+            break;
+        } catch (const nlohmann::json::parse_error& e) {
+            throw InputError(source, std::string("invalid JSON: ") + e.what());
+        } catch (const nlohmann::json::out_of_range& e) {
+            // A number that overflows a double (1e999): mark it so that validation
+            // names the field it stands in, then parse again.
+            const std::string what = e.what();
+            const size_t a = what.find('\''), b = what.rfind('\'');
+            const size_t at = a < b ? work.find(what.substr(a + 1, b - a - 1)) : std::string::npos;
+            if (at == std::string::npos || attempt > 1000)
+                throw InputError(source, std::string("invalid JSON: ") + what);
+            work.replace(at, b - a - 1, "\"" + std::string(NON_FINITE_MARK) + what.substr(a + 1, b - a - 1) + "\"");
+        }
     }
     return parse_scene(document, base_directory, source);
 }

@@ -25,8 +25,8 @@ std::string to_string(IntegratorType type);
 struct MaterialSpec {
     MaterialModel model = MaterialModel::NEO_HOOKEAN;
     double youngs_modulus = 1e6; ///< E (Pa)
-    double poisson_ratio = 0.3;  ///< nu, in (-1, 0.5)
-    double density = 1000;       ///< rho (kg/m^3)
+    double poisson_ratio = 0.3; ///< nu, in (-1, 0.5)
+    double density = 1000; ///< rho (kg/m^3)
 };
 
 struct BoxRegion {
@@ -39,7 +39,7 @@ struct BodySpec {
     std::string mesh_source; ///< "box" or the resolved file path
     MaterialSpec material;
     VectorXd initial_velocity; ///< dim (m/s)
-    VectorXd translation;      ///< dim (m)
+    VectorXd translation; ///< dim (m)
 };
 
 struct DirichletSpec {
@@ -65,7 +65,7 @@ struct TimeSpec {
 
 struct SolverSpec {
     double residual_tolerance = 1e-8; ///< on the force residual relative to the force scale (docs/math.md)
-    double step_tolerance = 0;        ///< on the Newton step (m/s dynamic, relative static); 0 disables it
+    double step_tolerance = 0; ///< on the Newton step (m/s dynamic, relative static); 0 disables it
     int max_iterations = 100;
     LinearSolverType linear_solver = LinearSolverType::CHOLMOD;
     int line_search_max_halvings = 40;

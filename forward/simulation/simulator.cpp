@@ -3,8 +3,8 @@
 #include "forward/common/error.hpp"
 #include "forward/common/timer.hpp"
 
-#include <Eigen/Geometry>
 #include "forward/solver/newton.hpp"
+#include <Eigen/Geometry>
 
 #include <Eigen/SparseCholesky>
 
@@ -12,7 +12,8 @@
 
 namespace diffipc {
 
-Simulator::Simulator(Scene scene) : m_scene(std::move(scene))
+Simulator::Simulator(Scene scene)
+    : m_scene(std::move(scene))
 {
     const Mesh& mesh = m_scene.mesh;
     const int d = mesh.dim;
@@ -34,7 +35,8 @@ Simulator::Simulator(Scene scene) : m_scene(std::move(scene))
     for (double v : m_space->rest_volumes())
         mean_volume += v / double(ne);
     m_force_scale = mean_E * std::pow(mean_volume, double(d - 1) / d);
-    const Eigen::RowVectorXd extent = mesh.rest_positions.colwise().maxCoeff() - mesh.rest_positions.colwise().minCoeff();
+    const Eigen::RowVectorXd extent
+        = mesh.rest_positions.colwise().maxCoeff() - mesh.rest_positions.colwise().minCoeff();
     m_bbox_diagonal = extent.norm();
 
     m_elastic = std::make_unique<ElasticPotential>(*m_space, models, mu, lambda);
@@ -89,8 +91,9 @@ Simulator::Simulator(Scene scene) : m_scene(std::move(scene))
             }
             if (!inside)
                 continue;
-            const double area = d == 2 ? (corners.col(1) - corners.col(0)).norm()
-                                       : 0.5 * (corners.col(1) - corners.col(0)).cross(corners.col(2) - corners.col(0)).norm();
+            const double area = d == 2
+                ? (corners.col(1) - corners.col(0)).norm()
+                : 0.5 * (corners.col(1) - corners.col(0)).cross(corners.col(2) - corners.col(0)).norm();
             m_loaded_facets.push_back({ f, int(k), area, centroid });
         }
     }

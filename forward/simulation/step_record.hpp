@@ -13,17 +13,17 @@
 namespace diffipc {
 
 struct StepRecord {
-    int index = 0;      ///< 1-based step number
-    double time = 0;    ///< t_{n+1} (s)
+    int index = 0; ///< 1-based step number
+    double time = 0; ///< t_{n+1} (s)
     VectorXd positions; ///< #V*dim deformed positions x_{n+1} (m), flattened vertex-major
-    VectorXd velocities;    ///< #V*dim (m/s)
+    VectorXd velocities; ///< #V*dim (m/s)
     VectorXd accelerations; ///< #V*dim (m/s^2); the scheme's a_{n+1} (exact for Newmark)
     StepStatus status = StepStatus::CONVERGED;
     int newton_iterations = 0;
-    double residual = 0;    ///< force residual relative to the force scale (docs/math.md)
+    double residual = 0; ///< force residual relative to the force scale (docs/math.md)
     double newton_step = 0; ///< last Newton step (m/s dynamic, relative to bbox static)
     double min_volume_ratio = 1; ///< min over elements of volume / rest volume
-    double wall_time = 0;   ///< s
+    double wall_time = 0; ///< s
     int linear_fallbacks = 0;
     /// Newton stopped because its step fell below the round-off of x while the
     /// residual was above tolerance (the residual is then at its floor).

@@ -12,7 +12,14 @@ struct LinearSolver::Impl {
     bool llt_analyzed = false, ldlt_analyzed = false, last_ldlt = false;
 };
 
-LinearSolver::LinearSolver(LinearSolverType type) : m_impl(std::make_unique<Impl>()), m_type(type) {}
+LinearSolver::LinearSolver(LinearSolverType type)
+    : m_impl(std::make_unique<Impl>())
+    , m_type(type)
+{
+    // A failed factorization is reported as a status; CHOLMOD need not print it.
+    m_impl->llt.cholmod().print = 0;
+    m_impl->ldlt.cholmod().print = 0;
+}
 LinearSolver::~LinearSolver() = default;
 
 bool LinearSolver::factorize(const SparseMatrixd& A)

@@ -10,7 +10,7 @@ namespace diffipc {
 namespace {
     constexpr double ROUNDOFF_STEP = 128 * std::numeric_limits<double>::epsilon();
     constexpr double ENERGY_RESOLUTION = 1e-10;
-}
+} // namespace
 
 NewtonResult NewtonSolver::solve(VectorXd& x, const VectorXd& target, const std::vector<char>& constrained,
     double force_scale, double step_scale) const

@@ -21,11 +21,11 @@ struct NewtonSettings {
 
 struct NewtonResult {
     StepStatus status = StepStatus::NEWTON_EXHAUSTED;
-    int iterations = 0;        ///< Newton steps taken
-    double residual = 0;       ///< max |free-dof gradient| / force scale, at the last iterate
-    double newton_step = 0;    ///< max |last step| / step scale
-    int linear_fallbacks = 0;  ///< factorizations that needed LDL^T
-    int gradient_steps = 0;    ///< iterations that fell back to the negative gradient
+    int iterations = 0; ///< Newton steps taken
+    double residual = 0; ///< max |free-dof gradient| / force scale, at the last iterate
+    double newton_step = 0; ///< max |last step| / step scale
+    int linear_fallbacks = 0; ///< factorizations that needed LDL^T
+    int gradient_steps = 0; ///< iterations that fell back to the negative gradient
     /// Converged because the full Newton step fell below the round-off of x
     /// while the residual was still above its tolerance.
     bool roundoff_limited = false;
@@ -35,7 +35,10 @@ struct NewtonResult {
 class NewtonSolver {
 public:
     NewtonSolver(const Problem& problem, SparseAssembler& assembler, LinearSolver& linear, NewtonSettings settings)
-        : m_problem(problem), m_assembler(assembler), m_linear(linear), m_settings(settings)
+        : m_problem(problem)
+        , m_assembler(assembler)
+        , m_linear(linear)
+        , m_settings(settings)
     {
     }
 

@@ -8,12 +8,12 @@ namespace diffipc {
 enum class StepStatus {
     CONVERGED = 0,
     INVALID_INITIAL_STATE = 1, ///< start of the step infeasible (inverted element, non-finite energy)
-    CCD_UNRESOLVED = 2,        ///< reserved for contact
-    LINEAR_BREAKDOWN = 3,      ///< Cholesky and LDL^T both failed, or a non-finite solution
+    CCD_UNRESOLVED = 2, ///< reserved for contact
+    LINEAR_BREAKDOWN = 3, ///< Cholesky and LDL^T both failed, or a non-finite solution
     LINE_SEARCH_EXHAUSTED = 4, ///< no acceptable step length along the direction
-    NEWTON_EXHAUSTED = 5,      ///< iteration cap reached before convergence
-    FRICTION_EXHAUSTED = 6,    ///< reserved for friction lagging
-    NON_FINITE = 7,            ///< a non-finite gradient or energy appeared during the solve
+    NEWTON_EXHAUSTED = 5, ///< iteration cap reached before convergence
+    FRICTION_EXHAUSTED = 6, ///< reserved for friction lagging
+    NON_FINITE = 7, ///< a non-finite gradient or energy appeared during the solve
 };
 
 inline std::string to_string(StepStatus s)
@@ -41,10 +41,10 @@ inline std::string to_string(StepStatus s)
 
 /// Wall time (s) per solver phase.
 struct PhaseTimes {
-    double assembly = 0;      ///< gradient and Hessian assembly
+    double assembly = 0; ///< gradient and Hessian assembly
     double factorization = 0; ///< numeric factorization (symbolic analysis included on first use)
-    double solve = 0;         ///< triangular solves
-    double line_search = 0;   ///< energy evaluations and the step bound
+    double solve = 0; ///< triangular solves
+    double line_search = 0; ///< energy evaluations and the step bound
     PhaseTimes& operator+=(const PhaseTimes& o)
     {
         assembly += o.assembly;

@@ -27,7 +27,10 @@ namespace {
     /// Quasi-static load stepping: no inertia; velocities are reported as (x_{n+1} - x_n) / h.
     class Static final : public TimeIntegrator {
     public:
-        explicit Static(double dt) : TimeIntegrator(dt) {}
+        explicit Static(double dt)
+            : TimeIntegrator(dt)
+        {
+        }
         IntegratorType type() const override { return IntegratorType::STATIC; }
         VectorXd inertial_target() const override { return m_x; }
         double potential_weight() const override { return 1.0; }
@@ -41,7 +44,10 @@ namespace {
     /// Implicit Euler: x~ = x_n + h v_n, c = 1, v_{n+1} = (x_{n+1} - x_n) / h.
     class ImplicitEuler final : public TimeIntegrator {
     public:
-        explicit ImplicitEuler(double dt) : TimeIntegrator(dt) {}
+        explicit ImplicitEuler(double dt)
+            : TimeIntegrator(dt)
+        {
+        }
         IntegratorType type() const override { return IntegratorType::IMPLICIT_EULER; }
         VectorXd inertial_target() const override { return m_x + m_dt * m_v; }
         double potential_weight() const override { return m_dt * m_dt; }
@@ -57,7 +63,10 @@ namespace {
     /// v_{n+1} = (3 x_{n+1} - 4 x_n + x_{n-1}) / (2h).
     class BDF2 final : public TimeIntegrator {
     public:
-        explicit BDF2(double dt) : TimeIntegrator(dt) {}
+        explicit BDF2(double dt)
+            : TimeIntegrator(dt)
+        {
+        }
         IntegratorType type() const override { return IntegratorType::BDF2; }
         VectorXd inertial_target() const override
         {
@@ -85,7 +94,10 @@ namespace {
     class Newmark final : public TimeIntegrator {
     public:
         static constexpr double BETA = 0.25, GAMMA = 0.5;
-        explicit Newmark(double dt) : TimeIntegrator(dt) {}
+        explicit Newmark(double dt)
+            : TimeIntegrator(dt)
+        {
+        }
         IntegratorType type() const override { return IntegratorType::NEWMARK; }
         VectorXd inertial_target() const override { return m_x + m_dt * m_v + (0.5 - BETA) * m_dt * m_dt * m_a; }
         double potential_weight() const override { return BETA * m_dt * m_dt; }

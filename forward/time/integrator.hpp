@@ -37,7 +37,10 @@ public:
     const VectorXd& accelerations() const { return m_a; }
 
 protected:
-    explicit TimeIntegrator(double dt) : m_dt(dt) {}
+    explicit TimeIntegrator(double dt)
+        : m_dt(dt)
+    {
+    }
     double m_dt;
     VectorXd m_x, m_v, m_a;
     VectorXd m_x_prev, m_v_prev;

@@ -13,20 +13,24 @@
 namespace diffipc::test {
 
 /// A single box body scene with no loads; tests add what they need.
-inline nlohmann::json box_scene(int dim, std::vector<double> max, std::vector<int> cells, const std::string& model = "neo_hookean",
-    double E = 1e5, double nu = 0.3, double density = 1000)
+inline nlohmann::json box_scene(int dim, std::vector<double> max, std::vector<int> cells,
+    const std::string& model = "neo_hookean", double E = 1e5, double nu = 0.3, double density = 1000)
 {
     nlohmann::json s;
     s["dimension"] = dim;
     std::vector<double> lo(static_cast<size_t>(dim), 0.0);
-    s["bodies"] = { { { "name", "body" }, { "mesh", { { "box", { { "min", lo }, { "max", max }, { "cells", cells } } } } },
-        { "material", { { "model", model }, { "E", E }, { "nu", nu }, { "density", density } } } } };
+    s["bodies"]
+        = { { { "name", "body" }, { "mesh", { { "box", { { "min", lo }, { "max", max }, { "cells", cells } } } } },
+            { "material", { { "model", model }, { "E", E }, { "nu", nu }, { "density", density } } } } };
     s["time"] = { { "integrator", "implicit_euler" }, { "dt", 0.01 }, { "steps", 1 } };
     s["solver"] = { { "residual_tolerance", 1e-10 } };
     return s;
 }
 
-inline nlohmann::json region(std::vector<double> lo, std::vector<double> hi) { return { { "min", lo }, { "max", hi } }; }
+inline nlohmann::json region(std::vector<double> lo, std::vector<double> hi)
+{
+    return { { "min", lo }, { "max", hi } };
+}
 
 inline Scene make_scene(const nlohmann::json& j) { return parse_scene(j, ".", "<test>"); }
 

@@ -51,11 +51,50 @@ def test_validate_and_help(cli, root):
         assert r.returncode == 0 and "Usage" in r.stdout
 
 
+def _set(path, value):
+    def mutate(s):
+        node = s
+        for key in path[:-1]:
+            node = node[key]
+        node[path[-1]] = value
+    return mutate
+
+
+def _drop(path):
+    def mutate(s):
+        node = s
+        for key in path[:-1]:
+            node = node[key]
+        del node[path[-1]]
+    return mutate
+
+
+# 24 malformed scenes, each must exit 1 with one line naming the field.
 BAD = [
-    ("E", lambda s: s["bodies"][0]["material"].__setitem__("E", -1.0)),
-    ("dt", lambda s: s["time"].__setitem__("dt", 0)),
-    ("mesh.file", lambda s: s["bodies"][0].__setitem__("mesh", {"file": "missing.msh"})),
-    ("dimension", lambda s: s.__setitem__("dimension", 5)),
+    ("bodies[0].material.E", _set(["bodies", 0, "material", "E"], -1.0)),
+    ("bodies[0].material.E", _set(["bodies", 0, "material", "E"], "stiff")),
+    ("bodies[0].material.nu", _set(["bodies", 0, "material", "nu"], 0.5)),
+    ("bodies[0].material.density", _set(["bodies", 0, "material", "density"], -3)),
+    ("bodies[0].material.model", _set(["bodies", 0, "material", "model"], "ogden")),
+    ("bodies[0].material", _drop(["bodies", 0, "material"])),
+    ("time.dt", _set(["time", "dt"], 0)),
+    ("time.steps", _set(["time", "steps"], -2)),
+    ("time.integrator", _set(["time", "integrator"], "euler")),
+    ("time", _drop(["time"])),
+    ("bodies[0].mesh.file", _set(["bodies", 0, "mesh"], {"file": "missing.msh"})),
+    ("bodies[0].mesh.box.cells", _set(["bodies", 0, "mesh", "box", "cells"], [4])),
+    ("bodies[0].mesh.box.max", _set(["bodies", 0, "mesh", "box", "max"], [0.0, 0.2])),
+    ("bodies[0].mesh", _set(["bodies", 0, "mesh"], {})),
+    ("dimension", _set(["dimension"], 5)),
+    ("bodies", _set(["bodies"], [])),
+    ("gravity", _set(["gravity"], [0, 0, 0])),
+    ("gravity[1]", _set(["gravity"], [0, 1e999])),
+    ("colour", _set(["colour"], "red")),
+    ("solver.max_iterations", _set(["solver", "max_iterations"], 0)),
+    ("solver.linear_solver", _set(["solver", "linear_solver"], "mumps")),
+    ("dirichlet[0].body", _set(["dirichlet"], [{"body": "ghost", "region": {"min": [0, 0], "max": [1, 1]}, "displacement": [0, 0]}])),
+    ("dirichlet[0].displacement[0]", _set(["dirichlet"], [{"body": 0, "region": {"min": [0, 0], "max": [1, 1]}, "displacement": ["t +", 0]}])),
+    ("neumann[0].region", _set(["neumann"], [{"body": 0, "region": {"min": [5, 5], "max": [6, 6]}, "traction": [1, 0]}])),
 ]
 
 
@@ -64,7 +103,8 @@ def test_bad_scene_exits_nonzero_with_one_line(cli, tmp_path, field, mutate):
     s = box_scene()
     mutate(s)
     scene = tmp_path / "bad.json"
-    scene.write_text(json.dumps(s))
+    # 1e999 is written as Infinity by json.dumps; write it as a JSON number that overflows instead.
+    scene.write_text(json.dumps(s).replace("Infinity", "1e999"))
     for sub in ("simulate", "validate"):
         r = run(cli, sub, scene, *(["-o", tmp_path / "o"] if sub == "simulate" else []))
         assert r.returncode == 1

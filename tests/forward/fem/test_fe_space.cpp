@@ -78,7 +78,8 @@ TEST(InversionFreeStep, NoElementLosesItsVolumeAlongTheBoundedStep)
                 const double t = t_max * k / 200.0;
                 const Positions xt = unflatten(x + t * p, dim);
                 for (Index e = 0; e < m.num_elements(); ++e)
-                    ASSERT_GT(signed_volume(xt, m.elements, e), 0.1 * signed_volume(m.rest_positions, m.elements, e) * (1 - 1e-9))
+                    ASSERT_GT(signed_volume(xt, m.elements, e),
+                        0.1 * signed_volume(m.rest_positions, m.elements, e) * (1 - 1e-9))
                         << "dim " << dim << " seed " << seed << " element " << e << " t " << t;
             }
             // Not over-conservative: somewhat beyond t_max some element does drop below the kept fraction.
@@ -87,7 +88,8 @@ TEST(InversionFreeStep, NoElementLosesItsVolumeAlongTheBoundedStep)
                 const Positions xt = unflatten(x + t * p, dim);
                 bool below = false;
                 for (Index e = 0; e < m.num_elements(); ++e)
-                    below = below || signed_volume(xt, m.elements, e) < 0.1 * signed_volume(m.rest_positions, m.elements, e);
+                    below = below
+                        || signed_volume(xt, m.elements, e) < 0.1 * signed_volume(m.rest_positions, m.elements, e);
                 EXPECT_TRUE(below) << "dim " << dim << " seed " << seed;
             }
         }

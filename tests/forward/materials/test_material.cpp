@@ -70,17 +70,20 @@ protected:
         rest = rest_simplex(c.dim);
         const MatrixXd F = deformation_for(c.state, c.dim);
         deformed = rest * F.transpose();
-        deformed += 1e-3 * Eigen::Map<const MatrixXd>(test::random_vector((c.dim + 1) * c.dim, 17).data(), c.dim + 1, c.dim);
+        deformed
+            += 1e-3 * Eigen::Map<const MatrixXd>(test::random_vector((c.dim + 1) * c.dim, 17).data(), c.dim + 1, c.dim);
         ASSERT_GT(F.determinant(), 0);
     }
     double energy(const VectorXd& x) const
     {
-        const MatrixXd xm = Eigen::Map<const Eigen::Matrix<double, -1, -1, Eigen::RowMajor>>(x.data(), rest.rows(), rest.cols());
+        const MatrixXd xm
+            = Eigen::Map<const Eigen::Matrix<double, -1, -1, Eigen::RowMajor>>(x.data(), rest.rows(), rest.cols());
         return element_energy(GetParam().model, rest, xm, mu, lambda);
     }
     VectorXd gradient(const VectorXd& x) const
     {
-        const MatrixXd xm = Eigen::Map<const Eigen::Matrix<double, -1, -1, Eigen::RowMajor>>(x.data(), rest.rows(), rest.cols());
+        const MatrixXd xm
+            = Eigen::Map<const Eigen::Matrix<double, -1, -1, Eigen::RowMajor>>(x.data(), rest.rows(), rest.cols());
         return element_gradient(GetParam().model, rest, xm, mu, lambda);
     }
     VectorXd flat() const
@@ -108,7 +111,8 @@ TEST_P(MaterialDerivatives, GradientMatchesCentralDifferences)
         for (double h : { 1e-2, 1e-3, 1e-4, 1e-5, 1e-6 }) {
             const double step = h * scale;
             const double fd = (energy(x + step * dir) - energy(x - step * dir)) / (2 * step);
-            const double err = std::abs(fd - analytic) / std::max(std::abs(analytic), 1e-8 * std::abs(energy(x)) + 1e-300);
+            const double err
+                = std::abs(fd - analytic) / std::max(std::abs(analytic), 1e-8 * std::abs(energy(x)) + 1e-300);
             errors.push_back(err);
             best = std::min(best, err);
         }
@@ -159,7 +163,8 @@ TEST_P(MaterialDerivatives, ProjectedHessianIsPsdAndKeepsPsdInput)
 std::vector<Case> all_cases()
 {
     std::vector<Case> cases;
-    for (MaterialModel m : { MaterialModel::LINEAR, MaterialModel::STVK, MaterialModel::NEO_HOOKEAN, MaterialModel::STABLE_NEO_HOOKEAN })
+    for (MaterialModel m :
+        { MaterialModel::LINEAR, MaterialModel::STVK, MaterialModel::NEO_HOOKEAN, MaterialModel::STABLE_NEO_HOOKEAN })
         for (int dim : { 2, 3 })
             for (const char* state : { "near_rest", "stretch", "compression", "general" })
                 cases.push_back({ m, dim, state });
@@ -170,7 +175,8 @@ INSTANTIATE_TEST_SUITE_P(AllMaterials, MaterialDerivatives, testing::ValuesIn(al
 
 TEST(Material, RestStateIsStressFree)
 {
-    for (MaterialModel m : { MaterialModel::LINEAR, MaterialModel::STVK, MaterialModel::NEO_HOOKEAN, MaterialModel::STABLE_NEO_HOOKEAN }) {
+    for (MaterialModel m :
+        { MaterialModel::LINEAR, MaterialModel::STVK, MaterialModel::NEO_HOOKEAN, MaterialModel::STABLE_NEO_HOOKEAN }) {
         auto mat = make_material<3>(m);
         EXPECT_NEAR(mat->energy_density(Eigen::Matrix3d::Identity(), 3.0, 5.0), 0.0, 1e-14) << to_string(m);
         EXPECT_LT(mat->stress(Eigen::Matrix3d::Identity(), 3.0, 5.0).norm(), 1e-14) << to_string(m);
@@ -182,7 +188,8 @@ TEST(Material, RestStateIsStressFree)
 TEST(Material, AllModelsLinearizeToLinearElasticity)
 {
     const double mu = 2.0, lambda = 7.0;
-    const auto reference = make_material<3>(MaterialModel::LINEAR)->stress_derivative(Eigen::Matrix3d::Identity(), mu, lambda);
+    const auto reference
+        = make_material<3>(MaterialModel::LINEAR)->stress_derivative(Eigen::Matrix3d::Identity(), mu, lambda);
     for (MaterialModel m : { MaterialModel::STVK, MaterialModel::NEO_HOOKEAN, MaterialModel::STABLE_NEO_HOOKEAN }) {
         const auto A = make_material<3>(m)->stress_derivative(Eigen::Matrix3d::Identity(), mu, lambda);
         EXPECT_LT((A - reference).norm(), 1e-12) << to_string(m);

@@ -82,7 +82,8 @@ TEST(GmshReader, ReadsVersion4Triangles)
     const Mesh m = read_gmsh(write_temp("v4.msh", V4), 2);
     EXPECT_EQ(m.num_vertices(), 4);
     EXPECT_EQ(m.num_elements(), 2);
-    EXPECT_NEAR(signed_volume(m.rest_positions, m.elements, 0) + signed_volume(m.rest_positions, m.elements, 1), 1.0, 1e-15);
+    EXPECT_NEAR(
+        signed_volume(m.rest_positions, m.elements, 0) + signed_volume(m.rest_positions, m.elements, 1), 1.0, 1e-15);
     EXPECT_EQ(m.boundary_facets.rows(), 4);
 }
 
@@ -101,7 +102,8 @@ TEST(GmshReader, ErrorsNameTheFile)
     // No tetrahedra in a triangle-only file.
     EXPECT_THROW(read_gmsh(write_temp("v4b.msh", V4), 3), InputError);
     // Truncated node section.
-    EXPECT_THROW(read_gmsh(write_temp("trunc.msh", "$MeshFormat\n2.2 0 8\n$EndMeshFormat\n$Nodes\n3\n1 0 0 0\n"), 3), InputError);
+    EXPECT_THROW(read_gmsh(write_temp("trunc.msh", "$MeshFormat\n2.2 0 8\n$EndMeshFormat\n$Nodes\n3\n1 0 0 0\n"), 3),
+        InputError);
     // Element referring to an undefined node.
     std::string bad = V2;
     bad.replace(bad.find("10 20 30 40"), 11, "10 20 30 99");

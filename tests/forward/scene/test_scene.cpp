@@ -21,7 +21,8 @@ json valid_scene()
     s["gravity"] = { 0, -9.81, 0 };
     s["dirichlet"] = { { { "body", "body" }, { "region", test::region({ -1, -1, -1 }, { 1e-6, 1, 1 }) },
         { "displacement", { "0", 0, nullptr } } } };
-    s["neumann"] = { { { "body", 0 }, { "region", test::region({ 1, -1, -1 }, { 2, 1, 1 }) }, { "traction", { "1e3*t", 0, 0 } } } };
+    s["neumann"] = { { { "body", 0 }, { "region", test::region({ 1, -1, -1 }, { 2, 1, 1 }) },
+        { "traction", { "1e3*t", 0, 0 } } } };
     s["output"] = { { "directory", "out" }, { "vtu_every", 2 } };
     return s;
 }
@@ -35,7 +36,11 @@ struct Malformed {
 std::vector<Malformed> malformed_cases()
 {
     return {
-        { "unknown_top_level_key", [](json& s) { s["gravty"] = { 0, 0, 0 }; }, "gravty" },
+        { "unknown_top_level_key",
+            [](json& s) {
+                s["gravty"] = { 0, 0, 0 };
+            },
+            "gravty" },
         { "missing_dimension", [](json& s) { s.erase("dimension"); }, "dimension" },
         { "dimension_four", [](json& s) { s["dimension"] = 4; }, "dimension" },
         { "dimension_string", [](json& s) { s["dimension"] = "3"; }, "dimension" },
@@ -46,15 +51,40 @@ std::vector<Malformed> malformed_cases()
         { "nu_half", [](json& s) { s["bodies"][0]["material"]["nu"] = 0.5; }, "bodies[0].material.nu" },
         { "nu_below_minus_one", [](json& s) { s["bodies"][0]["material"]["nu"] = -1.0; }, "bodies[0].material.nu" },
         { "zero_density", [](json& s) { s["bodies"][0]["material"]["density"] = 0.0; }, "bodies[0].material.density" },
-        { "unknown_model", [](json& s) { s["bodies"][0]["material"]["model"] = "mooney"; }, "bodies[0].material.model" },
+        { "unknown_model", [](json& s) { s["bodies"][0]["material"]["model"] = "mooney"; },
+            "bodies[0].material.model" },
         { "missing_material", [](json& s) { s["bodies"][0].erase("material"); }, "bodies[0].material" },
         { "box_and_file", [](json& s) { s["bodies"][0]["mesh"]["file"] = "x.msh"; }, "bodies[0].mesh" },
-        { "missing_mesh_file", [](json& s) { s["bodies"][0]["mesh"] = { { "file", "no_such_mesh.msh" } }; }, "bodies[0].mesh.file" },
-        { "unsupported_mesh_format", [](json& s) { s["bodies"][0]["mesh"] = { { "file", "CMakeLists.txt" } }; }, "bodies[0].mesh.file" },
-        { "zero_cells", [](json& s) { s["bodies"][0]["mesh"]["box"]["cells"] = { 4, 0, 1 }; }, "bodies[0].mesh.box.cells[1]" },
-        { "degenerate_box", [](json& s) { s["bodies"][0]["mesh"]["box"]["max"] = { 1.0, 0.0, 0.2 }; }, "bodies[0].mesh.box.max" },
-        { "wrong_vector_length", [](json& s) { s["gravity"] = { 0, -9.81 }; }, "gravity" },
-        { "velocity_not_numbers", [](json& s) { s["bodies"][0]["initial_velocity"] = { 0, "fast", 0 }; }, "bodies[0].initial_velocity[1]" },
+        { "missing_mesh_file",
+            [](json& s) {
+                s["bodies"][0]["mesh"] = { { "file", "no_such_mesh.msh" } };
+            },
+            "bodies[0].mesh.file" },
+        { "unsupported_mesh_format",
+            [](json& s) {
+                s["bodies"][0]["mesh"] = { { "file", "CMakeLists.txt" } };
+            },
+            "bodies[0].mesh.file" },
+        { "zero_cells",
+            [](json& s) {
+                s["bodies"][0]["mesh"]["box"]["cells"] = { 4, 0, 1 };
+            },
+            "bodies[0].mesh.box.cells[1]" },
+        { "degenerate_box",
+            [](json& s) {
+                s["bodies"][0]["mesh"]["box"]["max"] = { 1.0, 0.0, 0.2 };
+            },
+            "bodies[0].mesh.box.max" },
+        { "wrong_vector_length",
+            [](json& s) {
+                s["gravity"] = { 0, -9.81 };
+            },
+            "gravity" },
+        { "velocity_not_numbers",
+            [](json& s) {
+                s["bodies"][0]["initial_velocity"] = { 0, "fast", 0 };
+            },
+            "bodies[0].initial_velocity[1]" },
         { "zero_dt", [](json& s) { s["time"]["dt"] = 0.0; }, "time.dt" },
         { "negative_dt", [](json& s) { s["time"]["dt"] = -0.1; }, "time.dt" },
         { "zero_steps", [](json& s) { s["time"]["steps"] = 0; }, "time.steps" },
@@ -62,19 +92,44 @@ std::vector<Malformed> malformed_cases()
         { "unknown_integrator", [](json& s) { s["time"]["integrator"] = "rk4"; }, "time.integrator" },
         { "dirichlet_unknown_body", [](json& s) { s["dirichlet"][0]["body"] = "wall"; }, "dirichlet[0].body" },
         { "dirichlet_body_index_out_of_range", [](json& s) { s["dirichlet"][0]["body"] = 3; }, "dirichlet[0].body" },
-        { "dirichlet_empty_region", [](json& s) { s["dirichlet"][0]["region"] = test::region({ 5, 5, 5 }, { 6, 6, 6 }); }, "dirichlet[0].region" },
-        { "dirichlet_bad_expression", [](json& s) { s["dirichlet"][0]["displacement"][0] = "sin(t"; }, "dirichlet[0].displacement[0]" },
-        { "dirichlet_unknown_variable", [](json& s) { s["dirichlet"][0]["displacement"][0] = "2*w"; }, "dirichlet[0].displacement[0]" },
-        { "dirichlet_all_null", [](json& s) { s["dirichlet"][0]["displacement"] = { nullptr, nullptr, nullptr }; }, "dirichlet[0].displacement" },
-        { "dirichlet_nonfinite_expression", [](json& s) { s["dirichlet"][0]["displacement"][0] = "1/t"; }, "dirichlet[0].displacement[0]" },
-        { "neumann_wrong_length", [](json& s) { s["neumann"][0]["traction"] = { 1, 2 }; }, "neumann[0].traction" },
-        { "neumann_region_no_facet", [](json& s) { s["neumann"][0]["region"] = test::region({ 0.5, -1, -1 }, { 0.5, 1, 1 }); }, "neumann[0].region" },
-        { "solver_negative_tolerance", [](json& s) { s["solver"]["residual_tolerance"] = -1e-8; }, "solver.residual_tolerance" },
-        { "solver_unknown_linear_solver", [](json& s) { s["solver"]["linear_solver"] = "pardiso"; }, "solver.linear_solver" },
+        { "dirichlet_empty_region",
+            [](json& s) {
+                s["dirichlet"][0]["region"] = test::region({ 5, 5, 5 }, { 6, 6, 6 });
+            },
+            "dirichlet[0].region" },
+        { "dirichlet_bad_expression", [](json& s) { s["dirichlet"][0]["displacement"][0] = "sin(t"; },
+            "dirichlet[0].displacement[0]" },
+        { "dirichlet_unknown_variable", [](json& s) { s["dirichlet"][0]["displacement"][0] = "2*w"; },
+            "dirichlet[0].displacement[0]" },
+        { "dirichlet_all_null",
+            [](json& s) {
+                s["dirichlet"][0]["displacement"] = { nullptr, nullptr, nullptr };
+            },
+            "dirichlet[0].displacement" },
+        { "dirichlet_nonfinite_expression", [](json& s) { s["dirichlet"][0]["displacement"][0] = "1/t"; },
+            "dirichlet[0].displacement[0]" },
+        { "neumann_wrong_length",
+            [](json& s) {
+                s["neumann"][0]["traction"] = { 1, 2 };
+            },
+            "neumann[0].traction" },
+        { "neumann_region_no_facet",
+            [](json& s) {
+                s["neumann"][0]["region"] = test::region({ 0.5, -1, -1 }, { 0.5, 1, 1 });
+            },
+            "neumann[0].region" },
+        { "solver_negative_tolerance", [](json& s) { s["solver"]["residual_tolerance"] = -1e-8; },
+            "solver.residual_tolerance" },
+        { "solver_unknown_linear_solver", [](json& s) { s["solver"]["linear_solver"] = "pardiso"; },
+            "solver.linear_solver" },
         { "output_negative_vtu_every", [](json& s) { s["output"]["vtu_every"] = -1; }, "output.vtu_every" },
         { "mass_unknown", [](json& s) { s["mass"] = "heavy"; }, "mass" },
         { "duplicate_body_name", [](json& s) { s["bodies"].push_back(s["bodies"][0]); }, "bodies[1].name" },
-        { "region_max_below_min", [](json& s) { s["dirichlet"][0]["region"] = test::region({ 1, 1, 1 }, { 0, 0, 0 }); }, "dirichlet[0].region.max" },
+        { "region_max_below_min",
+            [](json& s) {
+                s["dirichlet"][0]["region"] = test::region({ 1, 1, 1 }, { 0, 0, 0 });
+            },
+            "dirichlet[0].region.max" },
     };
 }
 
@@ -118,10 +173,7 @@ TEST(Scene, InvalidJsonTextNamesTheSource)
     EXPECT_THROW(parse_scene_text("{\"dimension\": NaN}", ".", "nan.json"), InputError);
 }
 
-TEST(Scene, MissingFileIsReported)
-{
-    EXPECT_THROW(load_scene("/nonexistent/scene.json"), InputError);
-}
+TEST(Scene, MissingFileIsReported) { EXPECT_THROW(load_scene("/nonexistent/scene.json"), InputError); }
 
 TEST(Scene, FileErrorsArePrefixedWithTheFileName)
 {
@@ -142,8 +194,9 @@ TEST(Scene, FileErrorsArePrefixedWithTheFileName)
 TEST(Scene, InvertedFileMeshIsRejected)
 {
     const std::string path = testing::TempDir() + "inverted.msh";
-    std::ofstream(path) << "$MeshFormat\n2.2 0 8\n$EndMeshFormat\n$Nodes\n4\n1 0 0 0\n2 1 0 0\n3 0 1 0\n4 0 0 1\n$EndNodes\n"
-                           "$Elements\n1\n1 4 0 1 3 2 4\n$EndElements\n";
+    std::ofstream(path)
+        << "$MeshFormat\n2.2 0 8\n$EndMeshFormat\n$Nodes\n4\n1 0 0 0\n2 1 0 0\n3 0 1 0\n4 0 0 1\n$EndNodes\n"
+           "$Elements\n1\n1 4 0 1 3 2 4\n$EndElements\n";
     json s = valid_scene();
     s.erase("dirichlet");
     s.erase("neumann");

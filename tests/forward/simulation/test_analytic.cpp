@@ -19,7 +19,8 @@ namespace {
 TEST(FreeFall, ImplicitEulerMatchesClosedFormDiscreteSolution)
 {
     for (int dim : { 2, 3 }) {
-        json s = dim == 3 ? test::box_scene(3, { 0.5, 0.2, 0.3 }, { 3, 2, 2 }) : test::box_scene(2, { 0.5, 0.2 }, { 4, 2 });
+        json s = dim == 3 ? test::box_scene(3, { 0.5, 0.2, 0.3 }, { 3, 2, 2 })
+                          : test::box_scene(2, { 0.5, 0.2 }, { 4, 2 });
         const Eigen::Vector3d g(0.3, -9.81, 0.7), v0(1.5, 2.0, -0.5);
         s["gravity"] = std::vector<double>(g.data(), g.data() + dim);
         s["bodies"][0]["initial_velocity"] = std::vector<double>(v0.data(), v0.data() + dim);
@@ -39,8 +40,10 @@ TEST(FreeFall, ImplicitEulerMatchesClosedFormDiscreteSolution)
                 expected_v[i] = v0[i % dim] + n * h * g[i % dim];
             }
             const double scale = (expected - X).lpNorm<Eigen::Infinity>();
-            EXPECT_LT((r.positions - expected).lpNorm<Eigen::Infinity>(), 1e-9 * scale) << "dim " << dim << " step " << n;
-            EXPECT_LT((r.velocities - expected_v).lpNorm<Eigen::Infinity>(), 1e-9 * expected_v.lpNorm<Eigen::Infinity>());
+            EXPECT_LT((r.positions - expected).lpNorm<Eigen::Infinity>(), 1e-9 * scale)
+                << "dim " << dim << " step " << n;
+            EXPECT_LT(
+                (r.velocities - expected_v).lpNorm<Eigen::Infinity>(), 1e-9 * expected_v.lpNorm<Eigen::Infinity>());
         }
     }
 }
@@ -75,7 +78,8 @@ TEST(PatchTest, AffineBoundaryDisplacementGivesExactAffineField)
         for (int dim : { 2, 3 }) {
             json s = dim == 3 ? test::box_scene(3, { 1, 1, 1 }, { 3, 3, 3 }, model, 1e6, 0.3)
                               : test::box_scene(2, { 1, 1 }, { 4, 4 }, model, 1e6, 0.3);
-            const Eigen::Matrix3d A = (Eigen::Matrix3d() << 0.08, -0.03, 0.02, 0.05, -0.06, 0.01, -0.02, 0.04, 0.07).finished();
+            const Eigen::Matrix3d A
+                = (Eigen::Matrix3d() << 0.08, -0.03, 0.02, 0.05, -0.06, 0.01, -0.02, 0.04, 0.07).finished();
             const Eigen::Vector3d b(0.01, -0.02, 0.03);
             json disp = json::array();
             const char* coords[3] = { "x", "y", "z" };
@@ -90,7 +94,8 @@ TEST(PatchTest, AffineBoundaryDisplacementGivesExactAffineField)
                 for (double side : { 0.0, 1.0 }) {
                     std::vector<double> lo(static_cast<size_t>(dim), -1.0), hi(static_cast<size_t>(dim), 2.0);
                     lo[size_t(axis)] = hi[size_t(axis)] = side;
-                    s["dirichlet"].push_back({ { "body", 0 }, { "region", test::region(lo, hi) }, { "displacement", disp } });
+                    s["dirichlet"].push_back(
+                        { { "body", 0 }, { "region", test::region(lo, hi) }, { "displacement", disp } });
                 }
             s["time"] = { { "integrator", "static" }, { "dt", 1.0 }, { "steps", 1 } };
             Simulator sim(test::make_scene(s));
@@ -153,7 +158,8 @@ Eigen::Vector2d uniaxial_stretches(const std::string& model, int dim, double E, 
         // P = mu (F - F^-T) + lambda ln J F^-T
         f = [&](const Eigen::Vector2d& z) {
             const double l = std::log(J(z));
-            return Eigen::Vector2d(mu * (z[0] - 1 / z[0]) + lambda * l / z[0] - T, mu * (z[1] - 1 / z[1]) + lambda * l / z[1]);
+            return Eigen::Vector2d(
+                mu * (z[0] - 1 / z[0]) + lambda * l / z[0] - T, mu * (z[1] - 1 / z[1]) + lambda * l / z[1]);
         };
     } else {
         // P = mu F + (lambda' (J - 1) - mu) cof F, lambda' = lambda + mu; cof diag = J / stretch
@@ -188,7 +194,8 @@ TEST(UniaxialBar, MatchesClosedFormForEveryMaterial)
                 { { "body", 0 }, { "region", test::region(pin, pin) }, { "displacement", pinned } } };
             if (dim == 3) {
                 std::vector<double> corner { 0.0, W, 0.0 };
-                s["dirichlet"].push_back({ { "body", 0 }, { "region", test::region(corner, corner) }, { "displacement", no_spin } });
+                s["dirichlet"].push_back(
+                    { { "body", 0 }, { "region", test::region(corner, corner) }, { "displacement", no_spin } });
             }
             std::vector<double> end_lo(size_t(dim), -1.0), end_hi(size_t(dim), 5.0);
             end_lo[0] = end_hi[0] = L;

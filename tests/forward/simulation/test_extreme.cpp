@@ -47,7 +47,8 @@ TEST_P(ExtremeCase, EndsWithStatusAndValidStates)
     json s = test::box_scene(3, { 1.0, 0.2, 0.2 }, { 6, 1, 1 }, "neo_hookean", c.E, c.nu);
     s["gravity"] = { 0.0, -9.81, 0.0 };
     s["bodies"][0]["initial_velocity"] = { c.velocity, 0.0, 0.0 };
-    s["dirichlet"] = { { { "body", 0 }, { "region", test::region({ -1, -1, -1 }, { 0, 1, 1 }) }, { "displacement", { 0, 0, 0 } } } };
+    s["dirichlet"] = { { { "body", 0 }, { "region", test::region({ -1, -1, -1 }, { 0, 1, 1 }) },
+        { "displacement", { 0, 0, 0 } } } };
     s["time"] = { { "integrator", c.integrator }, { "dt", c.dt }, { "steps", c.steps } };
     s["solver"] = { { "residual_tolerance", 1e-8 }, { "max_iterations", 200 } };
     Simulator sim(test::make_scene(s));
@@ -76,7 +77,8 @@ TEST(Transactional, FailedStepLeavesStateUntouched)
 {
     json s = test::box_scene(2, { 1.0, 0.2 }, { 5, 1 }, "neo_hookean", 1e5, 0.3);
     s["gravity"] = { 0.0, -9.81 };
-    s["dirichlet"] = { { { "body", 0 }, { "region", test::region({ -1, -1 }, { 0, 1 }) }, { "displacement", { 0, 0 } } } };
+    s["dirichlet"]
+        = { { { "body", 0 }, { "region", test::region({ -1, -1 }, { 0, 1 }) }, { "displacement", { 0, 0 } } } };
     s["time"] = { { "integrator", "implicit_euler" }, { "dt", 0.05 }, { "steps", 3 } };
     s["solver"] = { { "residual_tolerance", 1e-12 }, { "max_iterations", 1 } }; // one iteration cannot reach 1e-12
     Simulator sim(test::make_scene(s));
@@ -92,11 +94,30 @@ TEST(Transactional, InvertedStartIsInvalidInitialState)
 {
     json s = test::box_scene(2, { 1.0, 0.2 }, { 5, 1 }, "neo_hookean", 1e5, 0.3);
     // The Dirichlet value at t = 0 folds the fixed end over: the start is infeasible.
-    s["dirichlet"] = { { { "body", 0 }, { "region", test::region({ -1, -1 }, { 0.2, 1 }) }, { "displacement", { "0.5 - 2*x", 0 } } } };
+    s["dirichlet"] = { { { "body", 0 }, { "region", test::region({ -1, -1 }, { 0.2, 1 }) },
+        { "displacement", { "0.5 - 2*x", 0 } } } };
     s["time"] = { { "integrator", "implicit_euler" }, { "dt", 0.05 }, { "steps", 1 } };
     Simulator sim(test::make_scene(s));
     EXPECT_EQ(sim.step(), StepStatus::INVALID_INITIAL_STATE);
     EXPECT_EQ(sim.steps_done(), 0);
+}
+
+} // namespace
+
+namespace {
+
+// A static solve of an unsupported body under gravity has no equilibrium: the
+// Hessian is singular, both factorizations break down, and the step says so.
+TEST(Transactional, UnsupportedStaticBodyIsLinearBreakdown)
+{
+    json s = test::box_scene(2, { 1.0, 0.2 }, { 4, 1 }, "neo_hookean", 1e5, 0.3);
+    s["gravity"] = { 0.0, -9.81 };
+    s["time"] = { { "integrator", "static" }, { "dt", 1.0 }, { "steps", 2 } };
+    Simulator sim(test::make_scene(s));
+    sim.run();
+    EXPECT_EQ(sim.trajectory().final_status, StepStatus::LINEAR_BREAKDOWN);
+    EXPECT_EQ(sim.steps_done(), 0);
+    EXPECT_TRUE(sim.positions().allFinite());
 }
 
 } // namespace

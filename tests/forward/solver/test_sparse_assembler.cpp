@@ -33,8 +33,9 @@ TEST(SparseAssembler, ColorsShareNoVertexAndCoverAllElements)
 TEST(SparseAssembler, ElasticHessianEqualsDenseElementSum)
 {
     for (int dim : { 2, 3 }) {
-        const Mesh m = dim == 2 ? box_mesh(2, Eigen::Vector2d(0, 0), Eigen::Vector2d(1, 1), Eigen::Vector2i(3, 4))
-                                : box_mesh(3, Eigen::Vector3d(0, 0, 0), Eigen::Vector3d(1, 1, 1), Eigen::Vector3i(2, 2, 3));
+        const Mesh m = dim == 2
+            ? box_mesh(2, Eigen::Vector2d(0, 0), Eigen::Vector2d(1, 1), Eigen::Vector2i(3, 4))
+            : box_mesh(3, Eigen::Vector3d(0, 0, 0), Eigen::Vector3d(1, 1, 1), Eigen::Vector3i(2, 2, 3));
         const FESpace space(m);
         const Index ne = m.num_elements();
         std::vector<MaterialModel> models(static_cast<size_t>(ne), MaterialModel::NEO_HOOKEAN);
@@ -57,7 +58,8 @@ TEST(SparseAssembler, ElasticHessianEqualsDenseElementSum)
                 const MatrixXd Ke = element_hessian(MaterialModel::NEO_HOOKEAN, rest, def, mu[e], lambda[e], project);
                 for (int a = 0; a < dim * (dim + 1); ++a)
                     for (int b = 0; b < dim * (dim + 1); ++b)
-                        dense(m.elements(e, a / dim) * dim + a % dim, m.elements(e, b / dim) * dim + b % dim) += 2.0 * Ke(a, b);
+                        dense(m.elements(e, a / dim) * dim + a % dim, m.elements(e, b / dim) * dim + b % dim)
+                            += 2.0 * Ke(a, b);
             }
             const SparseMatrixd full = H.matrix().selfadjointView<Eigen::Lower>();
             const MatrixXd assembled(full);
