@@ -174,12 +174,12 @@ namespace {
 
     template <int dim, typename MaterialOf>
     void gradient_impl(const FESpace& space, const std::vector<MaterialModel>& models, const VectorXd& mu,
-        const VectorXd& lambda, const VectorXd& x, double weight, VectorXd& g, MaterialOf material)
+        const VectorXd& lambda, const VectorXd& x, double weight, VectorXd& g, std::vector<double>& local, MaterialOf material)
     {
         constexpr int L = Kernel<dim>::L;
         const Mesh& mesh = space.mesh();
         const Index ne = space.num_elements();
-        std::vector<double> local(size_t(ne) * L);
+        local.resize(size_t(ne) * L); // per-element gradients, kept between calls
         tbb::parallel_for(tbb::blocked_range<Index>(0, ne, GRAIN), [&](const tbb::blocked_range<Index>& r) {
             for (Index e = r.begin(); e < r.end(); ++e) {
                 const auto G = shape<dim>(space, e);
@@ -223,10 +223,10 @@ namespace {
 void ElasticPotential::add_gradient(const VectorXd& x, double weight, VectorXd& g) const
 {
     if (m_space.dim() == 2)
-        gradient_impl<2>(m_space, m_models, m_mu, m_lambda, x, weight, g,
+        gradient_impl<2>(m_space, m_models, m_mu, m_lambda, x, weight, g, m_gradient_buffer,
             [this](MaterialModel m) -> const Material<2>& { return m_impl->material<2>(m); });
     else
-        gradient_impl<3>(m_space, m_models, m_mu, m_lambda, x, weight, g,
+        gradient_impl<3>(m_space, m_models, m_mu, m_lambda, x, weight, g, m_gradient_buffer,
             [this](MaterialModel m) -> const Material<3>& { return m_impl->material<3>(m); });
 }
 

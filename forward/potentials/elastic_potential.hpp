@@ -42,6 +42,8 @@ private:
     std::vector<MaterialModel> m_models;
     VectorXd m_mu, m_lambda;
     std::unique_ptr<Impl> m_impl;
+    /// Scratch for per-element gradients (scattered serially for a deterministic sum).
+    mutable std::vector<double> m_gradient_buffer;
 };
 
 /// @name Element-level energy, gradient and Hessian of one P1 element.

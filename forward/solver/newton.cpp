@@ -17,7 +17,8 @@ NewtonResult NewtonSolver::solve(VectorXd& x, const VectorXd& target, const std:
 {
     NewtonResult result;
     const Index n = x.size();
-    VectorXd g(n), p(n), rhs(n), pD(n);
+    // Work vectors allocated once per solve, reused by every iteration and trial.
+    VectorXd g(n), p(n), rhs(n), pD(n), trial(n), g_trial(n);
 
     double energy;
     {
@@ -117,7 +118,6 @@ NewtonResult NewtonSolver::solve(VectorXd& x, const VectorXd& target, const std:
         double alpha = std::min(1.0, m_problem.max_step(x, p));
         bool accepted = false;
         double new_energy = energy;
-        VectorXd trial(n);
         // Differences below this are round-off in the energy sum.
         const double roundoff = 1e-13 * std::abs(energy);
         // Near the solution the predicted decrease can drop below what the energy
@@ -133,7 +133,6 @@ NewtonResult NewtonSolver::solve(VectorXd& x, const VectorXd& target, const std:
                 break;
             }
             if (unresolvable && h == 0) {
-                VectorXd g_trial(n);
                 m_problem.gradient(trial, g_trial);
                 double trial_max = 0;
                 for (Index i = 0; i < n; ++i)
