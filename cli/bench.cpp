@@ -3,12 +3,15 @@
 #include "cli/bench.hpp"
 
 #include "forward/common/timer.hpp"
+#include "forward/contact/intersection.hpp"
 #include "forward/scene/scene.hpp"
 #include "forward/simulation/simulator.hpp"
 
 #include <nlohmann/json.hpp>
 
 #include <cstdio>
+#include <filesystem>
+#include <fstream>
 #include <thread>
 
 namespace diffipc {
@@ -43,10 +46,126 @@ namespace {
         return s;
     }
 
+    /// A ~20k-tet contact scene: a soft slab dropped on a clamped one.
+    nlohmann::json contact_slabs(bool full, int steps)
+    {
+        const int n = full ? 1 : 0;
+        auto slab = [](const std::string& name, std::vector<double> lo, std::vector<double> hi, std::vector<int> cells,
+                        std::vector<double> v) {
+            return nlohmann::json { { "name", name },
+                { "mesh", { { "box", { { "min", lo }, { "max", hi }, { "cells", cells } } } } },
+                { "material", { { "model", "neo_hookean" }, { "E", 1e6 }, { "nu", 0.3 }, { "density", 1000 } } },
+                { "initial_velocity", v }, { "self_contact", false } };
+        };
+        nlohmann::json s;
+        s["dimension"] = 3;
+        // full: 24 x 3 x 24 and 20 x 4 x 20 cubes, 6 tets each: 10,368 + 9,600 = 19,968 tetrahedra.
+        s["bodies"] = { slab("base", { -0.6, -0.15, -0.6 }, { 0.6, 0.0, 0.6 }, n ? std::vector<int> { 24, 3, 24 } : std::vector<int> { 8, 2, 8 }, { 0, 0, 0 }),
+            slab("slab", { -0.5, 0.002, -0.5 }, { 0.5, 0.202, 0.5 }, n ? std::vector<int> { 20, 4, 20 } : std::vector<int> { 6, 2, 6 }, { 0, -1, 0 }) };
+        s["gravity"] = { 0, -9.81, 0 };
+        s["dirichlet"] = { { { "body", "base" }, { "region", { { "min", { -1, -1, -1 } }, { "max", { 1, -0.15, 1 } } } },
+            { "displacement", { 0, 0, 0 } } } };
+        s["contact"] = { { "dhat", 1e-3 }, { "kappa", "adaptive" } };
+        s["time"] = { { "integrator", "implicit_euler" }, { "dt", 0.005 }, { "steps", steps } };
+        s["solver"] = { { "residual_tolerance", 1e-6 } };
+        return s;
+    }
+
+    PhaseTimes minus(PhaseTimes a, const PhaseTimes& b)
+    {
+        a.assembly -= b.assembly;
+        a.factorization -= b.factorization;
+        a.solve -= b.solve;
+        a.line_search -= b.line_search;
+        a.broad_phase -= b.broad_phase;
+        a.ccd -= b.ccd;
+        a.barrier -= b.barrier;
+        return a;
+    }
+
+    int run_contact_bench(const BenchOptions& options)
+    {
+        const bool full = options.size == "full";
+        Simulator sim(parse_scene(contact_slabs(full, options.steps), ".", "contact-slabs"));
+        std::printf("contact-slabs (%s): %ld vertices, %ld elements, %ld dofs, %d steps (first is warm-up)\n",
+            options.size.c_str(), long(sim.mesh().num_vertices()), long(sim.mesh().num_elements()),
+            long(sim.mesh().num_dofs()), options.steps);
+        if (sim.step() != StepStatus::CONVERGED) {
+            std::printf("  warm-up step failed: %s\n", sim.trajectory().failure_message.c_str());
+            return 1;
+        }
+        const Trajectory warm = sim.trajectory();
+        while (sim.steps_done() < options.steps) {
+            if (sim.step() != StepStatus::CONVERGED)
+                break;
+            const StepRecord& r = sim.trajectory().steps.back();
+            std::printf("  step %d: %d Newton iterations, %d active contacts, min distance %.3g m, kappa %.3g, %.3f s\n",
+                r.index, r.newton_iterations, r.active_contacts, r.min_distance, r.kappa, r.wall_time);
+        }
+        const Trajectory& tr = sim.trajectory();
+        const PhaseTimes p = minus(tr.phases, warm.phases);
+        const int steps = int(tr.steps.size() - warm.steps.size());
+        const int iterations = tr.newton_iterations - warm.newton_iterations;
+        const double wall = tr.wall_time - warm.wall_time;
+        if (steps <= 0 || iterations <= 0) {
+            std::printf("  status %s: nothing measured\n", to_string(tr.final_status).c_str());
+            return 1;
+        }
+        const double contact = p.broad_phase + p.ccd + p.barrier;
+        std::printf("  status %s, %d measured steps, %d Newton iterations\n", to_string(tr.final_status).c_str(), steps,
+            iterations);
+        std::printf("  per step:              %8.3f s\n", wall / steps);
+        std::printf("    assembly (all)       %8.4f s  (%4.1f%%)\n", p.assembly / steps, 100 * p.assembly / wall);
+        std::printf("    factorization        %8.4f s  (%4.1f%%)\n", p.factorization / steps, 100 * p.factorization / wall);
+        std::printf("    solve                %8.4f s  (%4.1f%%)\n", p.solve / steps, 100 * p.solve / wall);
+        std::printf("    line search (all)    %8.4f s  (%4.1f%%)\n", p.line_search / steps, 100 * p.line_search / wall);
+        std::printf("    of which broad phase %8.4f s  (%4.1f%%)\n", p.broad_phase / steps, 100 * p.broad_phase / wall);
+        std::printf("    of which CCD         %8.4f s  (%4.1f%%)\n", p.ccd / steps, 100 * p.ccd / wall);
+        std::printf("    of which barrier     %8.4f s  (%4.1f%%)\n", p.barrier / steps, 100 * p.barrier / wall);
+        std::printf("  ratio (broad phase + CCD + barrier) / (factorization): %.2f\n", contact / p.factorization);
+        return tr.final_status == StepStatus::CONVERGED ? 0 : 2;
+    }
+
+    int run_scene_bench(const BenchOptions& options)
+    {
+        namespace fs = std::filesystem;
+        const char* names[] = { "201_ring_on_plane", "202_boxes_head_on", "203_box_squeeze", "204_ring_pile",
+            "205_plate_on_sphere" };
+        int failures = 0;
+        for (const char* name : names) {
+            const std::string path = (fs::path(options.source_dir) / "studies" / name / "scene.json").string();
+            Simulator sim(load_scene(path));
+            int bad_states = 0, max_active = 0;
+            double min_distance = 1e300;
+            while (sim.steps_done() < sim.scene().time.steps) {
+                if (sim.step() != StepStatus::CONVERGED)
+                    break;
+                const StepRecord& r = sim.trajectory().steps.back();
+                max_active = std::max(max_active, r.active_contacts);
+                min_distance = std::min(min_distance, r.min_distance);
+                const Positions X = unflatten(sim.positions(), sim.scene().dim);
+                bad_states += count_inverted_elements(sim.scene().mesh, X) > 0
+                    || !find_intersection(sim.contact()->collision_mesh(), X, true).empty();
+            }
+            const Trajectory& tr = sim.trajectory();
+            failures += tr.final_status != StepStatus::CONVERGED || bad_states > 0;
+            std::printf("%-22s %6ld tets/tris, %4zu/%4d steps, %-9s %5d Newton it, max active %5d, min dist %.3g m, "
+                        "invalid states %d, %.2f s (CCD %.2f, broad %.2f, barrier %.2f)\n",
+                name, long(sim.mesh().num_elements()), tr.steps.size(), sim.scene().time.steps,
+                to_string(tr.final_status).c_str(), tr.newton_iterations, max_active, min_distance, bad_states,
+                tr.wall_time, tr.phases.ccd, tr.phases.broad_phase, tr.phases.barrier);
+        }
+        return failures == 0 ? 0 : 2;
+    }
+
 } // namespace
 
 int run_bench(const BenchOptions& options)
 {
+    if (options.suite == "contact")
+        return run_contact_bench(options);
+    if (options.suite == "scenes")
+        return run_scene_bench(options);
     const bool full = options.size == "full";
     std::vector<BenchScene> scenes;
     if (full) {

@@ -6,6 +6,10 @@ namespace diffipc {
 struct BenchOptions {
     std::string size = "full"; ///< small: seconds, for a smoke run; full: the documented figures
     int steps = 4;
+    /// forward: elasticity without contact; contact: the ~20k-tet contact scene;
+    /// scenes: the full contact studies (studies/2xx) run to the end with exact checks
+    std::string suite = "forward";
+    std::string source_dir = "."; ///< repository root (for the studies)
 };
 
 /// Runs the fixed benchmark scenes and prints per-phase timings; returns an exit code.

@@ -64,7 +64,7 @@ int simulate(const std::string& scene_path, std::string out_dir, int vtu_every, 
 
     const Trajectory& tr = sim.trajectory();
     if (sc.output.hdf5)
-        write_hdf5((fs::path(out_dir) / "trajectory.h5").string(), sim.mesh(), tr);
+        write_hdf5((fs::path(out_dir) / "trajectory.h5").string(), sim.mesh(), tr, sim.contact() != nullptr);
     if (!vtu_files.empty())
         write_pvd((fs::path(out_dir) / "trajectory.pvd").string(), vtu_files);
     write_json((fs::path(out_dir) / "summary.json").string(), summary_json(sim));
@@ -113,6 +113,9 @@ int main(int argc, char** argv)
     auto* bench_cmd = app.add_subcommand("bench", "Run the fixed benchmark scenes and print per-phase timings");
     bench_cmd->add_option("--size", bench_options.size, "small | full")->check(CLI::IsMember({ "small", "full" }));
     bench_cmd->add_option("--steps", bench_options.steps, "time steps per scene (the first is a warm-up)");
+    bench_cmd->add_option("--suite", bench_options.suite, "forward | contact | scenes")
+        ->check(CLI::IsMember({ "forward", "contact", "scenes" }));
+    bench_cmd->add_option("--source-dir", bench_options.source_dir, "repository root, where studies/ lives");
 
     try {
         app.parse(argc, argv);

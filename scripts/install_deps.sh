@@ -4,7 +4,7 @@ set -euo pipefail
 
 PACKAGES=(
   build-essential cmake ccache pkg-config git
-  libeigen3-dev libsuitesparse-dev libopenblas0-pthread libopenblas-pthread-dev
+  libgmp-dev libeigen3-dev libsuitesparse-dev libopenblas0-pthread libopenblas-pthread-dev
   libhdf5-dev libtbb-dev
   nlohmann-json3-dev libcli11-dev libspdlog-dev libfmt-dev libmuparser-dev
   libgtest-dev libgmock-dev libbenchmark-dev

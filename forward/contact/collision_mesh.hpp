@@ -42,3 +42,17 @@ struct CollisionMesh {
 };
 
 } // namespace diffipc
+
+namespace diffipc {
+
+struct Mesh;
+
+/// @brief Collision mesh of all boundary facets of `mesh` (bodies and obstacle
+/// surfaces; 3D edges are the unique edges of the faces).
+/// @param mesh           the full mesh; facet_body / vertex_body give the contact group
+/// @param self_contact   per group (bodies then obstacles): may it touch itself?
+/// @param kinematic      per group: is it an obstacle?
+CollisionMesh build_collision_mesh(
+    const Mesh& mesh, const std::vector<char>& self_contact, const std::vector<char>& kinematic);
+
+} // namespace diffipc

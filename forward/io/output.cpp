@@ -8,6 +8,7 @@
 
 #include <cmath>
 #include <fstream>
+#include <limits>
 #include <iomanip>
 
 namespace diffipc {
@@ -58,7 +59,7 @@ namespace {
 
 } // namespace
 
-void write_hdf5(const std::string& path, const Mesh& mesh, const Trajectory& trajectory)
+void write_hdf5(const std::string& path, const Mesh& mesh, const Trajectory& trajectory, bool contact)
 {
     H5File file(path);
     const hid_t root = file.id();
@@ -91,6 +92,18 @@ void write_hdf5(const std::string& path, const Mesh& mesh, const Trajectory& tra
     write_dataset(file, root, "newton_step", { T }, step.data());
     write_dataset(file, root, "min_volume_ratio", { T }, volume.data());
     write_dataset(file, root, "wall_time", { T }, wall.data());
+    if (contact) {
+        std::vector<double> min_distance, kappa;
+        std::vector<int> active;
+        for (const auto& s : trajectory.steps) {
+            min_distance.push_back(s.min_distance);
+            kappa.push_back(s.kappa);
+            active.push_back(s.active_contacts);
+        }
+        write_dataset(file, root, "min_distance", { T }, min_distance.data());
+        write_dataset(file, root, "active_contacts", { T }, active.data());
+        write_dataset(file, root, "kappa", { T }, kappa.data());
+    }
     if (!trajectory.steps.empty() && trajectory.steps.front().accelerations.size()) {
         std::vector<double> acc(trajectory.initial_accelerations.data(),
             trajectory.initial_accelerations.data() + trajectory.initial_accelerations.size());
@@ -214,6 +227,19 @@ nlohmann::json summary_json(const Simulator& simulator)
     j["wall_time"]
         = { { "total", tr.wall_time }, { "assembly", tr.phases.assembly }, { "factorization", tr.phases.factorization },
               { "solve", tr.phases.solve }, { "line_search", tr.phases.line_search } };
+    if (simulator.contact()) {
+        double min_distance = std::numeric_limits<double>::infinity();
+        int max_active = 0;
+        for (const auto& s : tr.steps) {
+            min_distance = std::min(min_distance, s.min_distance);
+            max_active = std::max(max_active, s.active_contacts);
+        }
+        j["contact"] = { { "min_distance", std::isfinite(min_distance) ? nlohmann::json(min_distance) : nlohmann::json(nullptr) },
+            { "max_active_contacts", max_active }, { "final_kappa", simulator.contact()->kappa() } };
+        j["wall_time"]["broad_phase"] = tr.phases.broad_phase;
+        j["wall_time"]["ccd"] = tr.phases.ccd;
+        j["wall_time"]["barrier"] = tr.phases.barrier;
+    }
     return j;
 }
 

@@ -74,11 +74,15 @@ namespace {
 
 } // namespace
 
-Mesh read_gmsh(const std::string& path, int dim)
+namespace {
+
+// Reads the simplices with `nodes_per` nodes (gmsh types 1: 2-node line,
+// 2: 3-node triangle, 4: 4-node tetrahedron) into `simplices` (compact vertex
+// indices) and their nodes into `positions`.
+void read_gmsh_simplices(const std::string& path, int dim, int nodes_per, Positions& positions, MatrixXi& out)
 {
     LineReader reader(path);
-    const int simplex_type = dim == 2 ? 2 : 4; // gmsh: 2 = 3-node triangle, 4 = 4-node tetrahedron
-    const int nodes_per = dim + 1;
+    const int simplex_type = nodes_per == 2 ? 1 : nodes_per == 3 ? 2 : 4;
     double version = 0;
     std::unordered_map<long, Eigen::Vector3d> nodes;
     std::vector<std::array<long, 4>> simplices;
@@ -166,13 +170,12 @@ Mesh read_gmsh(const std::string& path, int dim)
     if (version == 0)
         throw InputError(path, "no $MeshFormat section: not a gmsh .msh file");
     if (simplices.empty())
-        throw InputError(path, std::string("no ") + (dim == 2 ? "triangles" : "tetrahedra") + " found");
+        throw InputError(path,
+            std::string("no ") + (nodes_per == 2 ? "lines" : nodes_per == 3 ? "triangles" : "tetrahedra") + " found");
 
-    Mesh mesh;
-    mesh.dim = dim;
     std::unordered_map<long, int> index;
     std::vector<long> order;
-    mesh.elements.resize(Index(simplices.size()), nodes_per);
+    out.resize(Index(simplices.size()), nodes_per);
     for (size_t e = 0; e < simplices.size(); ++e)
         for (int a = 0; a < nodes_per; ++a) {
             const long tag = simplices[e][a];
@@ -181,14 +184,31 @@ Mesh read_gmsh(const std::string& path, int dim)
             auto [it, inserted] = index.emplace(tag, int(order.size()));
             if (inserted)
                 order.push_back(tag);
-            mesh.elements(Index(e), a) = it->second;
+            out(Index(e), a) = it->second;
         }
-    mesh.rest_positions.resize(Index(order.size()), dim);
+    positions.resize(Index(order.size()), dim);
     for (size_t v = 0; v < order.size(); ++v)
-        mesh.rest_positions.row(Index(v)) = nodes.at(order[v]).head(dim).transpose();
+        positions.row(Index(v)) = nodes.at(order[v]).head(dim).transpose();
+}
+
+} // namespace
+
+Mesh read_gmsh(const std::string& path, int dim)
+{
+    Mesh mesh;
+    mesh.dim = dim;
+    read_gmsh_simplices(path, dim, dim + 1, mesh.rest_positions, mesh.elements);
     mesh.vertex_body = VectorXi::Zero(mesh.num_vertices());
     mesh.element_body = VectorXi::Zero(mesh.num_elements());
     compute_boundary(mesh);
+    return mesh;
+}
+
+Mesh read_gmsh_facets(const std::string& path, int dim)
+{
+    Mesh mesh;
+    mesh.dim = dim;
+    read_gmsh_simplices(path, dim, dim, mesh.rest_positions, mesh.boundary_facets);
     return mesh;
 }
 

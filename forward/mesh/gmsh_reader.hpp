@@ -19,4 +19,8 @@ namespace diffipc {
 /// @throws InputError naming the file (and line) on any format error.
 Mesh read_gmsh(const std::string& path, int dim);
 
+/// @brief Reads the facets of a surface mesh (3-node triangles for dim 3,
+/// 2-node lines for dim 2) into boundary_facets, with no elements.
+Mesh read_gmsh_facets(const std::string& path, int dim);
+
 } // namespace diffipc

@@ -58,3 +58,22 @@ void append_mesh(Mesh& mesh, const Mesh& other, int body);
 void validate_mesh(const Mesh& mesh, const std::string& field);
 
 } // namespace diffipc
+
+namespace diffipc {
+
+/// @brief Triangle mesh of a 2D annulus (a ring) on a polar grid; each polar
+/// cell is split into two positively oriented triangles.
+/// @param center   2-vector (m)
+/// @param inner_radius, outer_radius  0 < inner < outer (m)
+/// @param segments cells around (>= 3), @param layers cells across (>= 1)
+Mesh annulus_mesh(const VectorXd& center, double inner_radius, double outer_radius, int segments, int layers);
+
+/// @brief Reads a surface mesh for an obstacle: Wavefront .obj ("v" and "f"
+/// lines; faces with more than three vertices are fanned; in 2D "l" polyline
+/// records become edges and z is ignored) or a gmsh .msh file (its triangles in
+/// 3D, its 2-node lines in 2D). Returns a Mesh with no elements whose
+/// boundary_facets hold the surface.
+/// @throws InputError naming the file (and line).
+Mesh read_surface_mesh(const std::string& path, int dim);
+
+} // namespace diffipc

@@ -34,6 +34,16 @@ public:
         (void)p;
         return 1.0;
     }
+    /// True if the last max_step() could not certify any positive step (CCD budget).
+    virtual bool step_unresolved() const { return false; }
+    /// @brief Called after each accepted Newton iteration at the new iterate;
+    /// returns true if the potential changed its own parameters (the energy
+    /// at x must then be re-evaluated), e.g. an adaptive barrier stiffness.
+    virtual bool end_iteration(const VectorXd& x)
+    {
+        (void)x;
+        return false;
+    }
 };
 
 } // namespace diffipc

@@ -3,6 +3,8 @@
 #include "forward/mesh/gmsh_reader.hpp"
 #include "forward/scene/json_field.hpp"
 
+#include <optional>
+
 #include <filesystem>
 #include <fstream>
 #include <sstream>
@@ -53,11 +55,26 @@ namespace {
 
     Mesh parse_mesh(const JsonField& f, int dim, const std::string& base_directory, std::string& source)
     {
-        f.require_object({ "box", "file" });
-        if (f.has("box") == f.has("file"))
-            f.fail("give exactly one of \"box\" or \"file\"");
+        f.require_object({ "box", "file", "annulus" });
+        if (int(f.has("box")) + int(f.has("file")) + int(f.has("annulus")) != 1)
+            f.fail("give exactly one of \"box\", \"annulus\" or \"file\"");
         Mesh mesh;
-        if (f.has("box")) {
+        if (f.has("annulus")) {
+            const JsonField a = f["annulus"];
+            if (dim != 2)
+                a.fail("an annulus mesh is 2D only");
+            a.require_object({ "center", "inner_radius", "outer_radius", "segments", "layers" });
+            const VectorXd center = a.has("center") ? a["center"].vector(2) : VectorXd::Zero(2);
+            const double r0 = a["inner_radius"].positive(), r1 = a["outer_radius"].positive();
+            if (!(r1 > r0))
+                a["outer_radius"].fail("must exceed \"inner_radius\"");
+            const int segments = a["segments"].integer(3);
+            const int layers = a.has("layers") ? a["layers"].integer(1) : 1;
+            if (double(segments) * layers > 1e7)
+                a["segments"].fail("too many cells");
+            source = "annulus";
+            mesh = annulus_mesh(center, r0, r1, segments, layers);
+        } else if (f.has("box")) {
             const JsonField box = f["box"];
             box.require_object({ "min", "max", "cells" });
             const VectorXd lower = box["min"].vector(dim), upper = box["max"].vector(dim);
@@ -138,6 +155,110 @@ namespace {
         return out;
     }
 
+    void parse_contact(const JsonField& root, Scene& scene)
+    {
+        const Eigen::RowVectorXd extent
+            = scene.mesh.rest_positions.colwise().maxCoeff() - scene.mesh.rest_positions.colwise().minCoeff();
+        ContactSpec& c = scene.contact;
+        c.dhat = 1e-3 * extent.norm();
+        if (!root.has("contact"))
+            return;
+        const JsonField f = root["contact"];
+        f.require_object({ "enabled", "dhat", "kappa", "self_contact", "min_distance", "ccd_max_iterations",
+            "ccd_rescaling" });
+        c.enabled = f.has("enabled") ? f["enabled"].boolean() : true;
+        if (f.has("dhat"))
+            c.dhat = f["dhat"].positive();
+        if (f.has("kappa")) {
+            const JsonField k = f["kappa"];
+            if (k.json().is_string()) {
+                if (k.string() != "adaptive")
+                    k.fail("expected a positive number or \"adaptive\"");
+                c.adaptive_kappa = true;
+            } else {
+                c.adaptive_kappa = false;
+                c.kappa = k.positive();
+            }
+        }
+        if (f.has("self_contact"))
+            c.self_contact = f["self_contact"].boolean();
+        if (f.has("min_distance")) {
+            c.min_distance = f["min_distance"].number();
+            if (c.min_distance < 0)
+                f["min_distance"].fail("must be >= 0");
+        }
+        if (f.has("ccd_max_iterations"))
+            c.ccd_max_iterations = f["ccd_max_iterations"].integer(1);
+        if (f.has("ccd_rescaling")) {
+            c.ccd_rescaling = f["ccd_rescaling"].number();
+            if (!(c.ccd_rescaling > 0 && c.ccd_rescaling < 1))
+                f["ccd_rescaling"].fail("must lie in (0, 1)");
+        }
+    }
+
+    void parse_obstacles(const JsonField& root, const std::string& base_directory, Scene& scene)
+    {
+        if (!root.has("obstacles"))
+            return;
+        const int dim = scene.dim;
+        const JsonField list = root["obstacles"];
+        list.require_array();
+        for (size_t i = 0; i < list.size(); ++i) {
+            const JsonField f = list.at(i);
+            f.require_object({ "name", "plane", "mesh" });
+            if (f.has("plane") == f.has("mesh"))
+                f.fail("give exactly one of \"plane\" or \"mesh\"");
+            ObstacleSpec o;
+            o.field = f.path();
+            o.name = f.has("name") ? f["name"].string() : "obstacle" + std::to_string(i);
+            const int group = int(scene.bodies.size() + i);
+            Mesh mesh;
+            JsonField g = f.has("plane") ? f["plane"] : f["mesh"];
+            if (f.has("plane")) {
+                g.require_object({ "point", "normal", "motion" });
+                o.type = ObstacleType::PLANE;
+                mesh.dim = dim;
+                mesh.rest_positions = g["point"].vector(dim).transpose();
+                const VectorXd n = g["normal"].vector(dim);
+                if (!(n.norm() > 0))
+                    g["normal"].fail("must be a non-zero vector");
+                o.normal = n.normalized();
+                mesh.elements.resize(0, dim + 1);
+                mesh.boundary_facets.resize(0, dim);
+                mesh.vertex_body = VectorXi::Zero(1);
+                mesh.element_body.resize(0);
+                mesh.facet_body.resize(0);
+            } else {
+                g.require_object({ "file", "translation", "scale", "motion" });
+                o.type = ObstacleType::MESH;
+                fs::path p(g["file"].string());
+                if (p.is_relative())
+                    p = fs::path(base_directory) / p;
+                if (!fs::is_regular_file(p))
+                    g["file"].fail("cannot open obstacle mesh file '" + p.string() + "'");
+                o.file = p.string();
+                mesh = read_surface_mesh(o.file, dim);
+                if (g.has("scale"))
+                    mesh.rest_positions *= g["scale"].positive();
+                if (g.has("translation"))
+                    mesh.rest_positions.rowwise() += g["translation"].vector(dim).transpose();
+            }
+            if (g.has("motion")) {
+                for (auto& c : parse_components(g["motion"], dim, false))
+                    o.motion.push_back(std::move(*c));
+            } else {
+                for (int a = 0; a < dim; ++a)
+                    o.motion.emplace_back(0.0);
+            }
+            o.first_vertex = scene.mesh.num_vertices();
+            o.num_vertices = mesh.num_vertices();
+            append_mesh(scene.mesh, mesh, group);
+            scene.obstacles.push_back(std::move(o));
+        }
+        if (!scene.obstacles.empty() && !scene.contact.enabled && !root.has("contact"))
+            scene.contact.enabled = true; // obstacles imply contact unless it is switched off explicitly
+    }
+
 } // namespace
 
 Scene parse_scene(const nlohmann::json& document, const std::string& base_directory, const std::string& source)
@@ -146,7 +267,7 @@ Scene parse_scene(const nlohmann::json& document, const std::string& base_direct
     scene.source = source;
     const JsonField root(document, "");
     root.require_object({ "dimension", "bodies", "gravity", "dirichlet", "neumann", "time", "mass", "solver", "output",
-        "description" });
+        "description", "contact", "obstacles" });
     if (root.has("description"))
         root["description"].string();
 
@@ -158,10 +279,11 @@ Scene parse_scene(const nlohmann::json& document, const std::string& base_direct
 
     const JsonField bodies = root["bodies"];
     bodies.require_array(1);
+    std::vector<std::optional<bool>> self_contact_fields;
     scene.mesh.dim = dim;
     for (size_t b = 0; b < bodies.size(); ++b) {
         const JsonField bf = bodies.at(b);
-        bf.require_object({ "name", "mesh", "material", "initial_velocity", "translation" });
+        bf.require_object({ "name", "mesh", "material", "initial_velocity", "translation", "self_contact" });
         BodySpec body;
         body.name = bf.has("name") ? bf["name"].string() : "body" + std::to_string(b);
         for (const auto& other : scene.bodies)
@@ -170,11 +292,18 @@ Scene parse_scene(const nlohmann::json& document, const std::string& base_direct
         body.material = parse_material(bf["material"]);
         body.initial_velocity = bf.has("initial_velocity") ? bf["initial_velocity"].vector(dim) : VectorXd::Zero(dim);
         body.translation = bf.has("translation") ? bf["translation"].vector(dim) : VectorXd::Zero(dim);
+        self_contact_fields.push_back(bf.has("self_contact") ? std::optional<bool>(bf["self_contact"].boolean()) : std::nullopt);
         Mesh mesh = parse_mesh(bf["mesh"], dim, base_directory, body.mesh_source);
         mesh.rest_positions.rowwise() += body.translation.transpose();
         append_mesh(scene.mesh, mesh, int(b));
         scene.bodies.push_back(std::move(body));
     }
+
+    scene.body_vertices = scene.mesh.num_vertices();
+    parse_contact(root, scene);
+    for (size_t b = 0; b < scene.bodies.size(); ++b)
+        scene.bodies[b].self_contact = self_contact_fields[b].value_or(scene.contact.self_contact);
+    parse_obstacles(root, base_directory, scene);
 
     scene.gravity = root.has("gravity") ? root["gravity"].vector(dim) : VectorXd::Zero(dim);
 

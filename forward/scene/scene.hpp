@@ -36,6 +36,7 @@ struct BoxRegion {
 
 struct BodySpec {
     std::string name;
+    bool self_contact = true; ///< may this body touch itself (when contact is enabled)?
     std::string mesh_source; ///< "box" or the resolved file path
     MaterialSpec material;
     VectorXd initial_velocity; ///< dim (m/s)
@@ -72,6 +73,34 @@ struct SolverSpec {
     double armijo = 1e-4;
 };
 
+/// Contact (docs/scene_format.md "contact"). Distances in meters.
+struct ContactSpec {
+    bool enabled = false;
+    double dhat = 0; ///< activation distance (m); 0 until parsed: the default is 1e-3 times the bbox diagonal
+    bool adaptive_kappa = true; ///< IPC's adaptive barrier stiffness
+    double kappa = 0; ///< fixed barrier stiffness, when not adaptive
+    bool self_contact = true; ///< default for bodies without their own "self_contact"
+    double min_distance = 0; ///< minimum separation dmin (m)
+    int ccd_max_iterations = 1000000; ///< per query budget of the additive CCD
+    double ccd_rescaling = 0.9; ///< conservative rescaling s of the additive CCD
+};
+
+enum class ObstacleType { PLANE, MESH };
+
+/// A kinematic obstacle: its vertices are appended to the mesh after the bodies'
+/// and move as prescribed (Dirichlet) dofs; it has no elements and no mass.
+struct ObstacleSpec {
+    std::string name;
+    ObstacleType type = ObstacleType::PLANE;
+    VectorXd normal; ///< plane: unit normal (dim), pointing to the side bodies may occupy
+    std::string file; ///< mesh: resolved path
+    /// per component: displacement expression of (t, x, y, z) (rest coordinates); zero if not given
+    std::vector<Expression> motion;
+    Index first_vertex = 0; ///< index of its first vertex in Scene::mesh
+    Index num_vertices = 0; ///< 1 for a plane (its point)
+    std::string field;
+};
+
 struct OutputSpec {
     std::string directory = "output";
     int vtu_every = 0; ///< write a VTU file every n steps (0: none)
@@ -81,13 +110,18 @@ struct OutputSpec {
 struct Scene {
     int dim = 3;
     std::vector<BodySpec> bodies;
-    Mesh mesh; ///< all bodies, with per-body indices; rest positions include translations
+    /// All bodies, then all obstacles (vertex_body / facet_body = #bodies + obstacle index);
+    /// rest positions include translations.
+    Mesh mesh;
+    Index body_vertices = 0; ///< vertices [0, body_vertices) belong to bodies
     VectorXd gravity;
     std::vector<DirichletSpec> dirichlet;
     std::vector<NeumannSpec> neumann;
     TimeSpec time;
     MassType mass = MassType::LUMPED;
     SolverSpec solver;
+    ContactSpec contact;
+    std::vector<ObstacleSpec> obstacles;
     OutputSpec output;
     std::string source; ///< file name, or "<dict>"
 };

@@ -3,6 +3,8 @@
 #include "forward/common/error.hpp"
 #include "forward/common/timer.hpp"
 
+#include "forward/contact/barrier.hpp"
+#include "forward/contact/intersection.hpp"
 #include "forward/solver/newton.hpp"
 #include <Eigen/Geometry>
 
@@ -49,6 +51,8 @@ Simulator::Simulator(Scene scene)
     m_problem.add(m_elastic.get(), w);
     m_problem.add(m_external.get(), w);
     m_assembler.build(d, mesh.num_vertices(), mesh.elements);
+    if (m_scene.contact.enabled)
+        setup_contact();
     m_linear = std::make_unique<LinearSolver>(m_scene.solver.linear_solver);
 
     // Dirichlet dofs: later entries override earlier ones on the same dof.
@@ -73,6 +77,16 @@ Simulator::Simulator(Scene scene)
         rest.head(d) = mesh.rest_positions.row(i / d).transpose();
         m_dirichlet.push_back({ i, &*m_scene.dirichlet[size_t(owner[size_t(i)])].displacement[size_t(i % d)], rest });
     }
+    // Obstacle vertices are prescribed dofs that follow the obstacle's motion.
+    for (const ObstacleSpec& o : m_scene.obstacles)
+        for (Index v = o.first_vertex; v < o.first_vertex + o.num_vertices; ++v)
+            for (int a = 0; a < d; ++a) {
+                const Index i = v * d + a;
+                m_constrained[size_t(i)] = 1;
+                Eigen::Vector3d rest = Eigen::Vector3d::Zero();
+                rest.head(d) = mesh.rest_positions.row(v).transpose();
+                m_dirichlet.push_back({ i, &o.motion[size_t(a)], rest });
+            }
 
     // Neumann: boundary facets whose vertices all lie in the region.
     for (size_t k = 0; k < m_scene.neumann.size(); ++k) {
@@ -110,7 +124,9 @@ Simulator::Simulator(Scene scene)
     dirichlet_targets(0.0, x0);
     VectorXd v0(n);
     for (Index v = 0; v < mesh.num_vertices(); ++v)
-        v0.segment(v * d, d) = m_scene.bodies[size_t(mesh.vertex_body[v])].initial_velocity;
+        v0.segment(v * d, d) = v < m_scene.body_vertices
+            ? VectorXd(m_scene.bodies[size_t(mesh.vertex_body[v])].initial_velocity)
+            : VectorXd::Zero(d);
     {
         const double dt = m_scene.time.dt * 1e-3;
         VectorXd x1 = x0;
@@ -149,6 +165,94 @@ Simulator::Simulator(Scene scene)
 }
 
 Simulator::~Simulator() = default;
+
+void Simulator::setup_contact()
+{
+    const Mesh& mesh = m_scene.mesh;
+    const int d = mesh.dim;
+    const size_t nb = m_scene.bodies.size(), groups = nb + m_scene.obstacles.size();
+    std::vector<char> self_contact(groups, 0), kinematic(groups, 0);
+    for (size_t b = 0; b < nb; ++b)
+        self_contact[b] = m_scene.bodies[b].self_contact;
+    for (size_t k = nb; k < groups; ++k)
+        kinematic[k] = 1;
+    std::vector<ContactPlane> planes;
+    for (const ObstacleSpec& o : m_scene.obstacles)
+        if (o.type == ObstacleType::PLANE) {
+            Eigen::Vector3d n = Eigen::Vector3d::Zero();
+            n.head(d) = o.normal;
+            planes.push_back({ o.first_vertex, n });
+        }
+    const ContactSpec& spec = m_scene.contact;
+    ContactSettings settings;
+    settings.dhat = spec.dhat;
+    settings.min_distance = spec.min_distance;
+    settings.ccd_max_iterations = spec.ccd_max_iterations;
+    settings.ccd_rescaling = spec.ccd_rescaling;
+    settings.kappa = spec.kappa;
+    if (spec.adaptive_kappa) {
+        // Per-vertex stiffness reference (docs/math.md): m_avg / (c h^2) in dynamics,
+        // a nodal elastic stiffness E l in static solves.
+        double reference;
+        if (m_integrator->dynamic()) {
+            const VectorXd& masses = m_inertia->lumped_masses();
+            double sum = 0;
+            Index count = 0;
+            for (Index v = 0; v < m_scene.body_vertices; ++v)
+                if (masses[v] > 0) {
+                    sum += masses[v];
+                    ++count;
+                }
+            reference = sum / double(std::max<Index>(count, 1)) / m_integrator->potential_weight();
+        } else {
+            double mean_volume = 0;
+            for (double v : m_space->rest_volumes())
+                mean_volume += v / double(m_space->num_elements());
+            const double length = std::pow(mean_volume, 1.0 / d);
+            reference = m_force_scale / std::pow(length, d - 2);
+        }
+        m_kappa_min = barrier_stiffness_min(m_bbox_diagonal, reference, spec.dhat, spec.min_distance);
+        settings.kappa = m_kappa_min;
+    }
+    m_contact = std::make_unique<ContactPotential>(
+        build_collision_mesh(mesh, self_contact, kinematic), mesh.rest_positions, std::move(planes), settings);
+    m_problem.add(m_contact.get(), m_integrator->potential_weight());
+}
+
+double Simulator::balancing_kappa(const VectorXd& x) const
+{
+    const double w = m_problem.weight(m_contact.get());
+    VectorXd grad_energy;
+    m_problem.gradient(x, grad_energy);
+    VectorXd grad_barrier = m_contact->barrier_gradient(x);
+    grad_energy -= w * m_contact->kappa() * grad_barrier;
+    for (size_t i = 0; i < m_constrained.size(); ++i)
+        if (m_constrained[i])
+            grad_energy[Index(i)] = grad_barrier[Index(i)] = 0;
+    // The barrier enters with weight w kappa: kappa balances w^-1 grad E against grad B.
+    return initial_barrier_stiffness(grad_barrier.dot(grad_energy) / w, grad_barrier.squaredNorm(), m_kappa_min);
+}
+
+void Simulator::update_kappa_for_step(const VectorXd& x)
+{
+    if (!m_scene.contact.adaptive_kappa)
+        return;
+    const bool active = !m_contact->contacts(x).empty();
+    if (active)
+        m_contact->set_kappa(std::max(m_contact->kappa(), balancing_kappa(x)));
+    m_contact->set_adaptive(
+        100 * m_kappa_min, m_bbox_diagonal, [this](const VectorXd& y) { return balancing_kappa(y); }, active);
+}
+
+std::string Simulator::check_contact_state(const VectorXd& x) const
+{
+    const std::string hit = find_intersection(m_contact->collision_mesh(), unflatten(x, m_scene.dim), false);
+    if (!hit.empty())
+        return hit;
+    if (!std::isfinite(m_contact->value(x)))
+        return "a contact pair is at or below the minimum distance, or a vertex lies behind a plane obstacle";
+    return "";
+}
 
 double Simulator::time() const { return steps_done() * m_scene.time.dt; }
 
@@ -201,6 +305,10 @@ StepStatus Simulator::step()
     m_problem.set_weight(m_elastic.get(), w);
     m_problem.set_weight(m_external.get(), w);
     m_inertia->set_target(m_integrator->inertial_target());
+    if (m_contact) {
+        m_problem.set_weight(m_contact.get(), w);
+        m_contact->reset_times();
+    }
 
     StepRecord record;
     record.index = index;
@@ -228,6 +336,18 @@ StepStatus Simulator::step()
     const NewtonSolver newton(m_problem, m_assembler, *m_linear, settings);
 
     VectorXd x = m_integrator->positions();
+    if (m_contact) {
+        const std::string problem = index == 1 ? check_contact_state(x) : std::string();
+        if (!problem.empty()) {
+            record.status = StepStatus::INVALID_INITIAL_STATE;
+            m_last_attempt = record;
+            m_trajectory.final_status = record.status;
+            m_trajectory.failed_step = index;
+            m_trajectory.failure_message = "step 1 (t = 0): the initial state is invalid for contact: " + problem;
+            return record.status;
+        }
+        update_kappa_for_step(x);
+    }
     const double step_scale = m_integrator->dynamic() ? m_scene.time.dt : m_bbox_diagonal;
     const NewtonResult result = newton.solve(x, target, m_constrained, w * m_force_scale, step_scale);
 
@@ -238,12 +358,25 @@ StepStatus Simulator::step()
     record.linear_fallbacks = result.linear_fallbacks;
     record.roundoff_limited = result.roundoff_limited;
     record.phases = result.times;
-    m_trajectory.phases += result.times;
+    if (m_contact) {
+        record.phases.broad_phase = m_contact->times().broad_phase;
+        record.phases.ccd = m_contact->times().ccd;
+        record.phases.barrier = m_contact->times().barrier;
+        record.kappa = m_contact->kappa();
+        if (result.status == StepStatus::CCD_UNRESOLVED)
+            record.min_distance = m_contact->min_distance(m_integrator->positions(), 1e-2 * m_bbox_diagonal);
+    }
+    m_trajectory.phases += record.phases;
     m_trajectory.newton_iterations += result.iterations;
     if (result.status == StepStatus::CONVERGED) {
         record.positions = x;
         m_integrator->update(x, record.velocities, record.accelerations);
         record.min_volume_ratio = m_space->min_volume_ratio(x);
+        if (m_contact) {
+            record.contacts = m_contact->contacts(x);
+            record.active_contacts = int(record.contacts.size());
+            record.min_distance = m_contact->min_distance(x, 1e-2 * m_bbox_diagonal);
+        }
         m_integrator->commit(record.positions, record.velocities, record.accelerations);
     } else {
         record.min_volume_ratio = m_space->min_volume_ratio(m_integrator->positions());

@@ -3,6 +3,7 @@
 /// Runs a scene: builds the FE space and the potentials it needs, then takes
 /// transactional time steps (only a converged Newton solve commits).
 
+#include "forward/contact/contact_potential.hpp"
 #include "forward/fem/fe_space.hpp"
 #include "forward/potentials/elastic_potential.hpp"
 #include "forward/potentials/inertia_potential.hpp"
@@ -30,6 +31,9 @@ public:
     const FESpace& space() const { return *m_space; }
     const Problem& problem() const { return m_problem; }
     const ElasticPotential& elastic() const { return *m_elastic; }
+    /// The barrier potential, or nullptr when the scene has no contact.
+    const ContactPotential* contact() const { return m_contact.get(); }
+    double bbox_diagonal() const { return m_bbox_diagonal; }
 
     /// @brief Attempts the next time step. On CONVERGED the step is committed
     /// and recorded; otherwise the state is unchanged and the status returned
@@ -61,12 +65,21 @@ public:
 
 private:
     void dirichlet_targets(double t, VectorXd& x) const;
+    void setup_contact();
+    /// Adaptive kappa at the start of a step (docs/math.md "Barrier stiffness").
+    void update_kappa_for_step(const VectorXd& x);
+    /// IPC's balancing stiffness -(grad B . grad E) / (w |grad B|^2), clamped.
+    double balancing_kappa(const VectorXd& x) const;
+    /// Empty if the state is valid for contact; otherwise why not.
+    std::string check_contact_state(const VectorXd& x) const;
 
     Scene m_scene;
     std::unique_ptr<FESpace> m_space;
     std::unique_ptr<ElasticPotential> m_elastic;
     std::unique_ptr<InertiaPotential> m_inertia;
     std::unique_ptr<ExternalForcePotential> m_external;
+    std::unique_ptr<ContactPotential> m_contact;
+    double m_kappa_min = 0;
     Problem m_problem;
     SparseAssembler m_assembler;
     std::unique_ptr<LinearSolver> m_linear;

@@ -5,8 +5,10 @@
 /// friction issues extend it with their active sets and lagged data.
 
 #include "forward/common/types.hpp"
+#include "forward/contact/contact_set.hpp"
 #include "forward/solver/status.hpp"
 
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -29,6 +31,14 @@ struct StepRecord {
     /// residual was above tolerance (the residual is then at its floor).
     bool roundoff_limited = false;
     PhaseTimes phases;
+
+    // Contact (when the scene enables it).
+    /// Minimum distance (m) over primitive pairs within 1e-2 of the bbox diagonal
+    /// of each other and vertex-plane pairs; +inf if none is that close.
+    double min_distance = std::numeric_limits<double>::infinity();
+    int active_contacts = 0; ///< pairs closer than dmin + dhat at the converged state
+    double kappa = 0; ///< barrier stiffness used for this step
+    ContactSet contacts; ///< the active contacts at the converged state
 };
 
 /// A run: the initial state and every committed step, in order.

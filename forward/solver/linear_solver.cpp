@@ -4,12 +4,24 @@
 
 #include <Eigen/CholmodSupport>
 
+#include <algorithm>
+#include <vector>
+
 namespace diffipc {
 
 struct LinearSolver::Impl {
     Eigen::CholmodSupernodalLLT<SparseMatrixd, Eigen::Lower> llt;
     Eigen::CholmodSimplicialLDLT<SparseMatrixd, Eigen::Lower> ldlt;
     bool llt_analyzed = false, ldlt_analyzed = false, last_ldlt = false;
+    // The pattern the analyses were done for: contact can change it.
+    std::vector<int> outer, inner;
+
+    bool same_pattern(const SparseMatrixd& A) const
+    {
+        return A.rows() + 1 == Index(outer.size()) && A.nonZeros() == Index(inner.size())
+            && std::equal(outer.begin(), outer.end(), A.outerIndexPtr())
+            && std::equal(inner.begin(), inner.end(), A.innerIndexPtr());
+    }
 };
 
 LinearSolver::LinearSolver(LinearSolverType type)
@@ -25,6 +37,11 @@ LinearSolver::~LinearSolver() = default;
 bool LinearSolver::factorize(const SparseMatrixd& A)
 {
     m_used_fallback = false;
+    if (!m_impl->same_pattern(A)) {
+        m_impl->outer.assign(A.outerIndexPtr(), A.outerIndexPtr() + A.cols() + 1);
+        m_impl->inner.assign(A.innerIndexPtr(), A.innerIndexPtr() + A.nonZeros());
+        m_impl->llt_analyzed = m_impl->ldlt_analyzed = false;
+    }
     if (m_type == LinearSolverType::CHOLMOD) {
         if (!m_impl->llt_analyzed) {
             m_impl->llt.analyzePattern(A);

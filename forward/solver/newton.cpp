@@ -3,6 +3,8 @@
 #include "forward/common/timer.hpp"
 
 #include <cmath>
+#include <cstdio>
+#include <cstdlib>
 #include <limits>
 
 namespace diffipc {
@@ -116,6 +118,11 @@ NewtonResult NewtonSolver::solve(VectorXd& x, const VectorXd& target, const std:
 
         Timer ls;
         double alpha = std::min(1.0, m_problem.max_step(x, p));
+        if (!(alpha > 0) && m_problem.step_unresolved()) {
+            ls.add_to(result.times.line_search);
+            result.status = StepStatus::CCD_UNRESOLVED;
+            return result;
+        }
         bool accepted = false;
         double new_energy = energy;
         // Differences below this are round-off in the energy sum.
@@ -146,6 +153,9 @@ NewtonResult NewtonSolver::solve(VectorXd& x, const VectorXd& target, const std:
             }
         }
         ls.add_to(result.times.line_search);
+        if (std::getenv("DIFFIPC_DEBUG_NEWTON"))
+            std::fprintf(stderr, "  it %d: residual %.3e alpha %.3e max_step %.3e |p| %.3e E %.12e -> %.12e lifting %d\n", it,
+                result.residual, alpha, m_problem.max_step(x, p), p.lpNorm<Eigen::Infinity>(), energy, new_energy, int(lifting));
         if (!accepted) {
             result.status = StepStatus::LINE_SEARCH_EXHAUSTED;
             return result;
@@ -161,6 +171,8 @@ NewtonResult NewtonSolver::solve(VectorXd& x, const VectorXd& target, const std:
         } else {
             energy = new_energy;
         }
+        if (m_problem.end_iteration(x))
+            energy = m_problem.energy(x);
         result.iterations = it + 1;
     }
 }

@@ -46,6 +46,7 @@ void Problem::hessian(const VectorXd& x, bool project_to_psd, SparseAssembler& H
     for (const auto& t : m_terms)
         if (t.weight != 0)
             t.potential->add_hessian(x, t.weight, project_to_psd, H);
+    H.finalize();
 }
 
 double Problem::max_step(const VectorXd& x, const VectorXd& p) const
@@ -55,6 +56,23 @@ double Problem::max_step(const VectorXd& x, const VectorXd& p) const
         if (t.weight != 0)
             s = std::min(s, t.potential->max_step(x, p));
     return s;
+}
+
+bool Problem::step_unresolved() const
+{
+    for (const auto& t : m_terms)
+        if (t.weight != 0 && t.potential->step_unresolved())
+            return true;
+    return false;
+}
+
+bool Problem::end_iteration(const VectorXd& x) const
+{
+    bool changed = false;
+    for (const auto& t : m_terms)
+        if (t.weight != 0)
+            changed = t.potential->end_iteration(x) || changed;
+    return changed;
 }
 
 } // namespace diffipc

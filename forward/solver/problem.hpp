@@ -23,6 +23,10 @@ public:
     void hessian(const VectorXd& x, bool project_to_psd, SparseAssembler& H) const;
     /// Largest admissible step along p, the minimum over the potentials.
     double max_step(const VectorXd& x, const VectorXd& p) const;
+    /// True if a potential could not certify any step in the last max_step().
+    bool step_unresolved() const;
+    /// Calls every potential's end_iteration(x); true if any changed itself.
+    bool end_iteration(const VectorXd& x) const;
 
     struct Term {
         Potential* potential;

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <array>
 #include <cstdint>
+#include <iterator>
 #include <stdexcept>
 
 namespace diffipc {
@@ -88,7 +89,59 @@ void SparseAssembler::build(int dim, Index num_vertices, const MatrixXi& element
     }
 }
 
-void SparseAssembler::set_zero() { std::fill_n(m_matrix.valuePtr(), m_matrix.nonZeros(), 0.0); }
+void SparseAssembler::set_zero()
+{
+    std::fill_n(m_matrix.valuePtr(), m_matrix.nonZeros(), 0.0);
+    m_local_entries.clear();
+    m_has_extra = false;
+}
+
+void SparseAssembler::add_local(const Index* vertices, int n, const double* K)
+{
+    const int m = n * m_dim;
+    for (int b = 0; b < m; ++b)
+        for (int a = 0; a < m; ++a) {
+            const int row = int(vertices[a / m_dim] * m_dim + a % m_dim);
+            const int col = int(vertices[b / m_dim] * m_dim + b % m_dim);
+            if (row >= col)
+                m_local_entries.push_back({ col, row, K[size_t(b) * size_t(m) + size_t(a)] });
+        }
+}
+
+void SparseAssembler::finalize()
+{
+    if (m_local_entries.empty() && m_extra_pattern.empty()) {
+        m_has_extra = false;
+        return;
+    }
+    std::vector<std::pair<int, int>> current;
+    current.reserve(m_local_entries.size());
+    for (const Entry& e : m_local_entries)
+        current.emplace_back(e.col, e.row);
+    std::sort(current.begin(), current.end());
+    current.erase(std::unique(current.begin(), current.end()), current.end());
+    std::vector<std::pair<int, int>> merged;
+    merged.reserve(current.size() + m_extra_pattern.size());
+    std::set_union(current.begin(), current.end(), m_extra_pattern.begin(), m_extra_pattern.end(),
+        std::back_inserter(merged));
+    // Forget old pairs once they dominate, so a long sliding contact does not
+    // accumulate fill-in without bound.
+    if (merged.size() > 4 * current.size() + 4096)
+        merged = current;
+    m_extra_pattern.swap(merged);
+
+    std::vector<Eigen::Triplet<double, int>> triplets;
+    triplets.reserve(m_extra_pattern.size() + m_local_entries.size());
+    for (const auto& [col, row] : m_extra_pattern)
+        triplets.emplace_back(row, col, 0.0);
+    for (const Entry& e : m_local_entries)
+        triplets.emplace_back(e.row, e.col, e.value);
+    SparseMatrixd extra(m_matrix.rows(), m_matrix.cols());
+    extra.setFromTriplets(triplets.begin(), triplets.end());
+    m_combined = m_matrix + extra;
+    m_combined.makeCompressed();
+    m_has_extra = true;
+}
 
 void SparseAssembler::add_element(Index e, const double* Ke)
 {
@@ -103,10 +156,11 @@ void SparseAssembler::add_diagonal(Index dof, double v) { m_matrix.valuePtr()[m_
 
 void SparseAssembler::apply_constraints(const std::vector<char>& constrained)
 {
-    double* values = m_matrix.valuePtr();
-    const int* ip = m_matrix.innerIndexPtr();
-    const int* op = m_matrix.outerIndexPtr();
-    for (Index col = 0; col < m_matrix.cols(); ++col)
+    SparseMatrixd& A = matrix();
+    double* values = A.valuePtr();
+    const int* ip = A.innerIndexPtr();
+    const int* op = A.outerIndexPtr();
+    for (Index col = 0; col < A.cols(); ++col)
         for (int k = op[col]; k < op[col + 1]; ++k) {
             const Index row = ip[k];
             if (constrained[size_t(row)] || constrained[size_t(col)])

@@ -27,12 +27,21 @@ public:
     void add_element(Index e, const double* Ke);
     /// @brief Adds v to the diagonal entry of `dof`.
     void add_diagonal(Index dof, double v);
+    /// @brief Adds a local matrix K (n*dim square, column-major, local dofs
+    /// vertex-major) coupling `vertices` whose pairs need not be in the element
+    /// pattern (contact). Not thread-safe; call finalize() after the last one.
+    void add_local(const Index* vertices, int n, const double* K);
+    /// @brief Merges the local contributions into matrix(). The extra pattern
+    /// remembers vertex pairs seen before, so that a contact set that comes
+    /// back does not change the pattern (and CHOLMOD's analysis) again.
+    void finalize();
     /// @brief Replaces the rows and columns of `constrained` dofs by identity rows.
     void apply_constraints(const std::vector<char>& constrained);
 
     const std::vector<std::vector<Index>>& colors() const { return m_colors; }
-    SparseMatrixd& matrix() { return m_matrix; }
-    const SparseMatrixd& matrix() const { return m_matrix; }
+    /// The assembled matrix (lower triangle): the element pattern, plus the extra pattern once local matrices were added.
+    SparseMatrixd& matrix() { return m_has_extra ? m_combined : m_matrix; }
+    const SparseMatrixd& matrix() const { return m_has_extra ? m_combined : m_matrix; }
     Index size() const { return m_matrix.rows(); }
 
 private:
@@ -42,6 +51,15 @@ private:
     std::vector<int> m_element_slots; // #E * m_local^2, value index or -1 (upper triangle)
     std::vector<int> m_diagonal_slots;
     std::vector<std::vector<Index>> m_colors;
+
+    struct Entry {
+        int col, row;
+        double value;
+    };
+    std::vector<Entry> m_local_entries; // this assembly's extra lower-triangle entries
+    std::vector<std::pair<int, int>> m_extra_pattern; // remembered (col, row), sorted
+    SparseMatrixd m_combined;
+    bool m_has_extra = false;
 };
 
 } // namespace diffipc

@@ -45,8 +45,15 @@ struct PhaseTimes {
     double factorization = 0; ///< numeric factorization (symbolic analysis included on first use)
     double solve = 0; ///< triangular solves
     double line_search = 0; ///< energy evaluations and the step bound
+    // Contact work; already counted inside assembly and line_search above.
+    double broad_phase = 0; ///< candidate pairs (static and swept)
+    double ccd = 0; ///< narrow-phase continuous collision detection
+    double barrier = 0; ///< active-set classification, barrier energy, gradient and Hessian
     PhaseTimes& operator+=(const PhaseTimes& o)
     {
+        broad_phase += o.broad_phase;
+        ccd += o.ccd;
+        barrier += o.barrier;
         assembly += o.assembly;
         factorization += o.factorization;
         solve += o.solve;

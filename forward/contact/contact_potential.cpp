@@ -1,0 +1,444 @@
+#include "forward/contact/contact_potential.hpp"
+
+#include "forward/common/timer.hpp"
+#include "forward/contact/barrier.hpp"
+#include "forward/contact/broad_phase/broad_phase.hpp"
+#include "forward/contact/ccd/ccd.hpp"
+#include "forward/contact/distance/distance.hpp"
+#include "forward/materials/material.hpp"
+#include "forward/solver/sparse_assembler.hpp"
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+#include <tbb/parallel_reduce.h>
+
+#include <cmath>
+#include <limits>
+
+namespace diffipc {
+
+namespace {
+
+    constexpr double INF = std::numeric_limits<double>::infinity();
+
+    Eigen::Vector3d point(const VectorXd& x, Index v, int dim)
+    {
+        Eigen::Vector3d p = Eigen::Vector3d::Zero();
+        p.head(dim) = x.segment(v * dim, dim);
+        return p;
+    }
+
+    Eigen::Vector3d rest_point(const Positions& X, Index v)
+    {
+        Eigen::Vector3d p = Eigen::Vector3d::Zero();
+        p.head(X.cols()) = X.row(v).transpose();
+        return p;
+    }
+
+    /// Drops the z rows/columns of a 3D-padded derivative for 2D problems.
+    void compress_2d(const Eigen::VectorXd& g3, const Eigen::MatrixXd& H3, Eigen::VectorXd& g, Eigen::MatrixXd& H)
+    {
+        const Index n = g3.size() / 3;
+        g.resize(2 * n);
+        H.resize(2 * n, 2 * n);
+        for (Index a = 0; a < 2 * n; ++a) {
+            const Index ra = (a / 2) * 3 + a % 2;
+            g[a] = g3[ra];
+            for (Index b = 0; b < 2 * n; ++b)
+                H(a, b) = H3(ra, (b / 2) * 3 + b % 2);
+        }
+    }
+
+} // namespace
+
+ContactPotential::ContactPotential(
+    CollisionMesh mesh, const Positions& rest_positions, std::vector<ContactPlane> planes, ContactSettings settings)
+    : m_mesh(std::move(mesh))
+    , m_rest(rest_positions)
+    , m_planes(std::move(planes))
+    , m_settings(settings)
+{
+    for (Index k = 0; k < m_mesh.vertices.size(); ++k) {
+        const Index v = m_mesh.vertices[k];
+        const int g = m_mesh.vertex_group[size_t(v)];
+        if (g >= 0 && !m_mesh.group_kinematic[size_t(g)])
+            m_plane_vertices.push_back(v);
+    }
+}
+
+ContactPotential::~ContactPotential() = default;
+
+void ContactPotential::build_contacts(const VectorXd& x, ContactSet& out, double radius) const
+{
+    out.clear();
+    const int dim = m_mesh.dim;
+    const Positions X = unflatten(x, dim);
+    Candidates candidates;
+    {
+        Timer t;
+        candidates = broad_phase_candidates(m_mesh, X, X, radius);
+        t.add_to(m_times.broad_phase);
+    }
+    Timer t;
+    const double r2 = radius * radius;
+    for (const auto& [v, e] : candidates.vertex_edge) {
+        const Index e0 = m_mesh.edges(e, 0), e1 = m_mesh.edges(e, 1);
+        const Eigen::Vector3d p = point(x, v, dim), a = point(x, e0, dim), b = point(x, e1, dim);
+        const PointEdgeDistanceType type = point_edge_distance_type(p, a, b);
+        const double s = point_edge_distance(p, a, b, type);
+        if (s < r2) {
+            Contact c;
+            c.kind = ContactKind::VERTEX_EDGE;
+            c.distance_type = int(type);
+            c.vertices = { v, e0, e1, -1 };
+            c.distance_squared = s;
+            out.push_back(c);
+        }
+    }
+    for (const auto& [v, f] : candidates.vertex_face) {
+        const Index t0 = m_mesh.faces(f, 0), t1 = m_mesh.faces(f, 1), t2 = m_mesh.faces(f, 2);
+        const Eigen::Vector3d p = point(x, v, dim), a = point(x, t0, dim), b = point(x, t1, dim),
+                              c3 = point(x, t2, dim);
+        const PointTriangleDistanceType type = point_triangle_distance_type(p, a, b, c3);
+        const double s = point_triangle_distance(p, a, b, c3, type);
+        if (s < r2) {
+            Contact c;
+            c.kind = ContactKind::VERTEX_FACE;
+            c.distance_type = int(type);
+            c.vertices = { v, t0, t1, t2 };
+            c.distance_squared = s;
+            out.push_back(c);
+        }
+    }
+    for (const auto& [ea, eb] : candidates.edge_edge) {
+        const Index a0 = m_mesh.edges(ea, 0), a1 = m_mesh.edges(ea, 1);
+        const Index b0 = m_mesh.edges(eb, 0), b1 = m_mesh.edges(eb, 1);
+        const Eigen::Vector3d pa0 = point(x, a0, dim), pa1 = point(x, a1, dim), pb0 = point(x, b0, dim),
+                              pb1 = point(x, b1, dim);
+        const EdgeEdgeDistanceType type = edge_edge_distance_type(pa0, pa1, pb0, pb1);
+        const double s = edge_edge_distance(pa0, pa1, pb0, pb1, type);
+        if (s < r2) {
+            Contact c;
+            c.kind = ContactKind::EDGE_EDGE;
+            c.distance_type = int(type);
+            c.vertices = { a0, a1, b0, b1 };
+            c.distance_squared = s;
+            c.mollifier_threshold = edge_edge_mollifier_threshold(
+                rest_point(m_rest, a0), rest_point(m_rest, a1), rest_point(m_rest, b0), rest_point(m_rest, b1));
+            out.push_back(c);
+        }
+    }
+    for (size_t k = 0; k < m_planes.size(); ++k) {
+        const ContactPlane& plane = m_planes[k];
+        const Eigen::Vector3d o = point(x, plane.vertex, dim);
+        for (Index v : m_plane_vertices) {
+            const double h = (point(x, v, dim) - o).dot(plane.normal);
+            if (h < radius) {
+                Contact c;
+                c.kind = ContactKind::VERTEX_PLANE;
+                c.vertices = { v, plane.vertex, -1, -1 };
+                c.plane = int(k);
+                // A vertex on the wrong side is an intersection: no finite barrier.
+                c.distance_squared = h > 0 ? h * h : -1;
+                out.push_back(c);
+            }
+        }
+    }
+    t.add_to(m_times.barrier);
+}
+
+const ContactSet& ContactPotential::contacts(const VectorXd& x) const
+{
+    if (!m_cache_valid || m_cache_x.size() != x.size() || m_cache_x != x) {
+        build_contacts(x, m_cache, m_settings.min_distance + m_settings.dhat);
+        m_cache_x = x;
+        m_cache_valid = true;
+    }
+    return m_cache;
+}
+
+double ContactPotential::local_barrier(
+    const Contact& c, const VectorXd& x, Eigen::VectorXd* grad, Eigen::MatrixXd* hess) const
+{
+    const int dim = m_mesh.dim;
+    const double dmin2 = m_settings.min_distance * m_settings.min_distance;
+    const double shat = barrier_activation(m_settings.dhat, m_settings.min_distance);
+    const bool derivatives = grad || hess;
+
+    double s = 0, m = 1;
+    Eigen::VectorXd gs, gm;
+    Eigen::MatrixXd Hs, Hm;
+    const auto& v = c.vertices;
+    switch (c.kind) {
+    case ContactKind::VERTEX_PLANE: {
+        const Eigen::Vector3d n = m_planes[size_t(c.plane)].normal;
+        const double h = (point(x, v[0], dim) - point(x, v[1], dim)).dot(n);
+        if (!(h > 0))
+            return INF;
+        s = h * h;
+        if (derivatives) {
+            const Eigen::VectorXd nd = n.head(dim);
+            gs.resize(2 * dim);
+            gs << 2 * h * nd, -2 * h * nd;
+            const Eigen::MatrixXd nn = 2 * nd * nd.transpose();
+            Hs.resize(2 * dim, 2 * dim);
+            Hs << nn, -nn, -nn, nn;
+        }
+        break;
+    }
+    case ContactKind::VERTEX_EDGE: {
+        const auto type = PointEdgeDistanceType(c.distance_type);
+        const Eigen::Vector3d p = point(x, v[0], dim), a = point(x, v[1], dim), b = point(x, v[2], dim);
+        s = point_edge_distance(p, a, b, type);
+        if (derivatives) {
+            const Eigen::VectorXd g3 = point_edge_distance_gradient(p, a, b, type);
+            const Eigen::MatrixXd H3 = point_edge_distance_hessian(p, a, b, type);
+            if (dim == 2)
+                compress_2d(g3, H3, gs, Hs);
+            else {
+                gs = g3;
+                Hs = H3;
+            }
+        }
+        break;
+    }
+    case ContactKind::VERTEX_FACE: {
+        const auto type = PointTriangleDistanceType(c.distance_type);
+        const Eigen::Vector3d p = point(x, v[0], dim), a = point(x, v[1], dim), b = point(x, v[2], dim),
+                              d = point(x, v[3], dim);
+        s = point_triangle_distance(p, a, b, d, type);
+        if (derivatives) {
+            gs = point_triangle_distance_gradient(p, a, b, d, type);
+            Hs = point_triangle_distance_hessian(p, a, b, d, type);
+        }
+        break;
+    }
+    case ContactKind::EDGE_EDGE: {
+        const auto type = EdgeEdgeDistanceType(c.distance_type);
+        const Eigen::Vector3d a0 = point(x, v[0], dim), a1 = point(x, v[1], dim), b0 = point(x, v[2], dim),
+                              b1 = point(x, v[3], dim);
+        s = edge_edge_distance(a0, a1, b0, b1, type);
+        m = edge_edge_mollifier(a0, a1, b0, b1, c.mollifier_threshold);
+        if (derivatives) {
+            gs = edge_edge_distance_gradient(a0, a1, b0, b1, type);
+            Hs = edge_edge_distance_hessian(a0, a1, b0, b1, type);
+            gm = edge_edge_mollifier_gradient(a0, a1, b0, b1, c.mollifier_threshold);
+            Hm = edge_edge_mollifier_hessian(a0, a1, b0, b1, c.mollifier_threshold);
+        }
+        break;
+    }
+    }
+    const double z = s - dmin2;
+    if (!(z > 0))
+        return INF;
+    const double b = barrier(z, shat);
+    if (!derivatives)
+        return m * b;
+    const double b1 = barrier_first_derivative(z, shat);
+    if (grad) {
+        *grad = m * b1 * gs;
+        if (gm.size())
+            *grad += b * gm;
+    }
+    if (hess) {
+        const double b2 = barrier_second_derivative(z, shat);
+        *hess = m * (b2 * gs * gs.transpose() + b1 * Hs);
+        if (gm.size()) {
+            *hess += b1 * (gm * gs.transpose() + gs * gm.transpose()) + b * Hm;
+        }
+    }
+    return m * b;
+}
+
+double ContactPotential::barrier_value(const VectorXd& x) const
+{
+    const ContactSet& set = contacts(x);
+    Timer t;
+    double sum = 0;
+    for (const Contact& c : set) {
+        const double e = local_barrier(c, x, nullptr, nullptr);
+        if (!std::isfinite(e)) {
+            sum = INF;
+            break;
+        }
+        sum += e;
+    }
+    t.add_to(m_times.barrier);
+    return sum;
+}
+
+double ContactPotential::value(const VectorXd& x) const
+{
+    const double b = barrier_value(x);
+    return std::isfinite(b) ? m_settings.kappa * b : INF;
+}
+
+VectorXd ContactPotential::barrier_gradient(const VectorXd& x) const
+{
+    VectorXd g = VectorXd::Zero(x.size());
+    const ContactSet& set = contacts(x);
+    Timer t;
+    const int dim = m_mesh.dim;
+    Eigen::VectorXd local;
+    for (const Contact& c : set) {
+        local_barrier(c, x, &local, nullptr);
+        for (int k = 0; k < c.num_vertices(); ++k)
+            g.segment(c.vertices[size_t(k)] * dim, dim) += local.segment(k * dim, dim);
+    }
+    t.add_to(m_times.barrier);
+    return g;
+}
+
+void ContactPotential::add_gradient(const VectorXd& x, double weight, VectorXd& g) const
+{
+    const ContactSet& set = contacts(x);
+    if (set.empty())
+        return;
+    g += (weight * m_settings.kappa) * barrier_gradient(x);
+}
+
+void ContactPotential::add_hessian(const VectorXd& x, double weight, bool project_to_psd, SparseAssembler& H) const
+{
+    const ContactSet& set = contacts(x);
+    if (set.empty())
+        return;
+    Timer t;
+    std::vector<Eigen::MatrixXd> locals(set.size());
+    const double scale = weight * m_settings.kappa;
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, set.size(), 16), [&](const tbb::blocked_range<size_t>& r) {
+        for (size_t k = r.begin(); k < r.end(); ++k) {
+            local_barrier(set[k], x, nullptr, &locals[k]);
+            if (project_to_psd)
+                locals[k] = project_psd(locals[k]);
+            locals[k] *= scale;
+        }
+    });
+    for (size_t k = 0; k < set.size(); ++k)
+        H.add_local(set[k].vertices.data(), set[k].num_vertices(), locals[k].data());
+    t.add_to(m_times.barrier);
+}
+
+double ContactPotential::max_step(const VectorXd& x, const VectorXd& p) const
+{
+    const int dim = m_mesh.dim;
+    const VectorXd x1 = x + p;
+    const Positions X0 = unflatten(x, dim), X1 = unflatten(x1, dim);
+    Candidates candidates;
+    {
+        Timer t;
+        candidates = broad_phase_candidates(m_mesh, X0, X1, m_settings.min_distance);
+        t.add_to(m_times.broad_phase);
+    }
+    Timer t;
+    CCDSettings settings;
+    settings.min_distance = m_settings.min_distance;
+    settings.max_iterations = m_settings.ccd_max_iterations;
+    settings.conservative_rescaling = m_settings.ccd_rescaling;
+    struct Outcome {
+        double toi = 1;
+        bool exhausted = false;
+    };
+    auto combine = [](Outcome a, const Outcome& b) {
+        a.toi = std::min(a.toi, b.toi);
+        a.exhausted = a.exhausted || b.exhausted;
+        return a;
+    };
+    auto accept = [](Outcome& o, const CCDResult& r) {
+        if (r.collision) {
+            o.toi = std::min(o.toi, r.toi);
+            o.exhausted = o.exhausted || r.budget_exhausted;
+        }
+    };
+    const auto& ve = candidates.vertex_edge;
+    const auto& vf = candidates.vertex_face;
+    const auto& ee = candidates.edge_edge;
+    const size_t n_ve = ve.size(), n_vf = vf.size(), n_ee = ee.size();
+    const size_t n_plane = m_planes.size() * m_plane_vertices.size();
+    const size_t total = n_ve + n_vf + n_ee + n_plane;
+    const Outcome outcome = tbb::parallel_reduce(
+        tbb::blocked_range<size_t>(0, total, 64), Outcome {},
+        [&](const tbb::blocked_range<size_t>& r, Outcome o) {
+            for (size_t k = r.begin(); k < r.end(); ++k) {
+                if (k < n_ve) {
+                    const auto& [v, e] = ve[k];
+                    const Index a = m_mesh.edges(e, 0), b = m_mesh.edges(e, 1);
+                    accept(o,
+                        point_edge_ccd(point(x, v, dim), point(x, a, dim), point(x, b, dim), point(x1, v, dim),
+                            point(x1, a, dim), point(x1, b, dim), settings));
+                } else if (k < n_ve + n_vf) {
+                    const auto& [v, f] = vf[k - n_ve];
+                    const Index a = m_mesh.faces(f, 0), b = m_mesh.faces(f, 1), c = m_mesh.faces(f, 2);
+                    accept(o,
+                        point_triangle_ccd(point(x, v, dim), point(x, a, dim), point(x, b, dim), point(x, c, dim),
+                            point(x1, v, dim), point(x1, a, dim), point(x1, b, dim), point(x1, c, dim), settings));
+                } else if (k < n_ve + n_vf + n_ee) {
+                    const auto& [ea, eb] = ee[k - n_ve - n_vf];
+                    const Index a0 = m_mesh.edges(ea, 0), a1 = m_mesh.edges(ea, 1);
+                    const Index b0 = m_mesh.edges(eb, 0), b1 = m_mesh.edges(eb, 1);
+                    accept(o,
+                        edge_edge_ccd(point(x, a0, dim), point(x, a1, dim), point(x, b0, dim), point(x, b1, dim),
+                            point(x1, a0, dim), point(x1, a1, dim), point(x1, b0, dim), point(x1, b1, dim),
+                            settings));
+                } else {
+                    const size_t q = k - n_ve - n_vf - n_ee;
+                    const ContactPlane& plane = m_planes[q / m_plane_vertices.size()];
+                    const Index v = m_plane_vertices[q % m_plane_vertices.size()];
+                    accept(o,
+                        point_plane_ccd(point(x, v, dim), point(x1, v, dim), point(x, plane.vertex, dim),
+                            point(x1, plane.vertex, dim), plane.normal, settings));
+                }
+            }
+            return o;
+        },
+        combine);
+    t.add_to(m_times.ccd);
+    m_ccd_budget_exhausted = outcome.exhausted;
+    m_ccd_unresolved = !(outcome.toi > 0);
+    return outcome.toi;
+}
+
+double ContactPotential::min_distance(const VectorXd& x, double radius) const
+{
+    ContactSet set;
+    build_contacts(x, set, std::max(radius, m_settings.min_distance + m_settings.dhat));
+    double best = INF;
+    for (const Contact& c : set)
+        best = std::min(best, c.distance_squared < 0 ? 0.0 : std::sqrt(c.distance_squared));
+    return best;
+}
+
+bool ContactPotential::end_iteration(const VectorXd& x)
+{
+    if (!m_adaptive)
+        return false;
+    const ContactSet& set = contacts(x);
+    if (!m_rule_applied && !set.empty() && m_rule) {
+        // Contact appeared during this step: balance the barrier now rather than
+        // waiting for the gap to collapse to the doubling threshold.
+        m_rule_applied = true;
+        const double kappa = std::min(std::max(m_settings.kappa, m_rule(x)), m_kappa_max);
+        m_previous_min_distance_squared = -1;
+        if (kappa != m_settings.kappa) {
+            m_settings.kappa = kappa;
+            return true;
+        }
+        return false;
+    }
+    double gap2 = INF;
+    for (const Contact& c : set) {
+        const double gap = std::sqrt(std::max(c.distance_squared, 0.0)) - m_settings.min_distance;
+        gap2 = std::min(gap2, gap * gap);
+    }
+    const double previous = m_previous_min_distance_squared;
+    m_previous_min_distance_squared = gap2;
+    if (previous < 0)
+        return false;
+    const double kappa = update_barrier_stiffness(
+        previous, gap2, m_settings.kappa, m_kappa_max, m_bbox_diagonal, /*dmin=*/0.0);
+    if (kappa == m_settings.kappa)
+        return false;
+    m_settings.kappa = kappa;
+    return true;
+}
+
+} // namespace diffipc

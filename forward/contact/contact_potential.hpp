@@ -1,0 +1,115 @@
+#pragma once
+/// @file contact_potential.hpp
+/// IPC barrier potential B(x) = kappa sum_k m_k b(d_k^2 - dmin^2, shat) over the
+/// active contacts of the collision mesh and the planes (docs/math.md "Contact").
+/// The active set is rebuilt at every state it is asked about (broad phase with
+/// inflation dmin + dhat, then exact classification), cached for the last state.
+/// max_step() is the largest step that conservative CCD certifies.
+
+#include "forward/contact/collision_mesh.hpp"
+#include "forward/contact/contact_set.hpp"
+#include "forward/potentials/potential.hpp"
+
+#include <functional>
+#include <memory>
+
+namespace diffipc {
+
+struct ContactSettings {
+    double dhat = 1e-3; ///< activation distance (m)
+    double min_distance = 0; ///< dmin (m)
+    double kappa = 1; ///< barrier stiffness
+    int ccd_max_iterations = 1000000;
+    double ccd_rescaling = 0.9;
+};
+
+/// A half-space obstacle: bodies stay on the side the normal points to. Its
+/// point is a (kinematic) vertex of the mesh, so it moves with the state.
+struct ContactPlane {
+    Index vertex; ///< full-mesh index of the plane's point
+    Eigen::Vector3d normal; ///< unit normal (z = 0 in 2D)
+};
+
+/// Wall time (s) spent in contact work since the last reset.
+struct ContactTimes {
+    double broad_phase = 0, ccd = 0, barrier = 0;
+};
+
+class ContactPotential : public Potential {
+public:
+    /// @param mesh           collision mesh (indices into the full mesh)
+    /// @param rest_positions #V by dim (for the edge-edge mollifier thresholds)
+    /// @param planes         plane obstacles
+    /// @param plane_vertices  vertices tested against planes (non-kinematic surface vertices)
+    ContactPotential(CollisionMesh mesh, const Positions& rest_positions, std::vector<ContactPlane> planes,
+        ContactSettings settings);
+    ~ContactPotential() override;
+
+    std::string name() const override { return "contact"; }
+    double value(const VectorXd& x) const override;
+    void add_gradient(const VectorXd& x, double weight, VectorXd& g) const override;
+    void add_hessian(const VectorXd& x, double weight, bool project_to_psd, SparseAssembler& H) const override;
+    /// Largest step certified by CCD (min over candidate pairs of the time of impact).
+    double max_step(const VectorXd& x, const VectorXd& p) const override;
+    bool step_unresolved() const override { return m_ccd_unresolved; }
+    bool end_iteration(const VectorXd& x) override;
+
+    /// Active contacts at x (cached for the last x asked about).
+    const ContactSet& contacts(const VectorXd& x) const;
+    /// @brief Minimum distance (m) over primitive pairs within `radius` (m) of each
+    /// other at x, and over vertex-plane pairs; +inf if there is none.
+    double min_distance(const VectorXd& x, double radius) const;
+    /// Barrier value without kappa: sum_k m_k b_k.
+    double barrier_value(const VectorXd& x) const;
+    /// Gradient of the barrier without kappa (#V*dim).
+    VectorXd barrier_gradient(const VectorXd& x) const;
+
+    const ContactSettings& settings() const { return m_settings; }
+    void set_kappa(double kappa) { m_settings.kappa = kappa; }
+    double kappa() const { return m_settings.kappa; }
+    /// Adaptive stiffness: enable doubling (IPC's rule) up to kappa_max after each Newton iteration.
+    /// `rule(x)` returns IPC's balancing stiffness at x; it is applied (kappa only
+    /// grows) after the first Newton iteration of a step that ends with active
+    /// contacts, unless the step started with some (the caller applied it then).
+    /// Call at the start of every step.
+    void set_adaptive(double kappa_max, double bbox_diagonal, std::function<double(const VectorXd&)> rule,
+        bool rule_applied)
+    {
+        m_adaptive = true;
+        m_kappa_max = kappa_max;
+        m_bbox_diagonal = bbox_diagonal;
+        m_previous_min_distance_squared = -1;
+        m_rule = std::move(rule);
+        m_rule_applied = rule_applied;
+    }
+    const CollisionMesh& collision_mesh() const { return m_mesh; }
+    const std::vector<ContactPlane>& planes() const { return m_planes; }
+
+    const ContactTimes& times() const { return m_times; }
+    void reset_times() { m_times = {}; }
+    bool ccd_budget_exhausted() const { return m_ccd_budget_exhausted; }
+
+private:
+    void build_contacts(const VectorXd& x, ContactSet& out, double radius) const;
+    /// Energy (without kappa), gradient and Hessian of one contact at x; local
+    /// dofs are the contact's vertices in order, dim each.
+    double local_barrier(const Contact& c, const VectorXd& x, Eigen::VectorXd* grad, Eigen::MatrixXd* hess) const;
+
+    CollisionMesh m_mesh;
+    Positions m_rest;
+    std::vector<ContactPlane> m_planes;
+    std::vector<Index> m_plane_vertices;
+    ContactSettings m_settings;
+    bool m_adaptive = false;
+    double m_kappa_max = 0, m_bbox_diagonal = 1, m_previous_min_distance_squared = -1;
+    std::function<double(const VectorXd&)> m_rule;
+    bool m_rule_applied = false;
+
+    mutable VectorXd m_cache_x;
+    mutable ContactSet m_cache;
+    mutable bool m_cache_valid = false;
+    mutable ContactTimes m_times;
+    mutable bool m_ccd_unresolved = false, m_ccd_budget_exhausted = false;
+};
+
+} // namespace diffipc

@@ -1,0 +1,36 @@
+#pragma once
+/// @file contact_set.hpp
+/// Active contacts: primitive pairs closer than dmin + dhat, each with the
+/// closest-feature type that realizes its distance. A committed step keeps its
+/// set (the adjoint differentiates the barrier of exactly these pairs).
+
+#include "forward/common/types.hpp"
+
+#include <array>
+#include <cstdint>
+#include <vector>
+
+namespace diffipc {
+
+enum class ContactKind : std::uint8_t {
+    VERTEX_EDGE = 0, ///< 2D: vertices (v, e0, e1)
+    VERTEX_FACE = 1, ///< 3D: vertices (v, t0, t1, t2)
+    EDGE_EDGE = 2, ///< 3D: vertices (ea0, ea1, eb0, eb1), mollified
+    VERTEX_PLANE = 3, ///< vertices (v, plane point); one-sided, signed distance
+};
+
+struct Contact {
+    ContactKind kind = ContactKind::VERTEX_FACE;
+    /// PointEdgeDistanceType / PointTriangleDistanceType / EdgeEdgeDistanceType as int (0 for planes)
+    int distance_type = 0;
+    std::array<Index, 4> vertices { -1, -1, -1, -1 }; ///< full-mesh vertex indices
+    int plane = -1; ///< VERTEX_PLANE: index among the scene's planes
+    double mollifier_threshold = 0; ///< EDGE_EDGE: eps_x at rest positions
+    double distance_squared = 0; ///< at the state the set was built for (m^2)
+
+    int num_vertices() const { return kind == ContactKind::VERTEX_EDGE ? 3 : kind == ContactKind::VERTEX_PLANE ? 2 : 4; }
+};
+
+using ContactSet = std::vector<Contact>;
+
+} // namespace diffipc

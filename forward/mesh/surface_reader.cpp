@@ -1,0 +1,144 @@
+#include "forward/common/error.hpp"
+#include "forward/mesh/gmsh_reader.hpp"
+#include "forward/mesh/mesh.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <fstream>
+#include <sstream>
+#include <vector>
+
+namespace diffipc {
+
+Mesh annulus_mesh(const VectorXd& center, double inner_radius, double outer_radius, int segments, int layers)
+{
+    Mesh mesh;
+    mesh.dim = 2;
+    const int rings = layers + 1;
+    mesh.rest_positions.resize(Index(rings) * segments, 2);
+    for (int r = 0; r < rings; ++r)
+        for (int s = 0; s < segments; ++s) {
+            const double radius = inner_radius + (outer_radius - inner_radius) * r / layers;
+            const double angle = 2 * M_PI * s / segments;
+            mesh.rest_positions.row(Index(r) * segments + s)
+                << center[0] + radius * std::cos(angle), center[1] + radius * std::sin(angle);
+        }
+    mesh.elements.resize(Index(2) * layers * segments, 3);
+    Index e = 0;
+    for (int r = 0; r < layers; ++r)
+        for (int s = 0; s < segments; ++s) {
+            const int a = r * segments + s, b = r * segments + (s + 1) % segments;
+            const int c = a + segments, d = b + segments;
+            // Counter-clockwise: (a, d, b) turns left from the outward diagonal to the tangent.
+            mesh.elements.row(e++) << a, d, b;
+            mesh.elements.row(e++) << a, c, d;
+        }
+    mesh.vertex_body = VectorXi::Zero(mesh.num_vertices());
+    mesh.element_body = VectorXi::Zero(mesh.num_elements());
+    compute_boundary(mesh);
+    return mesh;
+}
+
+namespace {
+
+    Mesh read_obj(const std::string& path, int dim)
+    {
+        std::ifstream in(path);
+        if (!in)
+            throw InputError(path, "cannot open surface mesh file");
+        std::vector<Eigen::Vector3d> vertices;
+        std::vector<std::vector<int>> facets;
+        std::string line;
+        int line_number = 0;
+        auto fail = [&](const std::string& message) {
+            throw InputError(path + ":" + std::to_string(line_number), message);
+        };
+        while (std::getline(in, line)) {
+            ++line_number;
+            std::istringstream ls(line);
+            std::string tag;
+            if (!(ls >> tag) || tag[0] == '#')
+                continue;
+            if (tag == "v") {
+                Eigen::Vector3d v = Eigen::Vector3d::Zero();
+                if (!(ls >> v[0] >> v[1]))
+                    fail("expected vertex coordinates");
+                if (!(ls >> v[2]))
+                    v[2] = 0;
+                if (!v.allFinite())
+                    fail("non-finite vertex coordinate");
+                vertices.push_back(v);
+            } else if ((tag == "f" && dim == 3) || (tag == "l" && dim == 2)) {
+                std::vector<int> ids;
+                std::string token;
+                while (ls >> token) {
+                    // "7", "7/1", "7//3": the vertex index is before the first slash; negative counts from the end.
+                    const std::string head = token.substr(0, token.find('/'));
+                    char* end = nullptr;
+                    const long id = std::strtol(head.c_str(), &end, 10);
+                    if (end == head.c_str() || *end != '\0' || id == 0)
+                        fail("bad vertex reference '" + token + "'");
+                    const long index = id > 0 ? id - 1 : long(vertices.size()) + id;
+                    if (index < 0 || index >= long(vertices.size()))
+                        fail("vertex reference " + head + " out of range");
+                    ids.push_back(int(index));
+                }
+                if (dim == 3) {
+                    if (ids.size() < 3)
+                        fail("a face needs at least 3 vertices");
+                    for (size_t k = 1; k + 1 < ids.size(); ++k)
+                        facets.push_back({ ids[0], ids[k], ids[k + 1] });
+                } else {
+                    if (ids.size() < 2)
+                        fail("a line needs at least 2 vertices");
+                    for (size_t k = 0; k + 1 < ids.size(); ++k)
+                        facets.push_back({ ids[k], ids[k + 1] });
+                }
+            }
+        }
+        line_number = 0;
+        if (facets.empty())
+            fail(dim == 3 ? "no faces (\"f\" records)" : "no polylines (\"l\" records)");
+        Mesh mesh;
+        mesh.dim = dim;
+        mesh.rest_positions.resize(Index(vertices.size()), dim);
+        for (size_t v = 0; v < vertices.size(); ++v)
+            mesh.rest_positions.row(Index(v)) = vertices[v].head(dim).transpose();
+        mesh.boundary_facets.resize(Index(facets.size()), dim);
+        for (size_t f = 0; f < facets.size(); ++f)
+            for (int a = 0; a < dim; ++a)
+                mesh.boundary_facets(Index(f), a) = facets[f][size_t(a)];
+        return mesh;
+    }
+
+} // namespace
+
+Mesh read_surface_mesh(const std::string& path, int dim)
+{
+    const std::string ext = path.size() >= 4 ? path.substr(path.size() - 4) : "";
+    Mesh mesh;
+    if (ext == ".obj") {
+        mesh = read_obj(path, dim);
+    } else if (ext == ".msh") {
+        mesh = read_gmsh_facets(path, dim);
+    } else {
+        throw InputError(path, "unsupported surface mesh format (expected .obj or .msh)");
+    }
+    mesh.elements.resize(0, dim + 1);
+    mesh.element_body.resize(0);
+    mesh.vertex_body = VectorXi::Zero(mesh.num_vertices());
+    mesh.facet_body = VectorXi::Zero(mesh.boundary_facets.rows());
+    for (Index f = 0; f < mesh.boundary_facets.rows(); ++f) {
+        double size = 0;
+        for (int a = 1; a < dim; ++a)
+            size = std::max(size,
+                (mesh.rest_positions.row(mesh.boundary_facets(f, a))
+                    - mesh.rest_positions.row(mesh.boundary_facets(f, 0)))
+                    .norm());
+        if (!(size > 0))
+            throw InputError(path, "facet " + std::to_string(f) + " is degenerate (coincident vertices)");
+    }
+    return mesh;
+}
+
+} // namespace diffipc

@@ -1,0 +1,159 @@
+// Solver-level contact guarantees: rejected initial states, momentum
+// conservation in a frictionless collision, stiff and extreme cases, and
+// "no contact work without contact".
+
+#include "../test_utils.hpp"
+
+#include "forward/contact/intersection.hpp"
+#include "forward/simulation/simulator.hpp"
+
+#include <gtest/gtest.h>
+
+using namespace diffipc;
+using nlohmann::json;
+
+namespace {
+
+json body(const std::string& name, std::vector<double> lo, std::vector<double> hi, std::vector<int> cells, double E,
+    double density, std::vector<double> velocity)
+{
+    return { { "name", name }, { "mesh", { { "box", { { "min", lo }, { "max", hi }, { "cells", cells } } } } },
+        { "material", { { "model", "neo_hookean" }, { "E", E }, { "nu", 0.3 }, { "density", density } } },
+        { "initial_velocity", velocity }, { "self_contact", false } };
+}
+
+json two_boxes(double gap, double v_left, double v_right, double density_right = 1000, double E = 1e6)
+{
+    json s;
+    s["dimension"] = 3;
+    s["bodies"] = { body("left", { -0.4, -0.1, -0.1 }, { -gap / 2, 0.1, 0.1 }, { 4, 2, 2 }, E, 1000, { v_left, 0, 0 }),
+        body("right", { gap / 2, -0.1, -0.1 }, { 0.2 + gap / 2, 0.1, 0.1 }, { 2, 2, 2 }, E, density_right,
+            { v_right, 0, 0 }) };
+    s["contact"] = { { "dhat", 1e-3 }, { "kappa", "adaptive" } };
+    s["time"] = { { "integrator", "implicit_euler" }, { "dt", 2e-3 }, { "steps", 15 } };
+    s["solver"] = { { "residual_tolerance", 1e-9 } };
+    return s;
+}
+
+void expect_valid(const Simulator& sim)
+{
+    const Positions X = unflatten(sim.positions(), sim.scene().dim);
+    EXPECT_EQ(count_inverted_elements(sim.scene().mesh, X), 0);
+    EXPECT_EQ(find_intersection(sim.contact()->collision_mesh(), X, true), "");
+}
+
+Eigen::VectorXd momentum(const Simulator& sim, const VectorXd& v)
+{
+    const int d = sim.scene().dim;
+    VectorXd density(sim.mesh().num_elements());
+    for (Index e = 0; e < density.size(); ++e)
+        density[e] = sim.scene().bodies[size_t(sim.mesh().element_body[e])].material.density;
+    const VectorXd m = sim.space().lumped_masses(density);
+    VectorXd p = VectorXd::Zero(d);
+    for (Index i = 0; i < m.size(); ++i)
+        p += m[i] * v.segment(i * d, d);
+    return p;
+}
+
+} // namespace
+
+TEST(ContactSolver, RejectsIntersectingInitialState)
+{
+    Simulator sim(test::make_scene(two_boxes(-0.05, 0, 0))); // overlapping by 5 cm
+    EXPECT_EQ(sim.step(), StepStatus::INVALID_INITIAL_STATE);
+    EXPECT_EQ(sim.steps_done(), 0);
+    EXPECT_NE(sim.trajectory().failure_message.find("intersect"), std::string::npos)
+        << sim.trajectory().failure_message;
+}
+
+TEST(ContactSolver, RejectsGapBelowMinimumDistance)
+{
+    json s = two_boxes(1e-3, 0, 0);
+    s["contact"]["min_distance"] = 2e-3;
+    Simulator sim(test::make_scene(s));
+    EXPECT_EQ(sim.step(), StepStatus::INVALID_INITIAL_STATE);
+}
+
+TEST(ContactSolver, RejectsVertexBehindPlane)
+{
+    json s = test::box_scene(2, { 1, 1 }, { 2, 2 });
+    s["obstacles"] = { { { "plane", { { "point", { 0, 0.5 } }, { "normal", { 0, 1 } } } } } };
+    Simulator sim(test::make_scene(s));
+    EXPECT_EQ(sim.step(), StepStatus::INVALID_INITIAL_STATE);
+}
+
+TEST(ContactSolver, MomentumConservedInFrictionlessHeadOnCollision)
+{
+    // Unequal bodies and speeds, so the conserved momentum is not zero by symmetry.
+    Simulator sim(test::make_scene(two_boxes(0.02, 6.0, -3.0)));
+    const VectorXd p0 = momentum(sim, sim.velocities());
+    ASSERT_GT(p0.norm(), 1.0);
+    int max_active = 0;
+    for (int k = 0; k < 15; ++k) {
+        ASSERT_EQ(sim.step(), StepStatus::CONVERGED) << "step " << k + 1;
+        max_active = std::max(max_active, sim.trajectory().steps.back().active_contacts);
+        const VectorXd p = momentum(sim, sim.velocities());
+        // Internal and barrier forces sum to zero exactly (translation invariance);
+        // what remains is the solver residual, 1e-9 of the force scale per dof.
+        EXPECT_LT((p - p0).norm(), 1e-6 * p0.norm()) << "step " << k + 1;
+        expect_valid(sim);
+    }
+    EXPECT_GT(max_active, 0) << "the boxes never touched";
+}
+
+TEST(ContactSolver, NoContactWorkWithoutContact)
+{
+    Simulator sim(test::make_scene(test::box_scene(3, { 1, 0.2, 0.2 }, { 4, 1, 1 })));
+    EXPECT_EQ(sim.contact(), nullptr);
+    json s = two_boxes(0.02, 1, -1);
+    s["contact"]["enabled"] = false;
+    Simulator off(test::make_scene(s));
+    EXPECT_EQ(off.contact(), nullptr);
+}
+
+TEST(ContactSolver, StiffBodyAt20MetersPerSecondOntoPlane)
+{
+    json s = test::box_scene(3, { 0.2, 0.2, 0.2 }, { 2, 2, 2 }, "neo_hookean", 1e9, 0.3, 2000);
+    s["bodies"][0]["translation"] = { 0, 0.05, 0 };
+    s["bodies"][0]["initial_velocity"] = { 0, -20, 0 };
+    s["obstacles"] = { { { "plane", { { "point", { 0, 0, 0 } }, { "normal", { 0, 1, 0 } } } } } };
+    s["contact"] = { { "dhat", 1e-4 } };
+    s["time"] = { { "integrator", "implicit_euler" }, { "dt", 1e-3 }, { "steps", 10 } };
+    s["solver"] = { { "residual_tolerance", 1e-6 } };
+    Simulator sim(test::make_scene(s));
+    sim.run();
+    const StepStatus status = sim.trajectory().final_status;
+    // Either it finishes, or it fails transactionally with a status; never an intersection.
+    EXPECT_TRUE(status == StepStatus::CONVERGED || sim.steps_done() < 10) << to_string(status);
+    expect_valid(sim);
+    for (Index v = 0; v < sim.scene().body_vertices; ++v)
+        EXPECT_GT(sim.positions()[v * 3 + 1], 0.0);
+    EXPECT_EQ(status, StepStatus::CONVERGED) << sim.trajectory().failure_message;
+}
+
+TEST(ContactSolver, SmallDhatRelativeToBody)
+{
+    json s = test::box_scene(3, { 1, 1, 1 }, { 3, 3, 3 }, "neo_hookean", 1e6, 0.3, 1000);
+    s["bodies"][0]["translation"] = { 0, 0.01, 0 };
+    s["bodies"][0]["initial_velocity"] = { 0, -3, 0 };
+    s["obstacles"] = { { { "plane", { { "point", { 0, 0, 0 } }, { "normal", { 0, 1, 0 } } } } } };
+    s["contact"] = { { "dhat", 1e-4 } }; // 1e-4 of a 1 m body
+    s["gravity"] = { 0, -9.81, 0 };
+    s["time"] = { { "integrator", "implicit_euler" }, { "dt", 5e-3 }, { "steps", 10 } };
+    s["solver"] = { { "residual_tolerance", 1e-6 } };
+    Simulator sim(test::make_scene(s));
+    sim.run();
+    EXPECT_EQ(sim.trajectory().final_status, StepStatus::CONVERGED) << sim.trajectory().failure_message;
+    expect_valid(sim);
+    for (Index v = 0; v < sim.scene().body_vertices; ++v)
+        EXPECT_GT(sim.positions()[v * 3 + 1], 0.0);
+}
+
+TEST(ContactSolver, MassRatio1e4BetweenCollidingBodies)
+{
+    Simulator sim(test::make_scene(two_boxes(0.01, 5.0, 0.0, /*density_right=*/2e7)));
+    sim.run();
+    const StepStatus status = sim.trajectory().final_status;
+    EXPECT_EQ(status, StepStatus::CONVERGED) << sim.trajectory().failure_message;
+    expect_valid(sim);
+}
