@@ -400,7 +400,13 @@ Scene parse_scene(const nlohmann::json& document, const std::string& base_direct
     if (root.has("solver")) {
         const JsonField s = root["solver"];
         s.require_object({ "residual_tolerance", "step_tolerance", "max_iterations", "linear_solver",
-            "line_search_max_halvings", "armijo" });
+            "line_search_max_halvings", "armijo", "hessian_projection" });
+        if (s.has("hessian_projection")) {
+            const std::string h = s["hessian_projection"].string();
+            if (h != "adaptive" && h != "always")
+                s["hessian_projection"].fail("expected \"adaptive\" or \"always\"");
+            scene.solver.adaptive_projection = h == "adaptive";
+        }
         if (s.has("residual_tolerance"))
             scene.solver.residual_tolerance = s["residual_tolerance"].positive();
         if (s.has("step_tolerance")) {

@@ -71,6 +71,7 @@ struct SolverSpec {
     LinearSolverType linear_solver = LinearSolverType::CHOLMOD;
     int line_search_max_halvings = 40;
     double armijo = 1e-4;
+    bool adaptive_projection = true; ///< "hessian_projection": "adaptive" (default) or "always"
 };
 
 /// Contact (docs/scene_format.md "contact"). Distances in meters.

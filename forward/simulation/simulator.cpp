@@ -333,6 +333,7 @@ StepStatus Simulator::step()
     settings.max_iterations = m_scene.solver.max_iterations;
     settings.line_search_max_halvings = m_scene.solver.line_search_max_halvings;
     settings.armijo = m_scene.solver.armijo;
+    settings.adaptive_projection = m_scene.solver.adaptive_projection;
     const NewtonSolver newton(m_problem, m_assembler, *m_linear, settings);
 
     VectorXd x = m_integrator->positions();

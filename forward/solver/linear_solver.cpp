@@ -34,7 +34,9 @@ LinearSolver::LinearSolver(LinearSolverType type)
 }
 LinearSolver::~LinearSolver() = default;
 
-bool LinearSolver::factorize(const SparseMatrixd& A)
+bool LinearSolver::cholesky_first() const { return m_type == LinearSolverType::CHOLMOD; }
+
+bool LinearSolver::factorize(const SparseMatrixd& A, bool allow_fallback)
 {
     m_used_fallback = false;
     if (!m_impl->same_pattern(A)) {
@@ -53,6 +55,8 @@ bool LinearSolver::factorize(const SparseMatrixd& A)
             m_impl->last_ldlt = false;
             return true;
         }
+        if (!allow_fallback)
+            return false;
         m_used_fallback = true;
     }
     if (!m_impl->ldlt_analyzed) {

@@ -19,8 +19,13 @@ public:
     ~LinearSolver();
 
     /// @brief Numeric factorization of the lower triangle of A (symbolic
-    /// analysis on the first call only). Returns false on breakdown.
-    bool factorize(const SparseMatrixd& A);
+    /// analysis on the first call, and again when the pattern changes).
+    /// Returns false on breakdown.
+    /// @param allow_fallback try LDL^T when Cholesky fails; without it a matrix
+    ///        that is not positive definite is simply reported (false)
+    bool factorize(const SparseMatrixd& A, bool allow_fallback = true);
+    /// True if the configured solver is Cholesky first (CHOLMOD).
+    bool cholesky_first() const;
     /// @brief Solves A x = b with the last successful factorization.
     VectorXd solve(const VectorXd& b) const;
     /// True if the last factorization had to fall back to LDL^T.

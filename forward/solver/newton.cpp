@@ -3,8 +3,6 @@
 #include "forward/common/timer.hpp"
 
 #include <cmath>
-#include <cstdio>
-#include <cstdlib>
 #include <limits>
 
 namespace diffipc {
@@ -21,6 +19,7 @@ NewtonResult NewtonSolver::solve(VectorXd& x, const VectorXd& target, const std:
     const Index n = x.size();
     // Work vectors allocated once per solve, reused by every iteration and trial.
     VectorXd g(n), p(n), rhs(n), pD(n), trial(n), g_trial(n);
+    bool full_step_taken = false;
 
     double energy;
     {
@@ -65,30 +64,43 @@ NewtonResult NewtonSolver::solve(VectorXd& x, const VectorXd& target, const std:
             return result;
         }
 
-        {
-            Timer t;
-            m_problem.hessian(x, /*project_to_psd=*/true, m_assembler);
-            rhs = -g;
-            if (lifting) {
-                // Free rows see the coupling to the prescribed motion: -(g_F + H_FD p_D).
-                const VectorXd coupling = m_assembler.matrix().selfadjointView<Eigen::Lower>() * pD;
-                rhs -= coupling;
+        // Projected Newton converges linearly where elements are strongly
+        // compressed; once a full step has been accepted, try the true Hessian
+        // and keep it if Cholesky proves it positive definite.
+        const bool try_true = m_settings.adaptive_projection && full_step_taken && !lifting
+            && m_linear.cholesky_first();
+        bool factorized = false;
+        for (int attempt = try_true ? 0 : 1; attempt < 2 && !factorized; ++attempt) {
+            const bool project = attempt == 1;
+            {
+                Timer t;
+                m_problem.hessian(x, project, m_assembler);
+                rhs = -g;
+                if (lifting) {
+                    // Free rows see the coupling to the prescribed motion: -(g_F + H_FD p_D).
+                    const VectorXd coupling = m_assembler.matrix().selfadjointView<Eigen::Lower>() * pD;
+                    rhs -= coupling;
+                }
+                for (Index i = 0; i < n; ++i)
+                    if (constrained[size_t(i)])
+                        rhs[i] = pD[i];
+                m_assembler.apply_constraints(constrained);
+                t.add_to(result.times.assembly);
             }
-            for (Index i = 0; i < n; ++i)
-                if (constrained[size_t(i)])
-                    rhs[i] = pD[i];
-            m_assembler.apply_constraints(constrained);
-            t.add_to(result.times.assembly);
-        }
-        {
             Timer t;
-            const bool ok = m_linear.factorize(m_assembler.matrix());
+            const bool ok = m_linear.factorize(m_assembler.matrix(), /*allow_fallback=*/project);
             t.add_to(result.times.factorization);
+            if (!project) {
+                factorized = ok;
+                result.true_hessian_steps += ok;
+                continue;
+            }
             result.linear_fallbacks += m_linear.used_fallback();
             if (!ok) {
                 result.status = StepStatus::LINEAR_BREAKDOWN;
                 return result;
             }
+            factorized = true;
         }
         {
             Timer t;
@@ -153,13 +165,11 @@ NewtonResult NewtonSolver::solve(VectorXd& x, const VectorXd& target, const std:
             }
         }
         ls.add_to(result.times.line_search);
-        if (std::getenv("DIFFIPC_DEBUG_NEWTON"))
-            std::fprintf(stderr, "  it %d: residual %.3e alpha %.3e max_step %.3e |p| %.3e E %.12e -> %.12e lifting %d\n", it,
-                result.residual, alpha, m_problem.max_step(x, p), p.lpNorm<Eigen::Infinity>(), energy, new_energy, int(lifting));
         if (!accepted) {
             result.status = StepStatus::LINE_SEARCH_EXHAUSTED;
             return result;
         }
+        full_step_taken = alpha >= 1.0;
         result.newton_step = alpha * p.lpNorm<Eigen::Infinity>() / step_scale;
         x = trial;
         if (lifting && alpha >= 1.0) {

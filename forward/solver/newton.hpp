@@ -17,6 +17,9 @@ struct NewtonSettings {
     int max_iterations = 100;
     int line_search_max_halvings = 40;
     double armijo = 1e-4;
+    /// Use the true Hessian once a full step was accepted, as long as it is
+    /// positive definite (docs/math.md "Newton"); false: always project.
+    bool adaptive_projection = true;
 };
 
 struct NewtonResult {
@@ -26,6 +29,7 @@ struct NewtonResult {
     double newton_step = 0; ///< max |last step| / step scale
     int linear_fallbacks = 0; ///< factorizations that needed LDL^T
     int gradient_steps = 0; ///< iterations that fell back to the negative gradient
+    int true_hessian_steps = 0; ///< iterations that used the unprojected (positive definite) Hessian
     /// Converged because the full Newton step fell below the round-off of x
     /// while the residual was still above its tolerance.
     bool roundoff_limited = false;

@@ -19,26 +19,31 @@ namespace {
         return v + (std::abs(v) * std::numeric_limits<double>::epsilon() + std::numeric_limits<double>::denorm_min());
     }
 
-    /// Box of the vertices `ids` (n of them) at both ends of the step, grown by `radius` per side
-    /// and rounded outward by at least one ulp.
-    template <int N>
-    AABB primitive_box(const Positions& x_t0, const Positions& x_t1, const int* ids, int dim, double radius)
+    /// Box of the N vertices `ids` at both ends of the step, grown by `radius` per side and rounded outward by at
+    /// least one ulp.
+    template <int N, int DIM> AABB primitive_box(const double* x_t0, const double* x_t1, const int* ids, double radius)
     {
-        AABB box = AABB::empty();
+        double lo[3] = { 0, 0, 0 }, hi[3] = { 0, 0, 0 };
         bool finite = true;
+        for (int k = 0; k < DIM; ++k) {
+            lo[k] = std::numeric_limits<double>::infinity();
+            hi[k] = -lo[k];
+        }
         for (int a = 0; a < N; ++a) {
-            for (int k = 0; k < dim; ++k) {
-                const double p0 = x_t0(ids[a], k), p1 = x_t1(ids[a], k);
-                finite = finite && std::isfinite(p0) && std::isfinite(p1);
-                box.min[k] = std::min(box.min[k], std::min(p0, p1));
-                box.max[k] = std::max(box.max[k], std::max(p0, p1));
+            const double* p0 = x_t0 + size_t(ids[a]) * DIM;
+            const double* p1 = x_t1 + size_t(ids[a]) * DIM;
+            for (int k = 0; k < DIM; ++k) {
+                finite = finite && std::isfinite(p0[k]) && std::isfinite(p1[k]);
+                lo[k] = std::min(lo[k], std::min(p0[k], p1[k]));
+                hi[k] = std::max(hi[k], std::max(p0[k], p1[k]));
             }
         }
-        for (int k = 0; k < dim; ++k) {
-            box.min[k] = round_down(box.min[k] - radius);
-            box.max[k] = round_up(box.max[k] + radius);
+        AABB box;
+        for (int k = 0; k < DIM; ++k) {
+            box.min[k] = round_down(lo[k] - radius);
+            box.max[k] = round_up(hi[k] + radius);
         }
-        for (int k = dim; k < 3; ++k)
+        for (int k = DIM; k < 3; ++k)
             box.min[k] = box.max[k] = 0;
         if (!finite) // std::min/max skip NaN: mark the box so that callers can reject it
             box.min[0] = std::numeric_limits<double>::quiet_NaN();
@@ -51,9 +56,12 @@ namespace {
     {
         std::vector<AABB> boxes(static_cast<size_t>(count));
         const double radius = 0.5 * inflation;
+        // Positions is row-major: vertex v's coordinates are data()[v * dim .. v * dim + dim).
+        const double *p0 = x_t0.data(), *p1 = x_t1.data();
         tbb::parallel_for(tbb::blocked_range<Index>(0, count, 1024), [&](const tbb::blocked_range<Index>& r) {
             for (Index i = r.begin(); i < r.end(); ++i)
-                boxes[size_t(i)] = primitive_box<N>(x_t0, x_t1, rows + N * i, mesh.dim, radius);
+                boxes[size_t(i)] = mesh.dim == 3 ? primitive_box<N, 3>(p0, p1, rows + N * i, radius)
+                                                 : primitive_box<N, 2>(p0, p1, rows + N * i, radius);
         });
         return boxes;
     }

@@ -34,6 +34,10 @@ namespace {
             fail("collision faces must be #CF by 3");
         if (mesh.vertex_group.size() != size_t(mesh.num_vertices))
             fail("vertex_group must have #V entries");
+        const size_t num_groups = std::min(mesh.group_self_contact.size(), mesh.group_kinematic.size());
+        for (int g : mesh.vertex_group)
+            if (g >= 0 && size_t(g) >= num_groups)
+                fail("vertex group " + std::to_string(g) + " has no group_self_contact / group_kinematic entry");
         const auto in_range = [&](const auto& indices) {
             return indices.size() == 0 || (indices.minCoeff() >= 0 && indices.maxCoeff() < mesh.num_vertices);
         };

@@ -49,9 +49,9 @@ struct Candidates {
 };
 
 /// How broad_phase_candidates finds overlapping boxes. All methods return the same candidates; they differ in
-/// speed (bench/broad_phase.cpp): HASH is the fastest when the boxes have similar sizes (the usual small per-step
-/// motion; a few huge boxes such as a two-triangle floor are handled too), BVH when sweeps are large and uneven
-/// (a fast rotation), where it can be several times faster than HASH.
+/// speed (bench/broad_phase.cpp): HASH is fastest when most boxes have similar sizes, as with the usual small
+/// per-step motion (1.2 to 2 times faster than BVH; a few huge boxes such as a two-triangle floor are handled too),
+/// BVH when sweeps are large and uneven, e.g. a fast rotation (up to 1.5 times faster than HASH).
 enum class BroadPhaseMethod {
     BRUTE_FORCE, ///< all pairs, O(n^2); the reference the others are tested against
     HASH, ///< uniform grid, cell size from the median box extent (hash_grid.hpp)

@@ -75,16 +75,17 @@ double point_line(const Eigen::Vector3d& r, const Eigen::Vector3d& e, Vector<2>*
     return d;
 }
 
-double point_plane(const Eigen::Vector3d& r, const Eigen::Vector3d& a, const Eigen::Vector3d& b, Vector<3>* grad,
-    Matrix<3>* hess)
+double point_plane(
+    const Eigen::Vector3d& r, const Eigen::Vector3d& a, const Eigen::Vector3d& b, Vector<3>* grad, Matrix<3>* hess)
 {
-    // h = r . (a x b) is unchanged by removing r's component along a, and
-    // that removal is what keeps h accurate for nearly parallel a and b
-    // (line-line near parallel, slivers for point-plane): the rounding error
-    // of n = a x b is ~eps |a| |b| in every direction, including the plane
-    // of a and b, where r has an O(|r|) component but r_perp only
-    // ~|r| sin(angle). Dotting with r would make the relative error of h
-    // eps |r| / (distance * angle) instead of eps |r| / distance.
+    // h = r . (a x b) is unchanged by removing r's component along a (n is
+    // orthogonal to a), and the removal keeps h accurate for nearly parallel
+    // a and b: n = a x b is rounded by ~eps |a| |b| in every direction, also
+    // within the plane of a and b, where r has an O(|r|) component but r_perp
+    // only its offset across a, which is O(angle) wherever the closest points
+    // lie inside both edges (where line-line is used). Dotting with r makes
+    // the relative error of the distance grow like eps |r| / (distance angle);
+    // NearlyParallelLines in test_line_line.cpp checks the value.
     const double alpha = r.dot(a) / a.squaredNorm();
     const Eigen::Vector3d r_perp = r - alpha * a;
     const Eigen::Vector3d n = a.cross(b);
@@ -99,7 +100,6 @@ double point_plane(const Eigen::Vector3d& r, const Eigen::Vector3d& a, const Eig
     Vector<2> gD_ab;
     Matrix<2> HD_ab;
     cross_squarednorm(a, b, &gD_ab, hess ? &HD_ab : nullptr);
-
 
     // D does not depend on r. With the quotient rule above and
     // grad d = (2 h grad h - d grad D) / D substituted, the Hessian collapses to

@@ -1,14 +1,15 @@
 #pragma once
 /// @file edge_edge_mollifier.hpp
 /// The edge-edge mollifier of IPC (Li et al. 2020, "Incremental Potential
-/// Contact", Sec. 4.3 / supplement): the barrier of an edge-edge pair is
-/// multiplied by m(x), which goes to 0 as the edges become parallel, so the
-/// product stays C1 where the edge-edge distance type switches between
-/// line-line and its point-line / point-point degenerations.
+/// Contact", the mollified edge-edge barrier): the barrier of an edge-edge
+/// pair is multiplied by m(x), which vanishes as the edges become parallel.
+/// There the edge-edge distance is not smooth (the closest points jump
+/// along the edges and the line-line derivatives blow up like
+/// 1/angle^2); the product m * b stays C1.
 ///
 /// \f[ x = |(e_{a1} - e_{a0}) \times (e_{b1} - e_{b0})|^2, \qquad
 ///     \epsilon_x = 10^{-3} |\bar e_{a1} - \bar e_{a0}|^2 |\bar e_{b1} - \bar e_{b0}|^2, \f]
-/// \f[ m(x) = \begin{cases} (2 - x / \epsilon_x)\, x / \epsilon_x & x < \epsilon_x \\ 1 & \text{otherwise} \end{cases} \f]
+/// \f[ m(x) = (2 - s)\, s \quad \text{for } s = x / \epsilon_x < 1, \qquad m(x) = 1 \text{ otherwise,} \f]
 /// where the bars denote REST positions: eps_x is a constant of the pair
 /// during a simulation, but a function of the rest shape in shape
 /// optimization, hence the derivatives with respect to eps_x below.
@@ -45,8 +46,10 @@ Eigen::Matrix<double, 12, 12> edge_edge_cross_squarednorm_hessian(
 double edge_edge_mollifier_threshold(const Eigen::Vector3d& ea0_rest, const Eigen::Vector3d& ea1_rest,
     const Eigen::Vector3d& eb0_rest, const Eigen::Vector3d& eb1_rest);
 
-/// @brief Gradient of edge_edge_mollifier_threshold with respect to the rest positions
-/// (for shape derivatives): \f$ \partial \epsilon_x / \partial \bar e_{a1} = 2 \cdot 10^{-3} |\bar e_b|^2 \bar e_a \f$, ...
+/// @brief Gradient of edge_edge_mollifier_threshold with respect to the rest
+/// positions (for shape derivatives), e.g.
+/// \f$ \partial \epsilon_x / \partial \bar e_{a1} = 2 \cdot 10^{-3} |\bar e_b|^2 \bar e_a \f$
+/// with \f$ \bar e_a = \bar e_{a1} - \bar e_{a0} \f$.
 /// @param ea0_rest, ea1_rest, eb0_rest, eb1_rest  as in edge_edge_mollifier_threshold
 /// @return 12 vector (d/dea0_rest, d/dea1_rest, d/deb0_rest, d/deb1_rest), m^3
 Eigen::Matrix<double, 12, 1> edge_edge_mollifier_threshold_gradient(const Eigen::Vector3d& ea0_rest,

@@ -2,8 +2,6 @@
 
 #include "forward/contact/distance/distance_kernels.hpp"
 
-#include <Eigen/Geometry>
-
 namespace diffipc {
 
 namespace {
@@ -43,13 +41,7 @@ namespace {
 double line_line_distance(
     const Eigen::Vector3d& ea0, const Eigen::Vector3d& ea1, const Eigen::Vector3d& eb0, const Eigen::Vector3d& eb1)
 {
-    const Eigen::Vector3d a = ea1 - ea0, w = ea0 - eb0;
-    const Eigen::Vector3d n = a.cross(eb1 - eb0);
-    // n is orthogonal to a, so removing w's component along a leaves h
-    // unchanged but keeps it accurate for nearly parallel edges (see
-    // distance_kernels.cpp).
-    const double h = (w - (w.dot(a) / a.squaredNorm()) * a).dot(n);
-    return h * h / n.squaredNorm();
+    return distance_kernels::point_plane(ea0 - eb0, ea1 - ea0, eb1 - eb0, nullptr, nullptr);
 }
 
 Eigen::Matrix<double, 12, 1> line_line_distance_gradient(

@@ -2,15 +2,13 @@
 
 #include "forward/contact/distance/distance_kernels.hpp"
 
-#include <Eigen/Geometry>
-
 namespace diffipc {
 
 // Kernel variables r = p - e0, e = e1 - e0: plus vertices (p, e1), minus e0.
 
 double point_line_distance(const Eigen::Vector3d& p, const Eigen::Vector3d& e0, const Eigen::Vector3d& e1)
 {
-    return (e0 - p).cross(e1 - p).squaredNorm() / (e1 - e0).squaredNorm();
+    return distance_kernels::point_line(p - e0, e1 - e0, nullptr, nullptr);
 }
 
 Eigen::Matrix<double, 9, 1> point_line_distance_gradient(

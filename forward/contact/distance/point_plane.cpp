@@ -2,8 +2,6 @@
 
 #include "forward/contact/distance/distance_kernels.hpp"
 
-#include <Eigen/Geometry>
-
 namespace diffipc {
 
 // Kernel variables r = p - t0, a = t1 - t0, b = t2 - t0: plus vertices (p, t1, t2), minus t0.
@@ -11,12 +9,7 @@ namespace diffipc {
 double point_plane_distance(
     const Eigen::Vector3d& p, const Eigen::Vector3d& t0, const Eigen::Vector3d& t1, const Eigen::Vector3d& t2)
 {
-    const Eigen::Vector3d a = t1 - t0, r = p - t0;
-    const Eigen::Vector3d n = a.cross(t2 - t0);
-    // Removing r's component along a leaves h unchanged (n is orthogonal to
-    // a) and keeps it accurate for slivers (see distance_kernels.cpp).
-    const double h = (r - (r.dot(a) / a.squaredNorm()) * a).dot(n);
-    return h * h / n.squaredNorm();
+    return distance_kernels::point_plane(p - t0, t1 - t0, t2 - t0, nullptr, nullptr);
 }
 
 Eigen::Matrix<double, 12, 1> point_plane_distance_gradient(

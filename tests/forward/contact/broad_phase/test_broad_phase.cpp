@@ -650,6 +650,9 @@ TEST(BroadPhase, InvalidInputsThrow)
         CollisionMesh out_of_range = s.mesh;
         out_of_range.faces(0, 0) = int(s.x.rows());
         EXPECT_THROW(broad_phase_candidates(out_of_range, s.x, s.x, 0.1, method), std::invalid_argument);
+        CollisionMesh unknown_group = s.mesh;
+        unknown_group.vertex_group[3] = 1; // only group 0 has flags
+        EXPECT_THROW(broad_phase_candidates(unknown_group, s.x, s.x, 0.1, method), std::invalid_argument);
     }
 }
 

@@ -56,7 +56,8 @@ struct FdReport {
         std::string s = "      step       rel.error   order\n";
         char line[128];
         for (size_t i = 0; i < steps.size(); ++i) {
-            const double order = i == 0 ? NAN : std::log10(errors[i - 1] / errors[i]) / std::log10(steps[i - 1] / steps[i]);
+            const double order
+                = i == 0 ? NAN : std::log10(errors[i - 1] / errors[i]) / std::log10(steps[i - 1] / steps[i]);
             std::snprintf(line, sizeof(line), "  %10.3e  %10.3e  %6.2f\n", steps[i], errors[i], order);
             s += line;
         }

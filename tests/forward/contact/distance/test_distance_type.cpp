@@ -143,8 +143,8 @@ TEST(DistanceType, PointTriangleNearDegenerate)
         if (k % 4 == 2)
             t2 = t0 + 0.37 * (t1 - t0); // collinear (up to rounding)
         const Eigen::Vector3d n = (t1 - t0).cross(t2 - t0).normalized();
-        const Eigen::Vector3d feet[] = { t0 + random.uniform(-0.5, 1) * (t1 - t0) + random.uniform(-0.5, 1) * (t2 - t0),
-            t1, (t1 + t2) / 2 };
+        const Eigen::Vector3d feet[]
+            = { t0 + random.uniform(-0.5, 1) * (t1 - t0) + random.uniform(-0.5, 1) * (t2 - t0), t1, (t1 + t2) / 2 };
         for (const Eigen::Vector3d& foot : feet) {
             for (double height : { 0.0, 1e-12, 0.2 }) {
                 const Eigen::Vector3d p = foot + height * (n.allFinite() ? n : Eigen::Vector3d::UnitZ());

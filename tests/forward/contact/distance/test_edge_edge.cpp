@@ -14,8 +14,8 @@ using namespace diffipc::test;
 namespace {
 
 using EE = EdgeEdgeDistanceType;
-const EE ALL_TYPES[] = { EE::EA0_EB0, EE::EA0_EB1, EE::EA1_EB0, EE::EA1_EB1, EE::EA_EB0, EE::EA_EB1, EE::EA0_EB,
-    EE::EA1_EB, EE::EA_EB };
+const EE ALL_TYPES[]
+    = { EE::EA0_EB0, EE::EA0_EB1, EE::EA1_EB0, EE::EA1_EB1, EE::EA_EB0, EE::EA_EB1, EE::EA0_EB, EE::EA1_EB, EE::EA_EB };
 
 double value(const Vec<12>& x, EE type)
 {
@@ -37,8 +37,8 @@ EE classify(const Vec<12>& x)
 void expect_typed_derivatives(EE type, const Vec<12>& x, const FdOptions& opt, const std::string& what)
 {
     expect_derivatives<12>([&](const Vec<12>& y) { return value(y, type); },
-        [&](const Vec<12>& y) { return gradient(y, type); }, [&](const Vec<12>& y) { return hessian(y, type); }, x,
-        opt, what + ", type " + std::to_string(int(type)));
+        [&](const Vec<12>& y) { return gradient(y, type); }, [&](const Vec<12>& y) { return hessian(y, type); }, x, opt,
+        what + ", type " + std::to_string(int(type)));
 }
 
 void expect_same_value_and_gradient(const Vec<12>& x, EE a, EE b, const std::string& what)
@@ -46,9 +46,8 @@ void expect_same_value_and_gradient(const Vec<12>& x, EE a, EE b, const std::str
     SCOPED_TRACE(what);
     const double scale = gradient(x, a).norm();
     EXPECT_NEAR(value(x, a), value(x, b), 1e-14);
-    EXPECT_LE((gradient(x, a) - gradient(x, b)).norm(), 1e-12 * scale)
-        << gradient(x, a).transpose() << "\n"
-        << gradient(x, b).transpose();
+    EXPECT_LE((gradient(x, a) - gradient(x, b)).norm(), 1e-12 * scale) << gradient(x, a).transpose() << "\n"
+                                                                       << gradient(x, b).transpose();
 }
 
 /// Edge a = (-1, 0, 0)..(1, 0, 0); edge b of length 2 in the plane z = gap,
@@ -118,8 +117,8 @@ TEST(EdgeEdgeDistance, UntypedFunctionsUseTheClassification)
 TEST(EdgeEdgeDistance, ContinuousGradientWhereTheTypeSwitches)
 {
     // With the closest points exactly at an end point of one edge (shift
-    // puts the crossing at ea1, at eb0, or both), line-line, point-line and
-    // point-point agree in value and gradient: the minimum over the
+    // puts the crossing at ea1, at eb0, or at ea0 and eb1), line-line,
+    // point-line and point-point agree in value and gradient: the minimum over the
     // segments' parameters is C1 in the vertices (envelope theorem).
     RandomPoints random(74);
     const double angle = 0.7, gap = 0.2;
@@ -183,7 +182,8 @@ TEST(EdgeEdgeDistance, NearlyParallelEdges)
                 opt.gradient_tolerance = opt.hessian_tolerance = 1e-10 / angle;
                 opt.step_scale = angle;
             }
-            expect_typed_derivatives(type, x, opt, "angle " + std::to_string(angle) + ", shift " + std::to_string(shift));
+            expect_typed_derivatives(
+                type, x, opt, "angle " + std::to_string(angle) + ", shift " + std::to_string(shift));
         }
     }
 }

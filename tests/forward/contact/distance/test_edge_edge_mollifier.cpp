@@ -194,8 +194,10 @@ TEST(EdgeEdgeMollifier, PositionDerivativesMatchFiniteDifferences)
     const Vec<12> x = edge_pair(0.5, 1.0, 0.8, random);
     const double eps_x = threshold_of(x);
     EXPECT_EQ(edge_edge_mollifier(vertex(x, 0), vertex(x, 1), vertex(x, 2), vertex(x, 3), eps_x), 1);
-    EXPECT_EQ(edge_edge_mollifier_gradient(vertex(x, 0), vertex(x, 1), vertex(x, 2), vertex(x, 3), eps_x), Vec<12>::Zero());
-    EXPECT_EQ(edge_edge_mollifier_hessian(vertex(x, 0), vertex(x, 1), vertex(x, 2), vertex(x, 3), eps_x), Mat<12>::Zero());
+    EXPECT_EQ(
+        edge_edge_mollifier_gradient(vertex(x, 0), vertex(x, 1), vertex(x, 2), vertex(x, 3), eps_x), Vec<12>::Zero());
+    EXPECT_EQ(
+        edge_edge_mollifier_hessian(vertex(x, 0), vertex(x, 1), vertex(x, 2), vertex(x, 3), eps_x), Mat<12>::Zero());
 }
 
 TEST(EdgeEdgeMollifier, DerivativesWithRespectToEpsXAndTheShapeDerivative)
@@ -216,8 +218,8 @@ TEST(EdgeEdgeMollifier, DerivativesWithRespectToEpsXAndTheShapeDerivative)
 
         const double dm_deps = edge_edge_mollifier_gradient_wrt_eps_x(ea0, ea1, eb0, eb1, eps_x);
         EXPECT_LT(dm_deps, 0);
-        EXPECT_LE(best_relative_error_1d(
-                      [&](double e) { return edge_edge_mollifier(ea0, ea1, eb0, eb1, e); }, eps_x, dm_deps, eps_x * 1e-1),
+        EXPECT_LE(best_relative_error_1d([&](double e) { return edge_edge_mollifier(ea0, ea1, eb0, eb1, e); }, eps_x,
+                      dm_deps, eps_x * 1e-1),
             1e-7);
 
         const Vec<12> mixed = edge_edge_mollifier_gradient_jacobian_wrt_eps_x(ea0, ea1, eb0, eb1, eps_x);
@@ -231,9 +233,11 @@ TEST(EdgeEdgeMollifier, DerivativesWithRespectToEpsXAndTheShapeDerivative)
             fd_steps(eps_x * 1e-1), 1e-300);
         EXPECT_LE(r_mixed.best, 1e-7) << r_mixed.table();
 
-        const Vec<12> shape = dm_deps * edge_edge_mollifier_threshold_gradient(
-                                  vertex(rest, 0), vertex(rest, 1), vertex(rest, 2), vertex(rest, 3));
-        const auto m_of_rest = [&](const Vec<12>& r) { return edge_edge_mollifier(ea0, ea1, eb0, eb1, threshold_of(r)); };
+        const Vec<12> shape = dm_deps
+            * edge_edge_mollifier_threshold_gradient(
+                vertex(rest, 0), vertex(rest, 1), vertex(rest, 2), vertex(rest, 3));
+        const auto m_of_rest
+            = [&](const Vec<12>& r) { return edge_edge_mollifier(ea0, ea1, eb0, eb1, threshold_of(r)); };
         const FdReport r_shape = compare_fd(
             shape, [&](double h) { return fd_gradient<12>(m_of_rest, rest, h); }, fd_steps(), 1e-300);
         EXPECT_LE(r_shape.best, 1e-7) << r_shape.table();

@@ -18,7 +18,10 @@ const PE ALL_TYPES[] = { PE::P_E0, PE::P_E1, PE::P_E };
 
 struct Typed {
     PE type;
-    double operator()(const Vec<9>& x) const { return point_edge_distance(vertex(x, 0), vertex(x, 1), vertex(x, 2), type); }
+    double operator()(const Vec<9>& x) const
+    {
+        return point_edge_distance(vertex(x, 0), vertex(x, 1), vertex(x, 2), type);
+    }
     Vec<9> gradient(const Vec<9>& x) const
     {
         return point_edge_distance_gradient(vertex(x, 0), vertex(x, 1), vertex(x, 2), type);
@@ -68,7 +71,8 @@ TEST(PointEdgeDistance, TypesScatterTheirSubDistance)
     EXPECT_EQ(g1.segment<3>(3), Eigen::Vector3d::Zero());
     EXPECT_EQ(g1.tail<3>(), point_point_distance_gradient(p, e1).tail<3>());
     const Mat<9> H1 = point_edge_distance_hessian(p, e0, e1, PE::P_E1);
-    EXPECT_EQ(Eigen::Matrix3d(H1.block<3, 3>(0, 6)), Eigen::Matrix3d(point_point_distance_hessian(p, e1).block<3, 3>(0, 3)));
+    EXPECT_EQ(
+        Eigen::Matrix3d(H1.block<3, 3>(0, 6)), Eigen::Matrix3d(point_point_distance_hessian(p, e1).block<3, 3>(0, 3)));
     EXPECT_EQ(H1.row(4).norm(), 0);
     EXPECT_EQ(point_edge_distance_gradient(p, e0, e1, PE::P_E), point_line_distance_gradient(p, e0, e1));
 }
@@ -101,9 +105,9 @@ TEST(PointEdgeDistance, ContinuousGradientWhereTheTypeSwitches)
             const PE point_type = end ? PE::P_E1 : PE::P_E0;
             const double scale = point_edge_distance_gradient(p, e0, e1, PE::P_E).norm();
             EXPECT_NEAR(point_edge_distance(p, e0, e1, point_type), point_edge_distance(p, e0, e1, PE::P_E), 1e-14);
-            EXPECT_LE((point_edge_distance_gradient(p, e0, e1, point_type)
-                          - point_edge_distance_gradient(p, e0, e1, PE::P_E))
-                          .norm(),
+            EXPECT_LE(
+                (point_edge_distance_gradient(p, e0, e1, point_type) - point_edge_distance_gradient(p, e0, e1, PE::P_E))
+                    .norm(),
                 1e-13 * scale);
         }
     }

@@ -36,8 +36,8 @@ PT classify(const Vec<12>& x)
 void expect_typed_derivatives(PT type, const Vec<12>& x, const FdOptions& opt, const std::string& what)
 {
     expect_derivatives<12>([&](const Vec<12>& y) { return value(y, type); },
-        [&](const Vec<12>& y) { return gradient(y, type); }, [&](const Vec<12>& y) { return hessian(y, type); }, x,
-        opt, what + ", type " + std::to_string(int(type)));
+        [&](const Vec<12>& y) { return gradient(y, type); }, [&](const Vec<12>& y) { return hessian(y, type); }, x, opt,
+        what + ", type " + std::to_string(int(type)));
 }
 
 /// Angles above ~15 degrees and sides above 0.3.
@@ -55,10 +55,7 @@ bool well_shaped(const Vec<12>& x)
 struct Triangle {
     Eigen::Vector3d t[3] = { { 0.1, 0.2, -0.1 }, { 1.0, 0.3, 0.2 }, { 0.3, 1.1, 0.4 } };
     Eigen::Vector3d n = (t[1] - t[0]).cross(t[2] - t[0]).normalized();
-    Eigen::Vector3d outward(int edge) const
-    {
-        return (t[(edge + 1) % 3] - t[edge]).cross(n).normalized();
-    }
+    Eigen::Vector3d outward(int edge) const { return (t[(edge + 1) % 3] - t[edge]).cross(n).normalized(); }
     Vec<12> with(const Eigen::Vector3d& p) const { return stack(p, t[0], t[1], t[2]); }
 };
 
@@ -69,9 +66,8 @@ void expect_same_value_and_gradient(const Vec<12>& x, PT a, PT b, const std::str
     SCOPED_TRACE(what);
     const double scale = gradient(x, a).norm();
     EXPECT_NEAR(value(x, a), value(x, b), 1e-14);
-    EXPECT_LE((gradient(x, a) - gradient(x, b)).norm(), 1e-13 * scale)
-        << gradient(x, a).transpose() << "\n"
-        << gradient(x, b).transpose();
+    EXPECT_LE((gradient(x, a) - gradient(x, b)).norm(), 1e-13 * scale) << gradient(x, a).transpose() << "\n"
+                                                                       << gradient(x, b).transpose();
 }
 
 } // namespace
@@ -162,8 +158,8 @@ TEST(PointTriangleDistance, PointWithinTinyOffsetsOfACornerAnEdgeOrTheFace)
     // The O(1) Hessian keeps 1e-7; O(1) third derivatives need steps to 1e-10.
     const Triangle tri;
     RandomPoints random(64);
-    const Eigen::Vector3d targets[] = { tri.t[0], tri.t[2], 0.5 * (tri.t[1] + tri.t[2]), 0.3 * tri.t[0] + 0.7 * tri.t[2],
-        (tri.t[0] + tri.t[1] + tri.t[2]) / 3 };
+    const Eigen::Vector3d targets[] = { tri.t[0], tri.t[2], 0.5 * (tri.t[1] + tri.t[2]),
+        0.3 * tri.t[0] + 0.7 * tri.t[2], (tri.t[0] + tri.t[1] + tri.t[2]) / 3 };
     for (const Eigen::Vector3d& target : targets) {
         for (int k = 0; k < 3; ++k) {
             const Vec<12> x = tri.with(target + 1e-12 * random.direction());
