@@ -51,12 +51,35 @@ namespace {
 
 } // namespace
 
+struct ContactPotential::Segment {
+    VectorXd x0, p;
+    Candidates candidates;
+    double tolerance = 0;
+    bool valid = false;
+};
+
+bool ContactPotential::on_segment(const VectorXd& y) const
+{
+    const Segment& s = *m_segment;
+    if (!s.valid || y.size() != s.x0.size())
+        return false;
+    Index k = 0;
+    const double pmax = s.p.cwiseAbs().maxCoeff(&k);
+    if (!(pmax > 0))
+        return false;
+    const double alpha = (y[k] - s.x0[k]) / s.p[k];
+    if (!(alpha >= 0 && alpha <= 1))
+        return false;
+    return (y - s.x0 - alpha * s.p).lpNorm<Eigen::Infinity>() <= s.tolerance;
+}
+
 ContactPotential::ContactPotential(
     CollisionMesh mesh, const Positions& rest_positions, std::vector<ContactPlane> planes, ContactSettings settings)
     : m_mesh(std::move(mesh))
     , m_rest(rest_positions)
     , m_planes(std::move(planes))
     , m_settings(settings)
+    , m_segment(std::make_unique<Segment>())
 {
     for (Index k = 0; k < m_mesh.vertices.size(); ++k) {
         const Index v = m_mesh.vertices[k];
@@ -73,12 +96,14 @@ void ContactPotential::build_contacts(const VectorXd& x, ContactSet& out, double
     out.clear();
     const int dim = m_mesh.dim;
     const Positions X = unflatten(x, dim);
-    Candidates candidates;
-    {
+    Candidates owned;
+    const bool reuse = radius <= m_settings.min_distance + m_settings.dhat && on_segment(x);
+    if (!reuse) {
         Timer t;
-        candidates = broad_phase_candidates(m_mesh, X, X, radius);
+        owned = broad_phase_candidates(m_mesh, X, X, radius);
         t.add_to(m_times.broad_phase);
     }
+    const Candidates& candidates = reuse ? m_segment->candidates : owned;
     Timer t;
     const double r2 = radius * radius;
     for (const auto& [v, e] : candidates.vertex_edge) {
@@ -323,12 +348,21 @@ double ContactPotential::max_step(const VectorXd& x, const VectorXd& p) const
     const int dim = m_mesh.dim;
     const VectorXd x1 = x + p;
     const Positions X0 = unflatten(x, dim), X1 = unflatten(x1, dim);
-    Candidates candidates;
+    Segment& segment = *m_segment;
+    segment.valid = false;
+    // Points within `tolerance` of the segment count as on it (x + alpha p is
+    // rounded); the boxes are inflated by that much more.
+    segment.tolerance = 1e-12 * (x.lpNorm<Eigen::Infinity>() + p.lpNorm<Eigen::Infinity>());
     {
         Timer t;
-        candidates = broad_phase_candidates(m_mesh, X0, X1, m_settings.min_distance);
+        segment.candidates = broad_phase_candidates(
+            m_mesh, X0, X1, m_settings.min_distance + m_settings.dhat + 4 * segment.tolerance);
         t.add_to(m_times.broad_phase);
     }
+    segment.x0 = x;
+    segment.p = p;
+    segment.valid = true;
+    const Candidates& candidates = segment.candidates;
     Timer t;
     CCDSettings settings;
     settings.min_distance = m_settings.min_distance;

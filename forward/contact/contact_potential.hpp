@@ -105,6 +105,13 @@ private:
     std::function<double(const VectorXd&)> m_rule;
     bool m_rule_applied = false;
 
+    // The last line-search segment x0 -> x0 + p and its swept candidates
+    // (inflated by dmin + dhat): every trial point on it reuses them instead of
+    // running the broad phase again.
+    struct Segment;
+    std::unique_ptr<Segment> m_segment;
+    bool on_segment(const VectorXd& y) const;
+
     mutable VectorXd m_cache_x;
     mutable ContactSet m_cache;
     mutable bool m_cache_valid = false;

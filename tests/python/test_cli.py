@@ -95,6 +95,17 @@ BAD = [
     ("dirichlet[0].body", _set(["dirichlet"], [{"body": "ghost", "region": {"min": [0, 0], "max": [1, 1]}, "displacement": [0, 0]}])),
     ("dirichlet[0].displacement[0]", _set(["dirichlet"], [{"body": 0, "region": {"min": [0, 0], "max": [1, 1]}, "displacement": ["t +", 0]}])),
     ("neumann[0].region", _set(["neumann"], [{"body": 0, "region": {"min": [5, 5], "max": [6, 6]}, "traction": [1, 0]}])),
+    ("contact.dhat", _set(["contact"], {"dhat": -1e-3})),
+    ("contact.kappa", _set(["contact"], {"kappa": "stiff"})),
+    ("contact.min_distance", _set(["contact"], {"min_distance": -1})),
+    ("contact.ccd_rescaling", _set(["contact"], {"ccd_rescaling": 1.5})),
+    ("contact.typo", _set(["contact"], {"typo": 1})),
+    ("obstacles[0].plane.normal", _set(["obstacles"], [{"plane": {"point": [0, 0], "normal": [0, 0]}}])),
+    ("obstacles[0]", _set(["obstacles"], [{"name": "nothing"}])),
+    ("obstacles[0].mesh.file", _set(["obstacles"], [{"mesh": {"file": "missing.obj"}}])),
+    ("obstacles[0].plane.motion[1]", _set(["obstacles"], [{"plane": {"point": [0, 0], "normal": [0, 1], "motion": [0, "t +"]}}])),
+    ("bodies[0].mesh.annulus.outer_radius", _set(["bodies", 0, "mesh"], {"annulus": {"inner_radius": 0.5, "outer_radius": 0.4, "segments": 8}})),
+    ("bodies[0].self_contact", _set(["bodies", 0, "self_contact"], "yes")),
 ]
 
 
@@ -134,3 +145,33 @@ def test_failed_step_exits_2_and_keeps_committed_steps(cli, tmp_path):
     summary = json.loads((tmp_path / "o" / "summary.json").read_text())
     assert summary["status"] == "NEWTON_EXHAUSTED"
     assert summary["failed_step"] == 1
+
+
+def test_contact_scene_writes_contact_datasets(cli, tmp_path, root):
+    h5py = pytest.importorskip("h5py")
+    s = json.loads((root / "studies" / "201_ring_on_plane" / "scene.json").read_text())
+    s["bodies"][0]["mesh"]["annulus"].update({"segments": 24, "layers": 1})
+    s["time"]["steps"] = 30
+    s.pop("output")
+    scene = tmp_path / "ring.json"
+    scene.write_text(json.dumps(s))
+    out = tmp_path / "out"
+    r = run(cli, "simulate", scene, "-o", out, "-q")
+    assert r.returncode == 0, r.stderr
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["contact"]["max_active_contacts"] > 0
+    for phase in ("broad_phase", "ccd", "barrier"):
+        assert summary["wall_time"][phase] >= 0
+    with h5py.File(out / "trajectory.h5", "r") as f:
+        active = f["active_contacts"][:]
+        dist = f["min_distance"][:]
+        kappa = f["kappa"][:]
+        assert active.shape == dist.shape == kappa.shape == (30,)
+        assert active.max() > 0 and (kappa > 0).all()
+        touching = active > 0
+        # Where contacts are active the minimum distance is below dhat and positive.
+        assert (dist[touching] > 0).all() and (dist[touching] < s["contact"]["dhat"]).all()
+        # The plane's point follows the body vertices; every body vertex stays above the plane.
+        body = f["mesh/body"][:]
+        y = f["positions"][:, body == 0, 1]
+        assert (y > 0).all()
