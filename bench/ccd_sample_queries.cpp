@@ -72,14 +72,16 @@ int main(int argc, char** argv)
         settings.max_iterations = std::atoi(argv[1]);
     if (argc > 2)
         settings.refine = std::atoi(argv[2]) != 0;
-    const std::string data = argc > 3 ? argv[3] : std::string(DIFFIPC_SOURCE_DIR) + "/../shared/data/ccd-sample-queries";
+    const std::string data
+        = argc > 3 ? argv[3] : std::string(DIFFIPC_SOURCE_DIR) + "/../shared/data/ccd-sample-queries";
     if (!fs::is_directory(data)) {
         std::fprintf(stderr, "no CCD sample queries at %s\n", data.c_str());
         return 1;
     }
     std::vector<std::string> folders;
     for (const auto& entry : fs::directory_iterator(data))
-        if (entry.is_directory() && (fs::is_directory(entry.path() / "vertex-face") || fs::is_directory(entry.path() / "edge-edge")))
+        if (entry.is_directory()
+            && (fs::is_directory(entry.path() / "vertex-face") || fs::is_directory(entry.path() / "edge-edge")))
             folders.push_back(entry.path().filename().string());
     std::sort(folders.begin(), folders.end(), [](const std::string& a, const std::string& b) {
         // unit-tests first, then the erleben-* folders by name
@@ -118,8 +120,9 @@ int main(int argc, char** argv)
     }
     std::printf("coordinates not converted exactly: %ld\n\n", inexact);
 
-    std::printf("| folder | queries | false negatives | false positives | budget exhausted | mean (us) | median (us) | p99 "
-                "(us) | max iterations |\n");
+    std::printf(
+        "| folder | queries | false negatives | false positives | budget exhausted | mean (us) | median (us) | p99 "
+        "(us) | max iterations |\n");
     std::printf("| --- | --- | --- | --- | --- | --- | --- | --- | --- |\n");
     for (const std::string& folder : folders) {
         std::vector<const Timed*> rows;
@@ -142,9 +145,10 @@ int main(int argc, char** argv)
 
     // Where the time goes.
     std::vector<const Timed*> by_time = rows;
-    std::sort(by_time.begin(), by_time.end(), [](const Timed* a, const Timed* b) { return a->microseconds > b->microseconds; });
-    const double total = std::accumulate(
-        rows.begin(), rows.end(), 0.0, [](double s, const Timed* t) { return s + t->microseconds; });
+    std::sort(by_time.begin(), by_time.end(),
+        [](const Timed* a, const Timed* b) { return a->microseconds > b->microseconds; });
+    const double total
+        = std::accumulate(rows.begin(), rows.end(), 0.0, [](double s, const Timed* t) { return s + t->microseconds; });
     double top = 0;
     const size_t n_top = std::max<size_t>(1, rows.size() / 100);
     for (size_t k = 0; k < n_top; ++k)

@@ -130,7 +130,7 @@ namespace {
     {
         namespace fs = std::filesystem;
         const char* names[] = { "201_ring_on_plane", "202_boxes_head_on", "203_box_squeeze", "204_ring_pile",
-            "205_plate_on_sphere" };
+            "205_plate_on_sphere", "206_ring_chain" };
         int failures = 0;
         for (const char* name : names) {
             const std::string path = (fs::path(options.source_dir) / "studies" / name / "scene.json").string();

@@ -77,3 +77,15 @@ Mesh annulus_mesh(const VectorXd& center, double inner_radius, double outer_radi
 Mesh read_surface_mesh(const std::string& path, int dim);
 
 } // namespace diffipc
+
+namespace diffipc {
+
+/// @brief Tetrahedral mesh of a torus with a square cross-section, centred at
+/// the origin with its axis along z: the box (rho, z, theta) in
+/// [R - a, R + a] x [-a, a] x [0, 2 pi) mapped to (rho cos theta, rho sin theta, z),
+/// periodic in theta (Kuhn tets stay conforming across the seam).
+/// @param major_radius R (m), @param half_width a, 0 < a < R (m)
+/// @param cells_across cells per side of the cross-section (>= 1), @param segments cells around (>= 3)
+Mesh torus_mesh(double major_radius, double half_width, int cells_across, int segments);
+
+} // namespace diffipc

@@ -142,3 +142,38 @@ Mesh read_surface_mesh(const std::string& path, int dim)
 }
 
 } // namespace diffipc
+
+namespace diffipc {
+
+Mesh torus_mesh(double major_radius, double half_width, int cells_across, int segments)
+{
+    VectorXd lower(3), upper(3);
+    lower << major_radius - half_width, -half_width, 0;
+    upper << major_radius + half_width, half_width, 2 * M_PI;
+    VectorXi cells(3);
+    cells << cells_across, cells_across, segments;
+    Mesh mesh = box_mesh(3, lower, upper, cells);
+    // box_mesh numbers vertices (k * vy + j) * vx + i with k along theta: the
+    // layer k = segments is the last block and coincides with k = 0.
+    const Index layer = Index(cells_across + 1) * (cells_across + 1);
+    const Index kept = layer * segments;
+    for (Index e = 0; e < mesh.num_elements(); ++e)
+        for (int a = 0; a < 4; ++a)
+            if (mesh.elements(e, a) >= kept)
+                mesh.elements(e, a) -= int(kept);
+    Positions x(kept, 3);
+    for (Index v = 0; v < kept; ++v) {
+        const double rho = mesh.rest_positions(v, 0), z = mesh.rest_positions(v, 1), theta = mesh.rest_positions(v, 2);
+        x.row(v) << rho * std::cos(theta), rho * std::sin(theta), z;
+    }
+    mesh.rest_positions = std::move(x);
+    for (Index e = 0; e < mesh.num_elements(); ++e)
+        if (signed_volume(mesh.rest_positions, mesh.elements, e) < 0)
+            std::swap(mesh.elements(e, 1), mesh.elements(e, 2));
+    mesh.vertex_body = VectorXi::Zero(kept);
+    mesh.element_body = VectorXi::Zero(mesh.num_elements());
+    compute_boundary(mesh);
+    return mesh;
+}
+
+} // namespace diffipc

@@ -3,6 +3,9 @@
 #include "forward/mesh/gmsh_reader.hpp"
 #include "forward/scene/json_field.hpp"
 
+#include <Eigen/Geometry>
+
+#include <cmath>
 #include <optional>
 
 #include <filesystem>
@@ -55,11 +58,25 @@ namespace {
 
     Mesh parse_mesh(const JsonField& f, int dim, const std::string& base_directory, std::string& source)
     {
-        f.require_object({ "box", "file", "annulus" });
-        if (int(f.has("box")) + int(f.has("file")) + int(f.has("annulus")) != 1)
-            f.fail("give exactly one of \"box\", \"annulus\" or \"file\"");
+        f.require_object({ "box", "file", "annulus", "torus" });
+        if (int(f.has("box")) + int(f.has("file")) + int(f.has("annulus")) + int(f.has("torus")) != 1)
+            f.fail("give exactly one of \"box\", \"annulus\", \"torus\" or \"file\"");
         Mesh mesh;
-        if (f.has("annulus")) {
+        if (f.has("torus")) {
+            const JsonField a = f["torus"];
+            if (dim != 3)
+                a.fail("a torus mesh is 3D only");
+            a.require_object({ "major_radius", "half_width", "cells_across", "segments" });
+            const double R = a["major_radius"].positive(), w = a["half_width"].positive();
+            if (!(w < R))
+                a["half_width"].fail("must be below \"major_radius\"");
+            const int across = a.has("cells_across") ? a["cells_across"].integer(1) : 1;
+            const int segments = a["segments"].integer(3);
+            if (double(across) * across * segments > 1e7)
+                a["segments"].fail("too many cells");
+            source = "torus";
+            mesh = torus_mesh(R, w, across, segments);
+        } else if (f.has("annulus")) {
             const JsonField a = f["annulus"];
             if (dim != 2)
                 a.fail("an annulus mesh is 2D only");
@@ -283,7 +300,8 @@ Scene parse_scene(const nlohmann::json& document, const std::string& base_direct
     scene.mesh.dim = dim;
     for (size_t b = 0; b < bodies.size(); ++b) {
         const JsonField bf = bodies.at(b);
-        bf.require_object({ "name", "mesh", "material", "initial_velocity", "translation", "self_contact" });
+        bf.require_object(
+            { "name", "mesh", "material", "initial_velocity", "translation", "rotation", "self_contact" });
         BodySpec body;
         body.name = bf.has("name") ? bf["name"].string() : "body" + std::to_string(b);
         for (const auto& other : scene.bodies)
@@ -294,6 +312,20 @@ Scene parse_scene(const nlohmann::json& document, const std::string& base_direct
         body.translation = bf.has("translation") ? bf["translation"].vector(dim) : VectorXd::Zero(dim);
         self_contact_fields.push_back(bf.has("self_contact") ? std::optional<bool>(bf["self_contact"].boolean()) : std::nullopt);
         Mesh mesh = parse_mesh(bf["mesh"], dim, base_directory, body.mesh_source);
+        if (bf.has("rotation")) {
+            // Degrees; 2D: one angle; 3D: about x, then y, then z (R = Rz Ry Rx), about the mesh origin.
+            const VectorXd angles = bf["rotation"].vector(dim == 2 ? 1 : 3) * (M_PI / 180.0);
+            Eigen::Matrix3d R = Eigen::Matrix3d::Identity();
+            if (dim == 2)
+                R = Eigen::AngleAxisd(angles[0], Eigen::Vector3d::UnitZ()).toRotationMatrix();
+            else
+                R = (Eigen::AngleAxisd(angles[2], Eigen::Vector3d::UnitZ())
+                    * Eigen::AngleAxisd(angles[1], Eigen::Vector3d::UnitY())
+                    * Eigen::AngleAxisd(angles[0], Eigen::Vector3d::UnitX()))
+                        .toRotationMatrix();
+            const Eigen::MatrixXd Rd = R.topLeftCorner(dim, dim);
+            mesh.rest_positions = (mesh.rest_positions * Rd.transpose()).eval();
+        }
         mesh.rest_positions.rowwise() += body.translation.transpose();
         append_mesh(scene.mesh, mesh, int(b));
         scene.bodies.push_back(std::move(body));

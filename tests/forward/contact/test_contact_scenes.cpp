@@ -149,3 +149,17 @@ TEST(ContactScenes, PlateOnSphereLargeSteps)
     EXPECT_EQ(r.committed, 10);
     EXPECT_GT(r.max_active, 0) << "the plate never reached the sphere";
 }
+
+TEST(ContactScenes, ChainOfInterlinkedRings3D)
+{
+    json j = load_json(study("206_ring_chain"));
+    for (auto& b : j["bodies"]) {
+        b["mesh"]["torus"]["cells_across"] = 1;
+        b["mesh"]["torus"]["segments"] = 16;
+    }
+    j["time"]["steps"] = 30;
+    const RunSummary r = run_checked(j, study("206_ring_chain"));
+    EXPECT_EQ(r.status, StepStatus::CONVERGED);
+    EXPECT_EQ(r.committed, 30);
+    EXPECT_GT(r.max_active, 0) << "the links never caught each other";
+}

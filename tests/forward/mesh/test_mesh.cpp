@@ -4,6 +4,9 @@
 #include <Eigen/Geometry>
 #include <gtest/gtest.h>
 
+#include <cmath>
+#include <map>
+
 using namespace diffipc;
 
 namespace {
@@ -103,3 +106,45 @@ TEST(Mesh, ValidationRejectsInvertedAndDegenerateElements)
 }
 
 } // namespace
+
+TEST(MeshGenerators, AnnulusAreaOrientationAndBoundary)
+{
+    VectorXd c(2);
+    c << 0.3, -0.2;
+    const int N = 40;
+    const Mesh m = annulus_mesh(c, 0.5, 0.8, N, 3);
+    double area = 0;
+    for (Index e = 0; e < m.num_elements(); ++e) {
+        const double a = signed_volume(m.rest_positions, m.elements, e);
+        EXPECT_GT(a, 0) << "element " << e;
+        area += a;
+    }
+    // The polygonal annulus: N/2 sin(2 pi/N) (r1^2 - r0^2).
+    EXPECT_NEAR(area, 0.5 * N * std::sin(2 * M_PI / N) * (0.64 - 0.25), 1e-12);
+    EXPECT_EQ(m.boundary_facets.rows(), 2 * N); // inner and outer circles
+}
+
+TEST(MeshGenerators, TorusVolumeOrientationAndClosedSurface)
+{
+    const double R = 0.1, a = 0.02;
+    const Mesh m = torus_mesh(R, a, 2, 48);
+    double volume = 0;
+    for (Index e = 0; e < m.num_elements(); ++e) {
+        const double v = signed_volume(m.rest_positions, m.elements, e);
+        EXPECT_GT(v, 0) << "element " << e;
+        volume += v;
+    }
+    // Pappus: 2 pi R (2a)^2, less the faceting of the 48 segments (about 0.3%).
+    EXPECT_NEAR(volume / (2 * M_PI * R * 4 * a * a), 1.0, 0.01);
+    // Closed surface: 4 sides x 2 cells x 48 segments x 2 triangles, every edge shared by two faces.
+    EXPECT_EQ(m.boundary_facets.rows(), 4 * 2 * 48 * 2);
+    std::map<std::pair<int, int>, int> edges;
+    for (Index f = 0; f < m.boundary_facets.rows(); ++f)
+        for (int k = 0; k < 3; ++k) {
+            const int u = m.boundary_facets(f, k), w = m.boundary_facets(f, (k + 1) % 3);
+            ++edges[{ std::min(u, w), std::max(u, w) }];
+        }
+    for (const auto& [e, count] : edges)
+        EXPECT_EQ(count, 2);
+    EXPECT_EQ(m.num_vertices(), 3 * 3 * 48); // the seam is merged
+}

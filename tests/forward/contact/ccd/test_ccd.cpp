@@ -130,7 +130,8 @@ std::vector<std::string> sample_query_folders()
     namespace fs = std::filesystem;
     std::vector<std::string> folders;
     for (const auto& entry : fs::directory_iterator(kSampleQueries))
-        if (entry.is_directory() && (fs::is_directory(entry.path() / "vertex-face") || fs::is_directory(entry.path() / "edge-edge")))
+        if (entry.is_directory()
+            && (fs::is_directory(entry.path() / "vertex-face") || fs::is_directory(entry.path() / "edge-edge")))
             folders.push_back(entry.path().string());
     std::sort(folders.begin(), folders.end());
     return folders;
@@ -165,10 +166,10 @@ TEST(CCDSampleQueries, NoFalseNegativesOnAll7279Queries)
                     // Certified free up to toi, with a gap of at least (1 - s) of the start.
                     const auto& v = q.vertices;
                     auto d = [&](double t) {
-                        return q.edge_edge ? ee_distance(lerp(v[0], v[4], t), lerp(v[1], v[5], t), lerp(v[2], v[6], t),
-                                                 lerp(v[3], v[7], t))
-                                           : pt_distance(lerp(v[0], v[4], t), lerp(v[1], v[5], t),
-                                               lerp(v[2], v[6], t), lerp(v[3], v[7], t));
+                        return q.edge_edge ? ee_distance(
+                                   lerp(v[0], v[4], t), lerp(v[1], v[5], t), lerp(v[2], v[6], t), lerp(v[3], v[7], t))
+                                           : pt_distance(lerp(v[0], v[4], t), lerp(v[1], v[5], t), lerp(v[2], v[6], t),
+                                               lerp(v[3], v[7], t));
                     };
                     if (!(d(r.toi) >= 0.1 * d(0) - 1e-12))
                         ++contract_violations;
@@ -244,8 +245,7 @@ TEST(PointTriangleCCD, HeadOnImpacts)
     expect_certified_impact(falling, with_min_distance(0.2), 0.4, "dmin = 0.2");
     // Both move: the triangle rises from z = 0 to z = 1, the point falls from 1 to 0.
     const V up(0, 0, 1);
-    const auto both = point_triangle(
-        { V(0.2, 0.3, 1), T0, T1, T2 }, { V(0.2, 0.3, 0), T0 + up, T1 + up, T2 + up });
+    const auto both = point_triangle({ V(0.2, 0.3, 1), T0, T1, T2 }, { V(0.2, 0.3, 0), T0 + up, T1 + up, T2 + up });
     expect_certified_impact(both, {}, 0.5, "both moving");
     // A tilted triangle hit near a corner, point moving along x.
     const auto corner = point_triangle({ V(-1, 0.01, 0.01), V(0, 0, 0), V(0, 1, 1), V(0, 1, -1) },
@@ -255,8 +255,8 @@ TEST(PointTriangleCCD, HeadOnImpacts)
 
 TEST(EdgeEdgeCCD, HeadOnImpacts)
 {
-    const auto crossing = edge_edge({ V(-1, 0, 1), V(1, 0, 1), V(0, -1, 0), V(0, 1, 0) },
-        { V(-1, 0, -1), V(1, 0, -1), V(0, -1, 0), V(0, 1, 0) });
+    const auto crossing = edge_edge(
+        { V(-1, 0, 1), V(1, 0, 1), V(0, -1, 0), V(0, 1, 0) }, { V(-1, 0, -1), V(1, 0, -1), V(0, -1, 0), V(0, 1, 0) });
     expect_certified_impact(crossing, {}, 0.5, "crossing edges");
     expect_certified_impact(crossing, with_min_distance(0.1), 0.45, "dmin = 0.1");
     // Edge b, skew to a, sweeps along x at x = -1 + 3t; its midpoint (x, 0, 0) is on a's line and
@@ -296,8 +296,8 @@ TEST(CCD, ClearMissesAreNotCollisions)
     expect_no_collision(edge_edge({ V(-1, 0, 1), V(1, 0, 1), V(0, -1, 0), V(0, 1, 0) },
                             { V(-1, 0, 0.5), V(1, 0, 0.5), V(0, -1, 0), V(0, 1, 0) }),
         {}, "edges approaching to 0.5");
-    expect_no_collision(point_edge({ V(2, 1, 0), V(0, 0, 0), V(1, 0, 0) }, { V(2, -1, 0), V(0, 0, 0), V(1, 0, 0) }),
-        {}, "2D point passing beyond the edge's end");
+    expect_no_collision(point_edge({ V(2, 1, 0), V(0, 0, 0), V(1, 0, 0) }, { V(2, -1, 0), V(0, 0, 0), V(1, 0, 0) }), {},
+        "2D point passing beyond the edge's end");
     expect_no_collision(
         point_point({ V(-1, 1, 0), V(1, 0, 0) }, { V(1, 1, 0), V(-1, 0, 0) }), {}, "points passing at distance 1");
     // A rigid translation of the pair keeps the distance: one evaluation decides.
@@ -324,8 +324,7 @@ TEST(CCD, SlidingContact)
     EXPECT_TRUE(edges.run(with_min_distance(1e-2)).collision);
     EXPECT_FALSE(edges.run(with_min_distance(5e-4)).collision);
     // A point descending slowly while sliding: from 2e-2 to 0 over the step, crossing dmin = 1e-2 at t = 0.5.
-    const auto descending
-        = point_triangle({ V(0.1, 0.1, 2e-2), T0, T1, T2 }, { V(0.6, 0.3, 0), T0, T1, T2 });
+    const auto descending = point_triangle({ V(0.1, 0.1, 2e-2), T0, T1, T2 }, { V(0.6, 0.3, 0), T0, T1, T2 });
     expect_certified_impact(descending, with_min_distance(1e-2), 0.5, "slow descent while sliding");
 }
 
@@ -336,12 +335,12 @@ TEST(CCD, ExactlyTouchingConfigurations)
     EXPECT_TRUE(point_triangle_ccd(V(1, 1, 1), T0, T1, T2, V(0.5, 0.5, 0), T0, T1, T2).collision); // edge at t = 1
     EXPECT_TRUE(point_triangle_ccd(V(-1, 0.5, 0), T0, T1, T2, V(0.5, 0.25, 0), T0, T1, T2).collision); // in-plane
     EXPECT_TRUE(point_triangle_ccd(V(-1, -1, 0), T0, T1, T2, V(0, 0, 0), T0, T1, T2).collision); // corner at t = 1
-    EXPECT_TRUE(edge_edge_ccd(V(0, 0, 1), V(1, 0, 1), V(0.5, -1, 0), V(0.5, 1, 0), V(0, 0, 0), V(1, 0, 0),
-        V(0.5, -1, 0), V(0.5, 1, 0))
+    EXPECT_TRUE(edge_edge_ccd(
+        V(0, 0, 1), V(1, 0, 1), V(0.5, -1, 0), V(0.5, 1, 0), V(0, 0, 0), V(1, 0, 0), V(0.5, -1, 0), V(0.5, 1, 0))
                     .collision); // crossing at t = 1
-    EXPECT_TRUE(edge_edge_ccd(V(0, 0, 0), V(1, 0, 0), V(3, 0, 0), V(4, 0, 0), V(0, 0, 0), V(1, 0, 0), V(1, 0, 0),
-        V(2, 0, 0))
-                    .collision); // collinear, end to end at t = 1
+    EXPECT_TRUE(
+        edge_edge_ccd(V(0, 0, 0), V(1, 0, 0), V(3, 0, 0), V(4, 0, 0), V(0, 0, 0), V(1, 0, 0), V(1, 0, 0), V(2, 0, 0))
+            .collision); // collinear, end to end at t = 1
     EXPECT_TRUE(point_edge_ccd(V(0.5, 1, 0), V(0, 0, 0), V(1, 0, 0), V(0.5, 0, 0), V(0, 0, 0), V(1, 0, 0)).collision);
     EXPECT_TRUE(point_point_ccd(V(0, 0, 0), V(1, 0, 0), V(1, 0, 0), V(1, 0, 0)).collision);
     // Starting in contact: toi = 0.
@@ -372,8 +371,8 @@ TEST(CCD, BudgetExhaustionReturnsACertifiedEarlierTime)
     EXPECT_LT(miss.toi, 1);
     EXPECT_GT(sliding.distance_at(miss.toi), 0);
     // Edge-edge too.
-    const auto crossing = edge_edge({ V(-1, 0, 1), V(1, 0, 1), V(0, -1, 0), V(0, 1, 0) },
-        { V(-1, 0, -1), V(1, 0, -1), V(0, -1, 0), V(0, 1, 0) });
+    const auto crossing = edge_edge(
+        { V(-1, 0, 1), V(1, 0, 1), V(0, -1, 0), V(0, 1, 0) }, { V(-1, 0, -1), V(1, 0, -1), V(0, -1, 0), V(0, 1, 0) });
     s.max_iterations = 1;
     const CCDResult e = crossing.run(s);
     EXPECT_TRUE(e.collision && e.budget_exhausted);
@@ -628,8 +627,8 @@ TEST(DistanceLowerBound, BelowAndCloseToKnownDistances)
     }
     // Nearly parallel crossing edges, b lifted by k (1, 1, 1): distance sqrt(3) |k|.
     for (const double k : { 1.0, 1e-6, 1e-12 }) {
-        const double lb
-            = edge_edge_distance_lower_bound(V(-1, 1, 0), V(1, -1, 0), -V(1, -1 + e, -e) + k * n, V(1, -1 + e, -e) + k * n);
+        const double lb = edge_edge_distance_lower_bound(
+            V(-1, 1, 0), V(1, -1, 0), -V(1, -1 + e, -e) + k * n, V(1, -1 + e, -e) + k * n);
         EXPECT_LE(lb, std::sqrt(3.0) * k * (1 + 1e-15));
         EXPECT_GE(lb, std::sqrt(3.0) * k - 1e-8);
     }
