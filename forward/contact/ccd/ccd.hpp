@@ -12,13 +12,15 @@
 ///    (rounding is accounted for; see ccd.cpp).
 ///  - collision == true: toi in [0, t_max) and the motion is certified free up
 ///    to toi: d(t) > dmin on [0, toi], and at toi the gap d - dmin is at least
-///    (1 - s) times the starting gap (s = conservative_rescaling, up to a
-///    relative 1e-15), so a barrier evaluated at toi stays finite.
-///    toi == 0 with a starting gap <= 0 means the start is already at or
-///    below dmin (within round-off); the caller should treat it as invalid.
-///    A collision may be a false positive: reported when the true minimum gap
-///    is positive but small (relative to the motion, see ccd.cpp), or when
-///    the iteration budget runs out.
+///    (1 - s) times the certified starting gap (s = conservative_rescaling; the
+///    certified gap is the exact one less a round-off bound of about 1e-14 times
+///    the coordinates' magnitude), so a barrier evaluated at toi stays finite.
+///    toi == 0 means the start is already at or below dmin, or within round-off
+///    of it (or max_iterations == 1); the caller should treat it as invalid.
+///    A collision may be a false positive: plain ACCD reports one as soon as
+///    the gap drops below (1 - s) times the starting gap (see
+///    CCDSettings::refine), and any mode when the gap comes within round-off of
+///    zero or the iteration budget runs out.
 ///  - budget_exhausted == true: the iteration budget ran out before a decision;
 ///    collision is true and toi is the time certified so far (before any
 ///    true impact), never "no collision".
