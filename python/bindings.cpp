@@ -63,6 +63,13 @@ py::dict trajectory_dict(const Simulator& sim)
     out["newton_step"] = per_step<double>(tr, [](const StepRecord& s) { return s.newton_step; });
     out["min_volume_ratio"] = per_step<double>(tr, [](const StepRecord& s) { return s.min_volume_ratio; });
     out["wall_time"] = per_step<double>(tr, [](const StepRecord& s) { return s.wall_time; });
+    if (sim.contact()) {
+        out["min_distance"] = per_step<double>(tr, [](const StepRecord& s) { return s.min_distance; });
+        out["active_contacts"] = per_step<int>(tr, [](const StepRecord& s) { return s.active_contacts; });
+        out["kappa"] = per_step<double>(tr, [](const StepRecord& s) { return s.kappa; });
+        out["ccd_time"] = per_step<double>(tr, [](const StepRecord& s) { return s.phases.ccd; });
+        out["broad_phase_time"] = per_step<double>(tr, [](const StepRecord& s) { return s.phases.broad_phase; });
+    }
     out["final_status"] = to_string(tr.final_status);
     out["failed_step"] = tr.failed_step;
     out["failure_message"] = tr.failure_message;

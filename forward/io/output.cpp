@@ -93,13 +93,17 @@ void write_hdf5(const std::string& path, const Mesh& mesh, const Trajectory& tra
     write_dataset(file, root, "min_volume_ratio", { T }, volume.data());
     write_dataset(file, root, "wall_time", { T }, wall.data());
     if (contact) {
-        std::vector<double> min_distance, kappa;
+        std::vector<double> min_distance, kappa, ccd, broad;
         std::vector<int> active;
         for (const auto& s : trajectory.steps) {
             min_distance.push_back(s.min_distance);
             kappa.push_back(s.kappa);
             active.push_back(s.active_contacts);
+            ccd.push_back(s.phases.ccd);
+            broad.push_back(s.phases.broad_phase);
         }
+        write_dataset(file, root, "ccd_time", { T }, ccd.data());
+        write_dataset(file, root, "broad_phase_time", { T }, broad.data());
         write_dataset(file, root, "min_distance", { T }, min_distance.data());
         write_dataset(file, root, "active_contacts", { T }, active.data());
         write_dataset(file, root, "kappa", { T }, kappa.data());

@@ -166,7 +166,7 @@ def test_contact_scene_writes_contact_datasets(cli, tmp_path, root):
         active = f["active_contacts"][:]
         dist = f["min_distance"][:]
         kappa = f["kappa"][:]
-        assert active.shape == dist.shape == kappa.shape == (30,)
+        assert active.shape == dist.shape == kappa.shape == f["ccd_time"].shape == f["broad_phase_time"].shape == (30,)
         assert active.max() > 0 and (kappa > 0).all()
         touching = active > 0
         # Where contacts are active the minimum distance is below dhat and positive.

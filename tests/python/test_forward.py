@@ -1,3 +1,5 @@
+import json
+
 import numpy as np
 import pytest
 
@@ -121,3 +123,19 @@ def test_meshio_export():
     m = diffipc.to_meshio(sc)
     assert isinstance(m, meshio.Mesh)
     assert m.cells[0].data.shape == (sc.num_elements, 4)
+
+
+def test_contact_trajectory_arrays(root):
+    """The ring pile from a dict: contact arrays in the trajectory, bodies above the plane."""
+    s = json.loads((root / "studies" / "204_ring_pile" / "scene.json").read_text())
+    for b in s["bodies"]:
+        b["mesh"]["annulus"].update({"segments": 16, "layers": 1})
+    s["time"]["steps"] = 40
+    sim, tr = diffipc.simulate(s)
+    assert tr["final_status"] == "CONVERGED"
+    assert tr["active_contacts"].shape == (40,) and tr["active_contacts"].max() > 0
+    assert np.all(tr["kappa"] > 0)
+    # Every body vertex above the ground plane (y = 0) at every step; the plane's
+    # point is the one vertex with body index 3 (#bodies + 0).
+    body = np.asarray(diffipc.scene(s).vertex_body)
+    assert np.all(tr["positions"][:, body < 3, 1] > 0)
