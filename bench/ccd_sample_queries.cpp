@@ -1,4 +1,4 @@
-// CCD on the sample queries of Wang et al. 2021 (shared/data/ccd-sample-queries):
+// CCD on the sample queries of Wang et al. 2021 (tests/data/ccd-sample-queries, a copy of shared/data/ccd-sample-queries):
 // correctness against the exact ground truth and time per query, one thread.
 //
 //   ./build/bench/bench_ccd_sample_queries [max_iterations [refine (0/1) [data_dir]]]
@@ -73,7 +73,7 @@ int main(int argc, char** argv)
     if (argc > 2)
         settings.refine = std::atoi(argv[2]) != 0;
     const std::string data
-        = argc > 3 ? argv[3] : std::string(DIFFIPC_SOURCE_DIR) + "/../shared/data/ccd-sample-queries";
+        = argc > 3 ? argv[3] : std::string(DIFFIPC_SOURCE_DIR) + "/tests/data/ccd-sample-queries";
     if (!fs::is_directory(data)) {
         std::fprintf(stderr, "no CCD sample queries at %s\n", data.c_str());
         return 1;

@@ -2,7 +2,7 @@
 /// @file ccd_sample_queries.hpp
 /// Reader for the CCD benchmark of Wang et al. 2021 ("A Large Scale Benchmark
 /// and an Inclusion-Based Algorithm for Continuous Collision Detection"), as
-/// stored in shared/data/ccd-sample-queries: CSV files of 8 rows per query,
+/// stored in tests/data/ccd-sample-queries (a copy of shared/data/ccd-sample-queries): CSV files of 8 rows per query,
 /// each row "x_num,x_den,y_num,y_den,z_num,z_den,truth" with exact rational
 /// coordinates and the exact ground truth (1: the primitives touch during
 /// t in [0, 1]). Used by the CCD test and benchmark.

@@ -28,7 +28,7 @@ using V = Eigen::Vector3d;
 
 namespace {
 
-const std::string kSampleQueries = DIFFIPC_SOURCE_DIR "/../shared/data/ccd-sample-queries";
+const std::string kSampleQueries = DIFFIPC_SOURCE_DIR "/tests/data/ccd-sample-queries";
 
 V lerp(const V& a, const V& b, double t) { return a + t * (b - a); }
 
