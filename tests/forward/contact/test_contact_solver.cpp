@@ -4,6 +4,7 @@
 
 #include "../test_utils.hpp"
 
+#include "forward/contact/distance/distance.hpp"
 #include "forward/contact/intersection.hpp"
 #include "forward/simulation/simulator.hpp"
 
@@ -189,4 +190,36 @@ TEST(ContactSolver, MovingMeshObstacleLiftsABox)
     for (Index v = 0; v < body; ++v)
         lowest = std::min(lowest, sim.positions()[v * 3 + 1]);
     EXPECT_GT(lowest, 0.09); // carried up by about 0.1 m against gravity
+}
+
+TEST(ContactSolver, MinimumSeparationIsKeptInACollision)
+{
+    const double dmin = 2e-3;
+    json s = two_boxes(0.02, 4.0, -4.0);
+    s["contact"]["min_distance"] = dmin;
+    s["time"]["steps"] = 12;
+    Simulator sim(test::make_scene(s));
+    const CollisionMesh& mesh = sim.contact()->collision_mesh();
+    double closest = 1e9;
+    for (int k = 0; k < 12; ++k) {
+        ASSERT_EQ(sim.step(), StepStatus::CONVERGED) << sim.trajectory().failure_message;
+        expect_valid(sim);
+        // Brute force over every vertex-face and edge-edge pair of the two bodies.
+        const VectorXd& x = sim.positions();
+        auto p = [&](Index v) { return Eigen::Vector3d(x.segment<3>(v * 3)); };
+        for (Index v : std::vector<Index>(mesh.vertices.data(), mesh.vertices.data() + mesh.vertices.size()))
+            for (Index f = 0; f < mesh.faces.rows(); ++f)
+                if (sim.mesh().vertex_body[v] != sim.mesh().vertex_body[mesh.faces(f, 0)])
+                    closest = std::min(closest,
+                        std::sqrt(point_triangle_distance(
+                            p(v), p(mesh.faces(f, 0)), p(mesh.faces(f, 1)), p(mesh.faces(f, 2)))));
+        for (Index a = 0; a < mesh.edges.rows(); ++a)
+            for (Index b = a + 1; b < mesh.edges.rows(); ++b)
+                if (sim.mesh().vertex_body[mesh.edges(a, 0)] != sim.mesh().vertex_body[mesh.edges(b, 0)])
+                    closest = std::min(closest,
+                        std::sqrt(edge_edge_distance(
+                            p(mesh.edges(a, 0)), p(mesh.edges(a, 1)), p(mesh.edges(b, 0)), p(mesh.edges(b, 1)))));
+    }
+    EXPECT_GT(closest, dmin);
+    EXPECT_LT(closest, dmin + 1e-3) << "the boxes never came within dhat of the minimum separation";
 }
