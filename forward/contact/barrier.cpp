@@ -39,7 +39,7 @@ double barrier_stiffness_min(double bbox_diagonal, double reference_mass, double
     const double s = d0 - dmin * dmin;
     const double b2 = barrier_second_derivative(s, shat);
     if (!(b2 > 0))
-        return 1.0; // dhat below 1e-8 L: no meaningful lower bound; the caller clamps
+        return 0.0; // dhat at or below 1e-8 L: no lower bound exists; callers reject 0
     return 1e11 * reference_mass / (4 * d0 * b2);
 }
 

@@ -22,7 +22,8 @@ double barrier_second_derivative(double s, double shat);
 inline double barrier_activation(double dhat, double dmin) { return (2 * dmin + dhat) * dhat; }
 
 /// @brief Lower bound of the adaptive barrier stiffness (IPC Toolkit):
-/// kappa_min = 1e11 m / (4 d0 b''(d0 - dmin^2)), d0 = (1e-8 L + dmin)^2.
+/// kappa_min = 1e11 m / (4 d0 b''(d0 - dmin^2)), d0 = (1e-8 L + dmin)^2;
+/// 0 when d0 is outside the barrier's support (dhat <= 1e-8 L).
 /// @param bbox_diagonal    L, diagonal of the scene's bounding box (m)
 /// @param reference_mass   per-vertex stiffness reference: the average lumped
 ///                         nodal mass divided by the potential weight c h^2

@@ -12,6 +12,7 @@
 #include <tbb/parallel_for.h>
 #include <tbb/parallel_reduce.h>
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 
@@ -67,9 +68,11 @@ bool ContactPotential::on_segment(const VectorXd& y) const
     const double pmax = s.p.cwiseAbs().maxCoeff(&k);
     if (!(pmax > 0))
         return false;
-    const double alpha = (y[k] - s.x0[k]) / s.p[k];
-    if (!(alpha >= 0 && alpha <= 1))
+    // fl(x0 + p) can give alpha = 1 + 1 ulp: accept a sliver beyond the ends, then clamp.
+    double alpha = (y[k] - s.x0[k]) / s.p[k];
+    if (!(alpha >= -1e-12 && alpha <= 1 + 1e-12))
         return false;
+    alpha = std::clamp(alpha, 0.0, 1.0);
     return (y - s.x0 - alpha * s.p).lpNorm<Eigen::Infinity>() <= s.tolerance;
 }
 
@@ -175,12 +178,26 @@ void ContactPotential::build_contacts(const VectorXd& x, ContactSet& out, double
 const ContactSet& ContactPotential::contacts(const VectorXd& x) const
 {
     if (!m_cache_valid || m_cache_x.size() != x.size() || m_cache_x != x) {
+        m_cache_valid = false; // stays invalid if the broad phase throws (non-finite positions)
         build_contacts(x, m_cache, m_settings.min_distance + m_settings.dhat);
         m_cache_x = x;
         m_cache_valid = true;
     }
     return m_cache;
 }
+
+namespace {
+    /// An intersecting pair: infinite energy, NaN derivatives (callers report NON_FINITE).
+    double infinite(const Contact& c, int dim, Eigen::VectorXd* grad, Eigen::MatrixXd* hess)
+    {
+        const int n = c.num_vertices() * dim;
+        if (grad)
+            grad->setConstant(n, std::numeric_limits<double>::quiet_NaN());
+        if (hess)
+            hess->setConstant(n, n, std::numeric_limits<double>::quiet_NaN());
+        return INF;
+    }
+} // namespace
 
 double ContactPotential::local_barrier(
     const Contact& c, const VectorXd& x, Eigen::VectorXd* grad, Eigen::MatrixXd* hess) const
@@ -199,7 +216,7 @@ double ContactPotential::local_barrier(
         const Eigen::Vector3d n = m_planes[size_t(c.plane)].normal;
         const double h = (point(x, v[0], dim) - point(x, v[1], dim)).dot(n);
         if (!(h > 0))
-            return INF;
+            return infinite(c, dim, grad, hess);
         s = h * h;
         if (derivatives) {
             const Eigen::VectorXd nd = n.head(dim);
@@ -255,7 +272,7 @@ double ContactPotential::local_barrier(
     }
     const double z = s - dmin2;
     if (!(z > 0))
-        return INF;
+        return infinite(c, dim, grad, hess);
     const double b = barrier(z, shat);
     if (!derivatives)
         return m * b;

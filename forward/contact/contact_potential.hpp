@@ -39,8 +39,7 @@ class ContactPotential : public Potential {
 public:
     /// @param mesh           collision mesh (indices into the full mesh)
     /// @param rest_positions #V by dim (for the edge-edge mollifier thresholds)
-    /// @param planes         plane obstacles
-    /// @param plane_vertices  vertices tested against planes (non-kinematic surface vertices)
+    /// @param planes         plane obstacles (tested against every non-kinematic surface vertex)
     ContactPotential(CollisionMesh mesh, const Positions& rest_positions, std::vector<ContactPlane> planes,
         ContactSettings settings);
     ~ContactPotential() override;

@@ -2,6 +2,8 @@
 #include "forward/mesh/gmsh_reader.hpp"
 #include "forward/mesh/mesh.hpp"
 
+#include <Eigen/Geometry>
+
 #include <algorithm>
 #include <cmath>
 #include <fstream>
@@ -129,14 +131,13 @@ Mesh read_surface_mesh(const std::string& path, int dim)
     mesh.vertex_body = VectorXi::Zero(mesh.num_vertices());
     mesh.facet_body = VectorXi::Zero(mesh.boundary_facets.rows());
     for (Index f = 0; f < mesh.boundary_facets.rows(); ++f) {
-        double size = 0;
-        for (int a = 1; a < dim; ++a)
-            size = std::max(size,
-                (mesh.rest_positions.row(mesh.boundary_facets(f, a))
-                    - mesh.rest_positions.row(mesh.boundary_facets(f, 0)))
-                    .norm());
+        // Zero length (2D) or zero area (3D), repeated indices included.
+        Eigen::Vector3d c[3] = { Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero() };
+        for (int a = 0; a < dim; ++a)
+            c[a].head(dim) = mesh.rest_positions.row(mesh.boundary_facets(f, a)).transpose();
+        const double size = dim == 2 ? (c[1] - c[0]).norm() : (c[1] - c[0]).cross(c[2] - c[0]).norm();
         if (!(size > 0))
-            throw InputError(path, "facet " + std::to_string(f) + " is degenerate (coincident vertices)");
+            throw InputError(path, "facet " + std::to_string(f) + " is degenerate (zero " + (dim == 2 ? "length" : "area") + ")");
     }
     return mesh;
 }

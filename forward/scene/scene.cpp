@@ -237,9 +237,9 @@ namespace {
                 mesh.dim = dim;
                 mesh.rest_positions = g["point"].vector(dim).transpose();
                 const VectorXd n = g["normal"].vector(dim);
-                if (!(n.norm() > 0))
+                if (!(n.stableNorm() > 0))
                     g["normal"].fail("must be a non-zero vector");
-                o.normal = n.normalized();
+                o.normal = n.stableNormalized();
                 mesh.elements.resize(0, dim + 1);
                 mesh.boundary_facets.resize(0, dim);
                 mesh.vertex_body = VectorXi::Zero(1);
@@ -339,8 +339,8 @@ Scene parse_scene(const nlohmann::json& document, const std::string& base_direct
 
     scene.gravity = root.has("gravity") ? root["gravity"].vector(dim) : VectorXd::Zero(dim);
 
-    const Eigen::RowVectorXd extent
-        = scene.mesh.rest_positions.colwise().maxCoeff() - scene.mesh.rest_positions.colwise().minCoeff();
+    const auto body_rows = scene.mesh.rest_positions.topRows(scene.body_vertices);
+    const Eigen::RowVectorXd extent = body_rows.colwise().maxCoeff() - body_rows.colwise().minCoeff();
     const double region_tolerance = 1e-9 * extent.norm();
 
     if (root.has("dirichlet")) {

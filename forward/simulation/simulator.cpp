@@ -37,8 +37,9 @@ Simulator::Simulator(Scene scene)
     for (double v : m_space->rest_volumes())
         mean_volume += v / double(ne);
     m_force_scale = mean_E * std::pow(mean_volume, double(d - 1) / d);
-    const Eigen::RowVectorXd extent
-        = mesh.rest_positions.colwise().maxCoeff() - mesh.rest_positions.colwise().minCoeff();
+    // The bodies' bounding box: obstacles (a plane's point, a large floor) must not change the scales.
+    const auto bodies = mesh.rest_positions.topRows(m_scene.body_vertices);
+    const Eigen::RowVectorXd extent = bodies.colwise().maxCoeff() - bodies.colwise().minCoeff();
     m_bbox_diagonal = extent.norm();
 
     m_elastic = std::make_unique<ElasticPotential>(*m_space, models, mu, lambda);
@@ -212,6 +213,10 @@ void Simulator::setup_contact()
             reference = m_force_scale / std::pow(length, d - 2);
         }
         m_kappa_min = barrier_stiffness_min(m_bbox_diagonal, reference, spec.dhat, spec.min_distance);
+        if (!(m_kappa_min > 0) || !std::isfinite(m_kappa_min))
+            throw InputError("contact.dhat",
+                "too small for the adaptive barrier stiffness (it must exceed 1e-8 of the bodies' bounding-box "
+                "diagonal, " + std::to_string(1e-8 * m_bbox_diagonal) + " m); give a fixed \"kappa\" or a larger dhat");
         settings.kappa = m_kappa_min;
     }
     m_contact = std::make_unique<ContactPotential>(
@@ -337,6 +342,7 @@ StepStatus Simulator::step()
     const NewtonSolver newton(m_problem, m_assembler, *m_linear, settings);
 
     VectorXd x = m_integrator->positions();
+    const double kappa_before = m_contact ? m_contact->kappa() : 0.0;
     if (m_contact) {
         const std::string problem = index == 1 ? check_contact_state(x) : std::string();
         if (!problem.empty()) {
@@ -380,6 +386,8 @@ StepStatus Simulator::step()
         }
         m_integrator->commit(record.positions, record.velocities, record.accelerations);
     } else {
+        if (m_contact)
+            m_contact->set_kappa(kappa_before); // a failed step leaves no trace, kappa included
         record.min_volume_ratio = m_space->min_volume_ratio(m_integrator->positions());
         m_trajectory.final_status = result.status;
         m_trajectory.failed_step = index;

@@ -37,7 +37,7 @@ struct StepRecord {
     /// of each other and vertex-plane pairs; +inf if none is that close.
     double min_distance = std::numeric_limits<double>::infinity();
     int active_contacts = 0; ///< pairs closer than dmin + dhat at the converged state
-    double kappa = 0; ///< barrier stiffness used for this step
+    double kappa = 0; ///< barrier stiffness at the end of this step (adaptive kappa may grow within a step)
     ContactSet contacts; ///< the active contacts at the converged state
 };
 

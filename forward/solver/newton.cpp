@@ -20,6 +20,7 @@ NewtonResult NewtonSolver::solve(VectorXd& x, const VectorXd& target, const std:
     // Work vectors allocated once per solve, reused by every iteration and trial.
     VectorXd g(n), p(n), rhs(n), pD(n), trial(n), g_trial(n);
     bool full_step_taken = false;
+    int true_hessian_pause = 0;
 
     double energy;
     {
@@ -68,7 +69,9 @@ NewtonResult NewtonSolver::solve(VectorXd& x, const VectorXd& target, const std:
         // compressed; once a full step has been accepted, try the true Hessian
         // and keep it if Cholesky proves it positive definite.
         const bool try_true = m_settings.adaptive_projection && full_step_taken && !lifting
-            && m_linear.cholesky_first();
+            && m_linear.cholesky_first() && true_hessian_pause == 0;
+        if (true_hessian_pause > 0)
+            --true_hessian_pause;
         bool factorized = false;
         for (int attempt = try_true ? 0 : 1; attempt < 2 && !factorized; ++attempt) {
             const bool project = attempt == 1;
@@ -91,8 +94,12 @@ NewtonResult NewtonSolver::solve(VectorXd& x, const VectorXd& target, const std:
             const bool ok = m_linear.factorize(m_assembler.matrix(), /*allow_fallback=*/project);
             t.add_to(result.times.factorization);
             if (!project) {
+                // An indefinite true Hessian costs a second assembly and factorization:
+                // after a failure, skip the attempt for the next two iterations.
                 factorized = ok;
                 result.true_hessian_steps += ok;
+                if (!ok)
+                    true_hessian_pause = 2;
                 continue;
             }
             result.linear_fallbacks += m_linear.used_fallback();
@@ -173,11 +180,16 @@ NewtonResult NewtonSolver::solve(VectorXd& x, const VectorXd& target, const std:
         result.newton_step = alpha * p.lpNorm<Eigen::Infinity>() / step_scale;
         x = trial;
         if (lifting && alpha >= 1.0) {
-            // x_D + (target - x_D) need not round to target: snap so lifting ends exactly.
+            // x_D + (target - x_D) need not round to target: snap so lifting ends exactly,
+            // unless the snapped state is invalid (then the rounding stays for one more iteration).
             for (Index i = 0; i < n; ++i)
                 if (constrained[size_t(i)])
                     x[i] = target[i];
             energy = m_problem.energy(x);
+            if (!std::isfinite(energy)) {
+                x = trial;
+                energy = new_energy;
+            }
         } else {
             energy = new_energy;
         }

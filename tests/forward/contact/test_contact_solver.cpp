@@ -11,6 +11,7 @@
 #include <gtest/gtest.h>
 
 #include <fstream>
+#include <limits>
 
 using namespace diffipc;
 using nlohmann::json;
@@ -222,4 +223,58 @@ TEST(ContactSolver, MinimumSeparationIsKeptInACollision)
     }
     EXPECT_GT(closest, dmin);
     EXPECT_LT(closest, dmin + 1e-3) << "the boxes never came within dhat of the minimum separation";
+}
+
+TEST(ContactSolver, ObstaclesDoNotChangeTheScales)
+{
+    // The same plane given by a point near the body and by a point 1e4 m away along it:
+    // the bounding box, kappa and the trajectory must not change.
+    auto run = [](double px) {
+        json s = test::box_scene(3, { 0.2, 0.2, 0.2 }, { 2, 2, 2 });
+        s["bodies"][0]["translation"] = { 0, 0.0005, 0 };
+        s["gravity"] = { 0, -9.81, 0 };
+        s["obstacles"] = { { { "plane", { { "point", { px, 0, 0 } }, { "normal", { 0, 1, 0 } } } } } };
+        s["contact"] = { { "dhat", 1e-3 } };
+        s["time"] = { { "integrator", "implicit_euler" }, { "dt", 0.01 }, { "steps", 3 } };
+        Simulator sim(test::make_scene(s));
+        sim.run();
+        EXPECT_EQ(sim.trajectory().final_status, StepStatus::CONVERGED);
+        return std::make_pair(sim.contact()->kappa(), VectorXd(sim.positions().head(sim.scene().body_vertices * 3)));
+    };
+    const auto near = run(0.1), far = run(1e4);
+    EXPECT_EQ(near.first, far.first);
+    // Not bit-identical: CCD's round-off bound scales with the coordinates' magnitude
+    // (1e4 m for the far point), which changes the certified steps by ulps; the
+    // converged states then agree to the Newton tolerance (1e-10 residual), here
+    // well below 1e-9 m on a 0.2 m body. Before the fix kappa differed by 1e9.
+    EXPECT_LT((near.second - far.second).lpNorm<Eigen::Infinity>(), 1e-9);
+}
+
+TEST(ContactSolver, ContactCacheSurvivesAFailedQuery)
+{
+    json s = two_boxes(5e-4, 0, 0);
+    Simulator sim(test::make_scene(s));
+    const VectorXd x = sim.positions();
+    const size_t active = sim.contact()->contacts(x).size();
+    ASSERT_GT(active, 0u);
+    VectorXd bad = x;
+    bad[0] = std::numeric_limits<double>::quiet_NaN();
+    EXPECT_ANY_THROW(sim.contact()->contacts(bad));
+    EXPECT_EQ(sim.contact()->contacts(x).size(), active);
+}
+
+TEST(ContactSolver, FailedStepLeavesKappaUntouched)
+{
+    json s = two_boxes(0.004, 3.0, -3.0);
+    s["solver"]["max_iterations"] = 2; // the impact step cannot converge in 2 iterations
+    s["time"]["dt"] = 1e-3;
+    Simulator sim(test::make_scene(s));
+    StepStatus status = StepStatus::CONVERGED;
+    double kappa = sim.contact()->kappa();
+    while (status == StepStatus::CONVERGED && sim.steps_done() < 15) {
+        kappa = sim.contact()->kappa();
+        status = sim.step();
+    }
+    ASSERT_NE(status, StepStatus::CONVERGED) << "expected a failure at the impact";
+    EXPECT_EQ(sim.contact()->kappa(), kappa);
 }
