@@ -60,11 +60,14 @@ namespace {
         nlohmann::json s;
         s["dimension"] = 3;
         // full: 24 x 3 x 24 and 20 x 4 x 20 cubes, 6 tets each: 10,368 + 9,600 = 19,968 tetrahedra.
-        s["bodies"] = { slab("base", { -0.6, -0.15, -0.6 }, { 0.6, 0.0, 0.6 }, n ? std::vector<int> { 24, 3, 24 } : std::vector<int> { 8, 2, 8 }, { 0, 0, 0 }),
-            slab("slab", { -0.5, 0.002, -0.5 }, { 0.5, 0.202, 0.5 }, n ? std::vector<int> { 20, 4, 20 } : std::vector<int> { 6, 2, 6 }, { 0, -1, 0 }) };
+        s["bodies"] = { slab("base", { -0.6, -0.15, -0.6 }, { 0.6, 0.0, 0.6 },
+                            n ? std::vector<int> { 24, 3, 24 } : std::vector<int> { 8, 2, 8 }, { 0, 0, 0 }),
+            slab("slab", { -0.5, 0.002, -0.5 }, { 0.5, 0.202, 0.5 },
+                n ? std::vector<int> { 20, 4, 20 } : std::vector<int> { 6, 2, 6 }, { 0, -1, 0 }) };
         s["gravity"] = { 0, -9.81, 0 };
-        s["dirichlet"] = { { { "body", "base" }, { "region", { { "min", { -1, -1, -1 } }, { "max", { 1, -0.15, 1 } } } },
-            { "displacement", { 0, 0, 0 } } } };
+        s["dirichlet"]
+            = { { { "body", "base" }, { "region", { { "min", { -1, -1, -1 } }, { "max", { 1, -0.15, 1 } } } },
+                { "displacement", { 0, 0, 0 } } } };
         s["contact"] = { { "dhat", 1e-3 }, { "kappa", "adaptive" } };
         s["time"] = { { "integrator", "implicit_euler" }, { "dt", 0.005 }, { "steps", steps } };
         s["solver"] = { { "residual_tolerance", 1e-6 } };
@@ -99,7 +102,8 @@ namespace {
             if (sim.step() != StepStatus::CONVERGED)
                 break;
             const StepRecord& r = sim.trajectory().steps.back();
-            std::printf("  step %d: %d Newton iterations, %d active contacts, min distance %.3g m, kappa %.3g, %.3f s\n",
+            std::printf(
+                "  step %d: %d Newton iterations, %d active contacts, min distance %.3g m, kappa %.3g, %.3f s\n",
                 r.index, r.newton_iterations, r.active_contacts, r.min_distance, r.kappa, r.wall_time);
         }
         const Trajectory& tr = sim.trajectory();
@@ -116,7 +120,8 @@ namespace {
             iterations);
         std::printf("  per step:              %8.3f s\n", wall / steps);
         std::printf("    assembly (all)       %8.4f s  (%4.1f%%)\n", p.assembly / steps, 100 * p.assembly / wall);
-        std::printf("    factorization        %8.4f s  (%4.1f%%)\n", p.factorization / steps, 100 * p.factorization / wall);
+        std::printf(
+            "    factorization        %8.4f s  (%4.1f%%)\n", p.factorization / steps, 100 * p.factorization / wall);
         std::printf("    solve                %8.4f s  (%4.1f%%)\n", p.solve / steps, 100 * p.solve / wall);
         std::printf("    line search (all)    %8.4f s  (%4.1f%%)\n", p.line_search / steps, 100 * p.line_search / wall);
         std::printf("    of which broad phase %8.4f s  (%4.1f%%)\n", p.broad_phase / steps, 100 * p.broad_phase / wall);

@@ -143,7 +143,9 @@ PYBIND11_MODULE(_diffipc, m)
         .def("set_element_materials", &Simulator::set_element_materials, py::arg("E"), py::arg("nu"),
             "Per-element Young's modulus and Poisson's ratio (before the first step).")
         .def("write_hdf5",
-            [](const Simulator& s, const std::string& path) { write_hdf5(path, s.mesh(), s.trajectory(), s.contact() != nullptr); })
+            [](const Simulator& s, const std::string& path) {
+                write_hdf5(path, s.mesh(), s.trajectory(), s.contact() != nullptr);
+            })
         .def("summary", [](const Simulator& s) { return summary_json(s).dump(); });
 
     auto model = [](const std::string& name) { return parse_material_model(name, "model"); };

@@ -109,34 +109,29 @@ void ContactPotential::build_contacts(const VectorXd& x, ContactSet& out, double
     const Candidates& candidates = reuse ? m_segment->candidates : owned;
     Timer t;
     const double r2 = radius * radius;
+    // Keeps a classified pair if it is closer than the radius.
+    auto keep = [&](ContactKind kind, int type, std::array<Index, 4> vertices, double s) -> Contact* {
+        if (!(s < r2))
+            return nullptr;
+        Contact c;
+        c.kind = kind;
+        c.distance_type = type;
+        c.vertices = vertices;
+        c.distance_squared = s;
+        out.push_back(c);
+        return &out.back();
+    };
     for (const auto& [v, e] : candidates.vertex_edge) {
         const Index e0 = m_mesh.edges(e, 0), e1 = m_mesh.edges(e, 1);
         const Eigen::Vector3d p = point(x, v, dim), a = point(x, e0, dim), b = point(x, e1, dim);
         const PointEdgeDistanceType type = point_edge_distance_type(p, a, b);
-        const double s = point_edge_distance(p, a, b, type);
-        if (s < r2) {
-            Contact c;
-            c.kind = ContactKind::VERTEX_EDGE;
-            c.distance_type = int(type);
-            c.vertices = { v, e0, e1, -1 };
-            c.distance_squared = s;
-            out.push_back(c);
-        }
+        keep(ContactKind::VERTEX_EDGE, int(type), { v, e0, e1, -1 }, point_edge_distance(p, a, b, type));
     }
     for (const auto& [v, f] : candidates.vertex_face) {
         const Index t0 = m_mesh.faces(f, 0), t1 = m_mesh.faces(f, 1), t2 = m_mesh.faces(f, 2);
-        const Eigen::Vector3d p = point(x, v, dim), a = point(x, t0, dim), b = point(x, t1, dim),
-                              c3 = point(x, t2, dim);
-        const PointTriangleDistanceType type = point_triangle_distance_type(p, a, b, c3);
-        const double s = point_triangle_distance(p, a, b, c3, type);
-        if (s < r2) {
-            Contact c;
-            c.kind = ContactKind::VERTEX_FACE;
-            c.distance_type = int(type);
-            c.vertices = { v, t0, t1, t2 };
-            c.distance_squared = s;
-            out.push_back(c);
-        }
+        const Eigen::Vector3d p = point(x, v, dim), a = point(x, t0, dim), b = point(x, t1, dim), c = point(x, t2, dim);
+        const PointTriangleDistanceType type = point_triangle_distance_type(p, a, b, c);
+        keep(ContactKind::VERTEX_FACE, int(type), { v, t0, t1, t2 }, point_triangle_distance(p, a, b, c, type));
     }
     for (const auto& [ea, eb] : candidates.edge_edge) {
         const Index a0 = m_mesh.edges(ea, 0), a1 = m_mesh.edges(ea, 1);
@@ -144,17 +139,10 @@ void ContactPotential::build_contacts(const VectorXd& x, ContactSet& out, double
         const Eigen::Vector3d pa0 = point(x, a0, dim), pa1 = point(x, a1, dim), pb0 = point(x, b0, dim),
                               pb1 = point(x, b1, dim);
         const EdgeEdgeDistanceType type = edge_edge_distance_type(pa0, pa1, pb0, pb1);
-        const double s = edge_edge_distance(pa0, pa1, pb0, pb1, type);
-        if (s < r2) {
-            Contact c;
-            c.kind = ContactKind::EDGE_EDGE;
-            c.distance_type = int(type);
-            c.vertices = { a0, a1, b0, b1 };
-            c.distance_squared = s;
-            c.mollifier_threshold = edge_edge_mollifier_threshold(
+        if (Contact* c
+            = keep(ContactKind::EDGE_EDGE, int(type), { a0, a1, b0, b1 }, edge_edge_distance(pa0, pa1, pb0, pb1, type)))
+            c->mollifier_threshold = edge_edge_mollifier_threshold(
                 rest_point(m_rest, a0), rest_point(m_rest, a1), rest_point(m_rest, b0), rest_point(m_rest, b1));
-            out.push_back(c);
-        }
     }
     for (size_t k = 0; k < m_planes.size(); ++k) {
         const ContactPlane& plane = m_planes[k];
@@ -372,8 +360,8 @@ double ContactPotential::max_step(const VectorXd& x, const VectorXd& p) const
     segment.tolerance = 1e-12 * (x.lpNorm<Eigen::Infinity>() + p.lpNorm<Eigen::Infinity>());
     {
         Timer t;
-        segment.candidates = broad_phase_candidates(
-            m_mesh, X0, X1, m_settings.min_distance + m_settings.dhat + 4 * segment.tolerance);
+        segment.candidates
+            = broad_phase_candidates(m_mesh, X0, X1, m_settings.min_distance + m_settings.dhat + 4 * segment.tolerance);
         t.add_to(m_times.broad_phase);
     }
     segment.x0 = x;
@@ -428,8 +416,7 @@ double ContactPotential::max_step(const VectorXd& x, const VectorXd& p) const
                     const Index b0 = m_mesh.edges(eb, 0), b1 = m_mesh.edges(eb, 1);
                     accept(o,
                         edge_edge_ccd(point(x, a0, dim), point(x, a1, dim), point(x, b0, dim), point(x, b1, dim),
-                            point(x1, a0, dim), point(x1, a1, dim), point(x1, b0, dim), point(x1, b1, dim),
-                            settings));
+                            point(x1, a0, dim), point(x1, a1, dim), point(x1, b0, dim), point(x1, b1, dim), settings));
                 } else {
                     const size_t q = k - n_ve - n_vf - n_ee;
                     const ContactPlane& plane = m_planes[q / m_plane_vertices.size()];
@@ -484,8 +471,8 @@ bool ContactPotential::end_iteration(const VectorXd& x)
     m_previous_min_distance_squared = gap2;
     if (previous < 0)
         return false;
-    const double kappa = update_barrier_stiffness(
-        previous, gap2, m_settings.kappa, m_kappa_max, m_bbox_diagonal, /*dmin=*/0.0);
+    const double kappa
+        = update_barrier_stiffness(previous, gap2, m_settings.kappa, m_kappa_max, m_bbox_diagonal, /*dmin=*/0.0);
     if (kappa == m_settings.kappa)
         return false;
     m_settings.kappa = kappa;

@@ -71,8 +71,8 @@ public:
     /// grows) after the first Newton iteration of a step that ends with active
     /// contacts, unless the step started with some (the caller applied it then).
     /// Call at the start of every step.
-    void set_adaptive(double kappa_max, double bbox_diagonal, std::function<double(const VectorXd&)> rule,
-        bool rule_applied)
+    void set_adaptive(
+        double kappa_max, double bbox_diagonal, std::function<double(const VectorXd&)> rule, bool rule_applied)
     {
         m_adaptive = true;
         m_kappa_max = kappa_max;

@@ -28,7 +28,10 @@ struct Contact {
     double mollifier_threshold = 0; ///< EDGE_EDGE: eps_x at rest positions
     double distance_squared = 0; ///< at the state the set was built for (m^2)
 
-    int num_vertices() const { return kind == ContactKind::VERTEX_EDGE ? 3 : kind == ContactKind::VERTEX_PLANE ? 2 : 4; }
+    int num_vertices() const
+    {
+        return kind == ContactKind::VERTEX_EDGE ? 3 : kind == ContactKind::VERTEX_PLANE ? 2 : 4;
+    }
 };
 
 using ContactSet = std::vector<Contact>;

@@ -237,8 +237,8 @@ Index count_inverted_elements(const Mesh& mesh, const Positions& X)
     Index count = 0;
     for (Index e = 0; e < mesh.num_elements(); ++e) {
         if (mesh.dim == 2) {
-            const int s = orient2d_filtered(
-                X.row(mesh.elements(e, 0)).data(), X.row(mesh.elements(e, 1)).data(), X.row(mesh.elements(e, 2)).data());
+            const int s = orient2d_filtered(X.row(mesh.elements(e, 0)).data(), X.row(mesh.elements(e, 1)).data(),
+                X.row(mesh.elements(e, 2)).data());
             count += s <= 0;
         } else {
             const int s = orient3d_filtered(X.row(mesh.elements(e, 0)).data(), X.row(mesh.elements(e, 1)).data(),

@@ -8,8 +8,8 @@
 
 #include <cmath>
 #include <fstream>
-#include <limits>
 #include <iomanip>
+#include <limits>
 
 namespace diffipc {
 
@@ -238,7 +238,8 @@ nlohmann::json summary_json(const Simulator& simulator)
             min_distance = std::min(min_distance, s.min_distance);
             max_active = std::max(max_active, s.active_contacts);
         }
-        j["contact"] = { { "min_distance", std::isfinite(min_distance) ? nlohmann::json(min_distance) : nlohmann::json(nullptr) },
+        j["contact"] = { { "min_distance",
+                             std::isfinite(min_distance) ? nlohmann::json(min_distance) : nlohmann::json(nullptr) },
             { "max_active_contacts", max_active }, { "final_kappa", simulator.contact()->kappa() } };
         j["wall_time"]["broad_phase"] = tr.phases.broad_phase;
         j["wall_time"]["ccd"] = tr.phases.ccd;

@@ -22,8 +22,8 @@ Mesh annulus_mesh(const VectorXd& center, double inner_radius, double outer_radi
         for (int s = 0; s < segments; ++s) {
             const double radius = inner_radius + (outer_radius - inner_radius) * r / layers;
             const double angle = 2 * M_PI * s / segments;
-            mesh.rest_positions.row(Index(r) * segments + s)
-                << center[0] + radius * std::cos(angle), center[1] + radius * std::sin(angle);
+            mesh.rest_positions.row(Index(r) * segments + s) << center[0] + radius * std::cos(angle),
+                center[1] + radius * std::sin(angle);
         }
     mesh.elements.resize(Index(2) * layers * segments, 3);
     Index e = 0;
@@ -52,9 +52,8 @@ namespace {
         std::vector<std::vector<int>> facets;
         std::string line;
         int line_number = 0;
-        auto fail = [&](const std::string& message) {
-            throw InputError(path + ":" + std::to_string(line_number), message);
-        };
+        auto fail
+            = [&](const std::string& message) { throw InputError(path + ":" + std::to_string(line_number), message); };
         while (std::getline(in, line)) {
             ++line_number;
             std::istringstream ls(line);
@@ -137,7 +136,8 @@ Mesh read_surface_mesh(const std::string& path, int dim)
             c[a].head(dim) = mesh.rest_positions.row(mesh.boundary_facets(f, a)).transpose();
         const double size = dim == 2 ? (c[1] - c[0]).norm() : (c[1] - c[0]).cross(c[2] - c[0]).norm();
         if (!(size > 0))
-            throw InputError(path, "facet " + std::to_string(f) + " is degenerate (zero " + (dim == 2 ? "length" : "area") + ")");
+            throw InputError(
+                path, "facet " + std::to_string(f) + " is degenerate (zero " + (dim == 2 ? "length" : "area") + ")");
     }
     return mesh;
 }

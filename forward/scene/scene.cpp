@@ -181,8 +181,8 @@ namespace {
         if (!root.has("contact"))
             return;
         const JsonField f = root["contact"];
-        f.require_object({ "enabled", "dhat", "kappa", "self_contact", "min_distance", "ccd_max_iterations",
-            "ccd_rescaling" });
+        f.require_object(
+            { "enabled", "dhat", "kappa", "self_contact", "min_distance", "ccd_max_iterations", "ccd_rescaling" });
         c.enabled = f.has("enabled") ? f["enabled"].boolean() : true;
         if (f.has("dhat"))
             c.dhat = f["dhat"].positive();
@@ -310,7 +310,8 @@ Scene parse_scene(const nlohmann::json& document, const std::string& base_direct
         body.material = parse_material(bf["material"]);
         body.initial_velocity = bf.has("initial_velocity") ? bf["initial_velocity"].vector(dim) : VectorXd::Zero(dim);
         body.translation = bf.has("translation") ? bf["translation"].vector(dim) : VectorXd::Zero(dim);
-        self_contact_fields.push_back(bf.has("self_contact") ? std::optional<bool>(bf["self_contact"].boolean()) : std::nullopt);
+        self_contact_fields.push_back(
+            bf.has("self_contact") ? std::optional<bool>(bf["self_contact"].boolean()) : std::nullopt);
         Mesh mesh = parse_mesh(bf["mesh"], dim, base_directory, body.mesh_source);
         if (bf.has("rotation")) {
             // Degrees; 2D: one angle; 3D: about x, then y, then z (R = Rz Ry Rx), about the mesh origin.

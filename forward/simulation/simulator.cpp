@@ -216,7 +216,8 @@ void Simulator::setup_contact()
         if (!(m_kappa_min > 0) || !std::isfinite(m_kappa_min))
             throw InputError("contact.dhat",
                 "too small for the adaptive barrier stiffness (it must exceed 1e-8 of the bodies' bounding-box "
-                "diagonal, " + std::to_string(1e-8 * m_bbox_diagonal) + " m); give a fixed \"kappa\" or a larger dhat");
+                "diagonal, "
+                    + std::to_string(1e-8 * m_bbox_diagonal) + " m); give a fixed \"kappa\" or a larger dhat");
         settings.kappa = m_kappa_min;
     }
     m_contact = std::make_unique<ContactPotential>(

@@ -68,8 +68,8 @@ NewtonResult NewtonSolver::solve(VectorXd& x, const VectorXd& target, const std:
         // Projected Newton converges linearly where elements are strongly
         // compressed; once a full step has been accepted, try the true Hessian
         // and keep it if Cholesky proves it positive definite.
-        const bool try_true = m_settings.adaptive_projection && full_step_taken && !lifting
-            && m_linear.cholesky_first() && true_hessian_pause == 0;
+        const bool try_true = m_settings.adaptive_projection && full_step_taken && !lifting && m_linear.cholesky_first()
+            && true_hessian_pause == 0;
         if (true_hessian_pause > 0)
             --true_hessian_pause;
         bool factorized = false;
@@ -128,9 +128,17 @@ NewtonResult NewtonSolver::solve(VectorXd& x, const VectorXd& target, const std:
         }
         double slope = g.dot(p);
         if (!lifting && !(slope < 0)) {
-            // An indefinite LDL^T can return an ascent direction: use the negative gradient instead.
+            // An indefinite LDL^T can return an ascent direction: use the negative gradient
+            // instead, scaled to the rejected step's length (g is a force: unscaled, the
+            // swept CCD boxes of a contact scene could cover the whole scene).
+            const double length = p.lpNorm<Eigen::Infinity>();
+            double gfree = 0;
             for (Index i = 0; i < n; ++i)
-                p[i] = constrained[size_t(i)] ? 0.0 : -g[i];
+                if (!constrained[size_t(i)])
+                    gfree = std::max(gfree, std::abs(g[i]));
+            const double scale = gfree > 0 && length > 0 ? length / gfree : 1.0;
+            for (Index i = 0; i < n; ++i)
+                p[i] = constrained[size_t(i)] ? 0.0 : -scale * g[i];
             slope = g.dot(p);
             ++result.gradient_steps;
         }

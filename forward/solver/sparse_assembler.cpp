@@ -122,8 +122,8 @@ void SparseAssembler::finalize()
     current.erase(std::unique(current.begin(), current.end()), current.end());
     std::vector<std::pair<int, int>> merged;
     merged.reserve(current.size() + m_extra_pattern.size());
-    std::set_union(current.begin(), current.end(), m_extra_pattern.begin(), m_extra_pattern.end(),
-        std::back_inserter(merged));
+    std::set_union(
+        current.begin(), current.end(), m_extra_pattern.begin(), m_extra_pattern.end(), std::back_inserter(merged));
     // Forget old pairs once they dominate, so a long sliding contact does not
     // accumulate fill-in without bound.
     if (merged.size() > 4 * current.size() + 4096)

@@ -58,7 +58,10 @@ Check fd_check(const Simulator& sim, const VectorXd& x)
 }
 
 /// Moves body vertices of x by a random smooth perturbation, keeping contacts active.
-VectorXd jiggle(const VectorXd& x, double amplitude, unsigned seed) { return x + amplitude * test::random_vector(x.size(), seed); }
+VectorXd jiggle(const VectorXd& x, double amplitude, unsigned seed)
+{
+    return x + amplitude * test::random_vector(x.size(), seed);
+}
 
 } // namespace
 
@@ -67,8 +70,10 @@ TEST(ContactPotential, GradientAndHessian2DRingOnPlaneAndSelf)
     // A 2D ring resting within dhat of a plane and of a second ring.
     json s;
     s["dimension"] = 2;
-    json ring = { { "mesh", { { "annulus", { { "center", { 0, 0.3 } }, { "inner_radius", 0.2 }, { "outer_radius", 0.2995 },
-                                  { "segments", 24 }, { "layers", 1 } } } } },
+    json ring = { { "mesh",
+                      { { "annulus",
+                          { { "center", { 0, 0.3 } }, { "inner_radius", 0.2 }, { "outer_radius", 0.2995 },
+                              { "segments", 24 }, { "layers", 1 } } } } },
         { "material", { { "model", "neo_hookean" }, { "E", 1e5 }, { "nu", 0.3 }, { "density", 1000 } } } };
     json ring2 = ring;
     ring2["mesh"]["annulus"]["center"] = { 0.5995, 0.3 };
@@ -93,7 +98,8 @@ TEST(ContactPotential, GradientAndHessian3DBoxesAndPlane)
     json s;
     s["dimension"] = 3;
     auto box = [](const std::string& name, std::vector<double> lo, std::vector<double> hi) {
-        return json { { "name", name }, { "mesh", { { "box", { { "min", lo }, { "max", hi }, { "cells", { 2, 1, 2 } } } } } },
+        return json { { "name", name },
+            { "mesh", { { "box", { { "min", lo }, { "max", hi }, { "cells", { 2, 1, 2 } } } } } },
             { "material", { { "model", "neo_hookean" }, { "E", 1e5 }, { "nu", 0.3 }, { "density", 1000 } } } };
     };
     s["bodies"] = { box("a", { 0, 0.0005, 0 }, { 1, 0.5, 1 }), box("b", { 0.1, 0.5005, 0.1 }, { 0.9, 1.0, 0.9 }) };
