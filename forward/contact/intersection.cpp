@@ -2,11 +2,13 @@
 
 #include "forward/mesh/mesh.hpp"
 
+#include <Eigen/Geometry>
 #include <gmpxx.h>
 
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <map>
 #include <vector>
 
 namespace diffipc {
@@ -230,6 +232,67 @@ std::string find_intersection(const CollisionMesh& mesh, const Positions& X, boo
         return true;
     });
     return found;
+}
+
+std::string find_containment(const CollisionMesh& mesh, const Positions& X)
+{
+    const int dim = mesh.dim;
+    const MatrixXi& facets = dim == 3 ? mesh.faces : mesh.edges;
+    const size_t groups = mesh.group_kinematic.size();
+    // Facets per group, and whether each group's surface is closed (every edge
+    // shared by two faces in 3D, every vertex by two edges in 2D).
+    std::vector<std::vector<Index>> group_facets(groups);
+    for (Index f = 0; f < facets.rows(); ++f)
+        group_facets[size_t(mesh.vertex_group[size_t(facets(f, 0))])].push_back(f);
+    std::vector<char> closed(groups, 0);
+    std::vector<Index> representative(groups, -1);
+    for (size_t g = 0; g < groups; ++g) {
+        if (group_facets[g].empty())
+            continue;
+        representative[g] = facets(group_facets[g].front(), 0);
+        std::map<std::pair<int, int>, int> count;
+        for (Index f : group_facets[g])
+            for (int a = 0; a < dim; ++a) {
+                const int u = facets(f, a), w = dim == 3 ? facets(f, (a + 1) % 3) : u;
+                ++count[{ std::min(u, w), std::max(u, w) }];
+            }
+        closed[g] = std::all_of(count.begin(), count.end(), [](const auto& c) { return c.second == 2; });
+    }
+    auto winding = [&](size_t g, Index v) {
+        double sum = 0;
+        if (dim == 3) {
+            const Eigen::Vector3d p = X.row(v).transpose();
+            for (Index f : group_facets[g]) {
+                // Van Oosterom and Strackee: tan(Omega / 2) = a . (b x c) / (|a||b||c| + (a.b)|c| + (b.c)|a| +
+                // (c.a)|b|).
+                const Eigen::Vector3d a = X.row(facets(f, 0)).transpose() - p, b = X.row(facets(f, 1)).transpose() - p,
+                                      c = X.row(facets(f, 2)).transpose() - p;
+                const double la = a.norm(), lb = b.norm(), lc = c.norm();
+                const double num = a.dot(b.cross(c));
+                const double den = la * lb * lc + a.dot(b) * lc + b.dot(c) * la + c.dot(a) * lb;
+                sum += 2 * std::atan2(num, den);
+            }
+            return sum / (4 * M_PI);
+        }
+        const Eigen::Vector2d p = X.row(v).transpose();
+        for (Index f : group_facets[g]) {
+            const Eigen::Vector2d a = X.row(facets(f, 0)).transpose() - p, b = X.row(facets(f, 1)).transpose() - p;
+            sum += std::atan2(a[0] * b[1] - a[1] * b[0], a.dot(b));
+        }
+        return sum / (2 * M_PI);
+    };
+    for (size_t g = 0; g < groups; ++g) {
+        if (!closed[g])
+            continue;
+        for (size_t h = 0; h < groups; ++h) {
+            if (h == g || representative[h] < 0 || (mesh.group_kinematic[g] && mesh.group_kinematic[h]))
+                continue;
+            if (std::abs(winding(g, representative[h])) > 0.5)
+                return "contact group " + std::to_string(h) + " lies inside the closed surface of group "
+                    + std::to_string(g);
+        }
+    }
+    return "";
 }
 
 Index count_inverted_elements(const Mesh& mesh, const Positions& X)

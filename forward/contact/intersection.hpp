@@ -31,6 +31,15 @@ bool segments_intersect_2d(const double* a, const double* b, const double* c, co
 /// @return "" if none, else a description of the first intersecting pair
 std::string find_intersection(const CollisionMesh& mesh, const Positions& X, bool all_pairs);
 
+/// @brief Finds a contact group lying inside another one's closed surface (a body
+/// inside a body or inside a closed obstacle), which has no crossing surfaces and
+/// so escapes find_intersection. Meant for states that find_intersection passed:
+/// then one vertex per group decides. Uses the generalized winding number
+/// (solid angles in 3D, angles in 2D; |w| > 1/2 is inside), in floating point.
+/// Groups whose surface is not closed (an open obstacle sheet) enclose nothing.
+/// @return "" if none, else a description naming the two groups
+std::string find_containment(const CollisionMesh& mesh, const Positions& X);
+
 /// @brief Number of elements whose orientation at X is not positive, exact.
 Index count_inverted_elements(const Mesh& mesh, const Positions& X);
 

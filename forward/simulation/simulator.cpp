@@ -252,9 +252,13 @@ void Simulator::update_kappa_for_step(const VectorXd& x)
 
 std::string Simulator::check_contact_state(const VectorXd& x) const
 {
-    const std::string hit = find_intersection(m_contact->collision_mesh(), unflatten(x, m_scene.dim), false);
+    const Positions X = unflatten(x, m_scene.dim);
+    const std::string hit = find_intersection(m_contact->collision_mesh(), X, false);
     if (!hit.empty())
         return hit;
+    const std::string inside = find_containment(m_contact->collision_mesh(), X);
+    if (!inside.empty())
+        return inside + " (group k is body k, then obstacles in order)";
     if (!std::isfinite(m_contact->value(x)))
         return "a contact pair is at or below the minimum distance, or a vertex lies behind a plane obstacle";
     return "";

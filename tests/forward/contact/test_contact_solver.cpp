@@ -278,3 +278,44 @@ TEST(ContactSolver, FailedStepLeavesKappaUntouched)
     ASSERT_NE(status, StepStatus::CONVERGED) << "expected a failure at the impact";
     EXPECT_EQ(sim.contact()->kappa(), kappa);
 }
+
+TEST(ContactSolver, RejectsBodyInsideAnotherBody)
+{
+    // A small box entirely inside a larger one: no surfaces cross, yet the state is invalid.
+    json s = test::box_scene(3, { 1, 1, 1 }, { 2, 2, 2 });
+    json inner = s["bodies"][0];
+    inner["name"] = "inner";
+    inner["mesh"]["box"] = { { "min", { 0.4, 0.4, 0.4 } }, { "max", { 0.6, 0.6, 0.6 } }, { "cells", { 1, 1, 1 } } };
+    s["bodies"].push_back(inner);
+    s["contact"] = { { "dhat", 1e-3 } };
+    Simulator sim(test::make_scene(s));
+    EXPECT_EQ(sim.step(), StepStatus::INVALID_INITIAL_STATE);
+    EXPECT_NE(sim.trajectory().failure_message.find("inside"), std::string::npos) << sim.trajectory().failure_message;
+
+    // The same two boxes side by side are valid.
+    s["bodies"][1]["translation"] = { 1.0, 0, 0 };
+    Simulator ok(test::make_scene(s));
+    EXPECT_EQ(ok.step(), StepStatus::CONVERGED) << ok.trajectory().failure_message;
+}
+
+TEST(ContactSolver, RejectsRingInsideRing2D)
+{
+    json s;
+    s["dimension"] = 2;
+    auto ring = [](const std::string& name, double r0, double r1) {
+        return json { { "name", name },
+            { "mesh", { { "annulus", { { "inner_radius", r0 }, { "outer_radius", r1 }, { "segments", 16 } } } } },
+            { "material", { { "model", "neo_hookean" }, { "E", 1e5 }, { "nu", 0.3 }, { "density", 1000 } } } };
+    };
+    // The small ring sits in the hole of the large one (valid), then inside its material (invalid).
+    s["bodies"] = { ring("outer", 0.5, 1.0), ring("inner", 0.1, 0.2) };
+    s["contact"] = { { "dhat", 1e-3 } };
+    s["time"] = { { "integrator", "implicit_euler" }, { "dt", 0.01 }, { "steps", 1 } };
+    Simulator valid(test::make_scene(s));
+    EXPECT_EQ(valid.step(), StepStatus::CONVERGED) << valid.trajectory().failure_message;
+    s["bodies"][1]["mesh"]["annulus"]["inner_radius"] = 0.01;
+    s["bodies"][1]["mesh"]["annulus"]["outer_radius"] = 0.03;
+    s["bodies"][1]["translation"] = { 0.75, 0 };
+    Simulator invalid(test::make_scene(s));
+    EXPECT_EQ(invalid.step(), StepStatus::INVALID_INITIAL_STATE);
+}
