@@ -1,0 +1,287 @@
+#include "forward/contact/friction/friction_potential.hpp"
+
+#include "forward/contact/barrier.hpp"
+#include "forward/contact/contact_potential.hpp"
+#include "forward/contact/distance/distance.hpp"
+#include "forward/solver/sparse_assembler.hpp"
+
+#include <Eigen/Geometry>
+
+#include <cmath>
+#include <stdexcept>
+
+namespace diffipc {
+
+namespace {
+
+    Eigen::Vector3d point(const VectorXd& x, Index v, int dim)
+    {
+        Eigen::Vector3d p = Eigen::Vector3d::Zero();
+        p.head(dim) = x.segment(v * dim, dim);
+        return p;
+    }
+
+    /// Parameter of the projection of p onto the line through a, b (not clamped).
+    double line_parameter(const Eigen::Vector3d& p, const Eigen::Vector3d& a, const Eigen::Vector3d& b)
+    {
+        const Eigen::Vector3d e = b - a;
+        return (p - a).dot(e) / e.squaredNorm();
+    }
+
+    /// Closest points of the two lines (parameters along a and along b).
+    Eigen::Vector2d line_line_parameters(
+        const Eigen::Vector3d& a0, const Eigen::Vector3d& a1, const Eigen::Vector3d& b0, const Eigen::Vector3d& b1)
+    {
+        const Eigen::Vector3d u = a1 - a0, v = b1 - b0, w = a0 - b0;
+        const double a = u.dot(u), b = u.dot(v), c = v.dot(v), d = u.dot(w), e = v.dot(w);
+        const double D = a * c - b * b;
+        return { (b * e - c * d) / D, (a * e - b * d) / D };
+    }
+
+    /// Weights gamma with p - q = sum_i gamma_i x_i for the closest points of the
+    /// classified feature pair (the same classification as the barrier).
+    std::array<double, 4> closest_point_weights(const Contact& c, const VectorXd& x, int dim)
+    {
+        const auto& v = c.vertices;
+        switch (c.kind) {
+        case ContactKind::VERTEX_PLANE:
+            return { 1, -1, 0, 0 };
+        case ContactKind::VERTEX_EDGE: {
+            const auto type = PointEdgeDistanceType(c.distance_type);
+            if (type == PointEdgeDistanceType::P_E0)
+                return { 1, -1, 0, 0 };
+            if (type == PointEdgeDistanceType::P_E1)
+                return { 1, 0, -1, 0 };
+            const double a = line_parameter(point(x, v[0], dim), point(x, v[1], dim), point(x, v[2], dim));
+            return { 1, -(1 - a), -a, 0 };
+        }
+        case ContactKind::VERTEX_FACE: {
+            using PT = PointTriangleDistanceType;
+            const Eigen::Vector3d p = point(x, v[0], dim), t0 = point(x, v[1], dim), t1 = point(x, v[2], dim),
+                                  t2 = point(x, v[3], dim);
+            switch (PT(c.distance_type)) {
+            case PT::P_T0:
+                return { 1, -1, 0, 0 };
+            case PT::P_T1:
+                return { 1, 0, -1, 0 };
+            case PT::P_T2:
+                return { 1, 0, 0, -1 };
+            case PT::P_E0: {
+                const double a = line_parameter(p, t0, t1);
+                return { 1, -(1 - a), -a, 0 };
+            }
+            case PT::P_E1: {
+                const double a = line_parameter(p, t1, t2);
+                return { 1, 0, -(1 - a), -a };
+            }
+            case PT::P_E2: {
+                const double a = line_parameter(p, t2, t0);
+                return { 1, -a, 0, -(1 - a) };
+            }
+            case PT::P_T: {
+                // Barycentric coordinates of the projection of p onto the plane.
+                // q = t0 + b1 (t1 - t0) + b2 (t2 - t0); b1, b2 from ratios of signed areas.
+                const Eigen::Vector3d n = (t1 - t0).cross(t2 - t0);
+                const double nn = n.squaredNorm();
+                const double b1 = (p - t0).cross(t2 - t0).dot(n) / nn;
+                const double b2 = (t1 - t0).cross(p - t0).dot(n) / nn;
+                return { 1, -(1 - b1 - b2), -b1, -b2 };
+            }
+            }
+            break;
+        }
+        case ContactKind::EDGE_EDGE: {
+            using EE = EdgeEdgeDistanceType;
+            const Eigen::Vector3d a0 = point(x, v[0], dim), a1 = point(x, v[1], dim), b0 = point(x, v[2], dim),
+                                  b1 = point(x, v[3], dim);
+            switch (EE(c.distance_type)) {
+            case EE::EA0_EB0:
+                return { 1, 0, -1, 0 };
+            case EE::EA0_EB1:
+                return { 1, 0, 0, -1 };
+            case EE::EA1_EB0:
+                return { 0, 1, -1, 0 };
+            case EE::EA1_EB1:
+                return { 0, 1, 0, -1 };
+            case EE::EA_EB0: {
+                const double s = line_parameter(b0, a0, a1);
+                return { 1 - s, s, -1, 0 };
+            }
+            case EE::EA_EB1: {
+                const double s = line_parameter(b1, a0, a1);
+                return { 1 - s, s, 0, -1 };
+            }
+            case EE::EA0_EB: {
+                const double t = line_parameter(a0, b0, b1);
+                return { 1, 0, -(1 - t), -t };
+            }
+            case EE::EA1_EB: {
+                const double t = line_parameter(a1, b0, b1);
+                return { 0, 1, -(1 - t), -t };
+            }
+            case EE::EA_EB: {
+                const Eigen::Vector2d st = line_line_parameters(a0, a1, b0, b1);
+                return { 1 - st[0], st[0], -(1 - st[1]), -st[1] };
+            }
+            }
+            break;
+        }
+        }
+        throw std::logic_error("closest_point_weights: unknown contact");
+    }
+
+    /// Orthonormal columns spanning the plane normal to n (2D: one column).
+    Eigen::Matrix<double, 3, 2> tangent_basis(const Eigen::Vector3d& n, int dim)
+    {
+        Eigen::Matrix<double, 3, 2> T = Eigen::Matrix<double, 3, 2>::Zero();
+        if (dim == 2) {
+            T.col(0) << -n[1], n[0], 0;
+            return T;
+        }
+        Eigen::Index axis;
+        n.cwiseAbs().minCoeff(&axis);
+        const Eigen::Vector3d t0 = n.cross(Eigen::Vector3d::Unit(axis)).normalized();
+        T.col(0) = t0;
+        T.col(1) = n.cross(t0);
+        return T;
+    }
+
+} // namespace
+
+double FrictionPotential::f0(double y, double eps)
+{
+    if (y >= eps)
+        return y;
+    return -y * y * y / (3 * eps * eps) + y * y / eps + eps / 3;
+}
+
+double FrictionPotential::f1(double y, double eps)
+{
+    if (y >= eps)
+        return 1;
+    return -y * y / (eps * eps) + 2 * y / eps;
+}
+
+double FrictionPotential::f1_derivative(double y, double eps)
+{
+    if (y >= eps)
+        return 0;
+    return -2 * y / (eps * eps) + 2 / eps;
+}
+
+FrictionPotential::FrictionPotential(
+    int dim, std::vector<double> group_coefficient, VectorXi vertex_group, double eps_v)
+    : m_dim(dim)
+    , m_group_coefficient(std::move(group_coefficient))
+    , m_vertex_group(std::move(vertex_group))
+    , m_eps_v(eps_v)
+{
+}
+
+void FrictionPotential::set_step(const VectorXd& x_start, double dt)
+{
+    m_x_start = x_start;
+    m_eps = m_eps_v * dt;
+}
+
+void FrictionPotential::lag(const ContactPotential& contact, const VectorXd& x_lagged)
+{
+    m_contacts.clear();
+    const ContactSettings& s = contact.settings();
+    const double shat = barrier_activation(s.dhat, s.min_distance);
+    const double dmin2 = s.min_distance * s.min_distance;
+    for (const Contact& c : contact.contacts(x_lagged)) {
+        const int other = c.kind == ContactKind::EDGE_EDGE ? 2 : 1;
+        const double mu = std::sqrt(m_group_coefficient[size_t(m_vertex_group[c.vertices[0]])]
+            * m_group_coefficient[size_t(m_vertex_group[c.vertices[size_t(other)]])]);
+        if (!(mu > 0) || !(c.distance_squared > dmin2))
+            continue;
+        FrictionContact f;
+        f.kind = c.kind;
+        f.vertices = c.vertices;
+        f.num_vertices = c.num_vertices();
+        f.weights = closest_point_weights(c, x_lagged, m_dim);
+        Eigen::Vector3d r = Eigen::Vector3d::Zero();
+        for (int i = 0; i < f.num_vertices; ++i)
+            r += f.weights[size_t(i)] * point(x_lagged, f.vertices[size_t(i)], m_dim);
+        f.normal = c.kind == ContactKind::VERTEX_PLANE ? contact.planes()[size_t(c.plane)].normal : r.normalized();
+        f.tangent = tangent_basis(f.normal, m_dim);
+        // lambda = kappa m |d b / d d| = kappa m |b'(s)| 2 d, with s = d^2 - dmin^2.
+        const double d = std::sqrt(c.distance_squared);
+        double m = 1;
+        if (c.kind == ContactKind::EDGE_EDGE)
+            m = edge_edge_mollifier(point(x_lagged, c.vertices[0], m_dim), point(x_lagged, c.vertices[1], m_dim),
+                point(x_lagged, c.vertices[2], m_dim), point(x_lagged, c.vertices[3], m_dim), c.mollifier_threshold);
+        f.normal_force
+            = contact.kappa() * m * std::abs(barrier_first_derivative(c.distance_squared - dmin2, shat)) * 2 * d;
+        f.coefficient = mu;
+        if (f.normal_force > 0)
+            m_contacts.push_back(f);
+    }
+}
+
+Eigen::Vector2d FrictionPotential::tangential_displacement(const FrictionContact& c, const VectorXd& x) const
+{
+    Eigen::Vector3d dx = Eigen::Vector3d::Zero();
+    for (int i = 0; i < c.num_vertices; ++i) {
+        const Index v = c.vertices[size_t(i)];
+        dx.head(m_dim) += c.weights[size_t(i)] * (x.segment(v * m_dim, m_dim) - m_x_start.segment(v * m_dim, m_dim));
+    }
+    Eigen::Vector2d u = c.tangent.transpose() * dx;
+    if (m_dim == 2)
+        u[1] = 0;
+    return u;
+}
+
+double FrictionPotential::value(const VectorXd& x) const
+{
+    double sum = 0;
+    for (const FrictionContact& c : m_contacts)
+        sum += c.coefficient * c.normal_force * f0(tangential_displacement(c, x).norm(), m_eps);
+    return sum;
+}
+
+void FrictionPotential::add_gradient(const VectorXd& x, double weight, VectorXd& g) const
+{
+    for (const FrictionContact& c : m_contacts) {
+        const Eigen::Vector2d u = tangential_displacement(c, x);
+        const double y = u.norm();
+        // f1(y)/y stays finite as y -> 0 (2/eps); at y = 0 the gradient is zero anyway.
+        const double ratio = y > 0 ? f1(y, m_eps) / y : 0.0;
+        const Eigen::Vector3d force = weight * c.coefficient * c.normal_force * ratio * (c.tangent * u);
+        for (int i = 0; i < c.num_vertices; ++i)
+            g.segment(c.vertices[size_t(i)] * m_dim, m_dim) += c.weights[size_t(i)] * force.head(m_dim);
+    }
+}
+
+void FrictionPotential::add_hessian(const VectorXd& x, double weight, bool project_to_psd, SparseAssembler& H) const
+{
+    (void)project_to_psd; // PSD by construction (see the file comment)
+    for (const FrictionContact& c : m_contacts) {
+        const Eigen::Vector2d u = tangential_displacement(c, x);
+        const double y = u.norm();
+        // M = (f1/y) I + (d(f1/y)/dy) u u^T / y: for y < eps, 2/eps - y/eps^2 and -1/(eps^2 y);
+        // for y >= eps, 1/y and -1/y^3. Both PSD; the limit y -> 0 is (2/eps) I.
+        Eigen::Matrix2d M;
+        if (y < m_eps) {
+            M = (2 / m_eps - y / (m_eps * m_eps)) * Eigen::Matrix2d::Identity();
+            if (y > 0)
+                M -= u * u.transpose() / (m_eps * m_eps * y);
+        } else {
+            M = Eigen::Matrix2d::Identity() / y - u * u.transpose() / (y * y * y);
+        }
+        if (m_dim == 2) {
+            M(0, 1) = M(1, 0) = M(1, 1) = 0;
+        }
+        const Eigen::Matrix3d K3 = c.tangent * M * c.tangent.transpose();
+        const Eigen::MatrixXd K = weight * c.coefficient * c.normal_force * K3.topLeftCorner(m_dim, m_dim);
+        const int n = c.num_vertices * m_dim;
+        Eigen::MatrixXd local(n, n);
+        for (int i = 0; i < c.num_vertices; ++i)
+            for (int j = 0; j < c.num_vertices; ++j)
+                local.block(i * m_dim, j * m_dim, m_dim, m_dim) = c.weights[size_t(i)] * c.weights[size_t(j)] * K;
+        H.add_local(c.vertices.data(), c.num_vertices, local.data());
+    }
+}
+
+} // namespace diffipc

@@ -1,0 +1,169 @@
+// Finite-difference checks of the lagged friction potential for every contact
+// kind, at tangential displacements below, at and above eps, and its basic
+// properties (zero at rest, PSD, force opposing slip).
+
+#include "../../test_utils.hpp"
+
+#include "forward/contact/contact_potential.hpp"
+#include "forward/contact/friction/friction_potential.hpp"
+#include "forward/simulation/simulator.hpp"
+#include "forward/solver/sparse_assembler.hpp"
+
+#include <gtest/gtest.h>
+
+#include <Eigen/Eigenvalues>
+
+using namespace diffipc;
+using nlohmann::json;
+
+namespace {
+
+struct Errors {
+    double gradient = 0, hessian = 0, min_eigenvalue = 0;
+};
+
+/// Central differences of value -> gradient and gradient -> Hessian along random directions at x.
+Errors fd_check(const FrictionPotential& D, const Simulator& sim, const VectorXd& x, double h)
+{
+    const Index n = x.size();
+    VectorXd g = VectorXd::Zero(n);
+    D.add_gradient(x, 1.0, g);
+    SparseAssembler H;
+    H.build(sim.scene().dim, sim.mesh().num_vertices(), sim.mesh().elements);
+    H.set_zero();
+    D.add_hessian(x, 1.0, false, H);
+    H.finalize();
+    const MatrixXd Hd = MatrixXd(H.matrix()).selfadjointView<Eigen::Lower>();
+    // The Hessian's natural size, mu lambda / eps summed over contacts: in 2D beyond
+    // eps (|u| in 1D) the true Hessian is exactly zero, so errors are measured
+    // against this scale rather than against |H p|.
+    double scale = 0;
+    for (const auto& c : D.lagged())
+        scale += c.coefficient * c.normal_force / D.eps();
+    Errors e;
+    for (unsigned seed = 1; seed <= 4; ++seed) {
+        const VectorXd dir = test::random_vector(n, seed);
+        const double fd = (D.value(x + h * dir) - D.value(x - h * dir)) / (2 * h);
+        e.gradient = std::max(e.gradient, std::abs(fd - g.dot(dir)) / std::max(g.norm() * dir.norm(), 1e-300));
+        VectorXd gp = VectorXd::Zero(n), gm = VectorXd::Zero(n);
+        D.add_gradient(x + h * dir, 1.0, gp);
+        D.add_gradient(x - h * dir, 1.0, gm);
+        e.hessian = std::max(
+            e.hessian, ((gp - gm) / (2 * h) - Hd * dir).norm() / std::max((Hd * dir).norm(), scale * dir.norm()));
+    }
+    e.min_eigenvalue
+        = Eigen::SelfAdjointEigenSolver<MatrixXd>(Hd).eigenvalues().minCoeff() / std::max(Hd.norm(), scale);
+    return e;
+}
+
+/// Lagged friction at a resting contact state of scene s, then slides the
+/// first body tangentially by `slip` (m) along `direction`.
+void check_scene(const json& s, const VectorXd& direction, int expected_kinds_mask)
+{
+    Simulator sim(test::make_scene(s));
+    const int d = sim.scene().dim;
+    const VectorXd x0 = sim.positions();
+    std::vector<double> mu(sim.scene().bodies.size() + sim.scene().obstacles.size(), 0.5);
+    FrictionPotential D(d, mu, sim.mesh().vertex_body, /*eps_v=*/1e-3);
+    const double dt = 0.01;
+    D.set_step(x0, dt);
+    D.lag(*sim.contact(), x0);
+    ASSERT_FALSE(D.lagged().empty());
+    int mask = 0;
+    for (const auto& c : D.lagged())
+        mask |= 1 << int(c.kind);
+    EXPECT_EQ(mask & expected_kinds_mask, expected_kinds_mask) << "missing contact kinds: " << mask;
+    double at_rest = 0; // f0(0) = eps/3 per contact
+    for (const auto& c : D.lagged())
+        at_rest += c.coefficient * c.normal_force * D.eps() / 3;
+    EXPECT_NEAR(D.value(x0), at_rest, 1e-12 * at_rest);
+    const double eps = D.eps();
+    for (double slip : { 0.3 * eps, eps, 3 * eps, 30 * eps }) {
+        // Body 0 slides along `direction`, body 1 by half as much across it, so that no
+        // contact sits at u = 0 (there the gradient is C1 but not C2: |u| u / eps^2,
+        // and central differences of the Hessian converge only linearly).
+        VectorXd across = VectorXd::Zero(3);
+        across << -direction[2], 0, direction[0];
+        if (d == 2)
+            across << 0.3, 0, 0;
+        VectorXd x = x0;
+        for (Index v = 0; v < sim.scene().body_vertices; ++v) {
+            const VectorXd shift = sim.mesh().vertex_body[v] == 0 ? VectorXd(slip * direction.head(d))
+                                                                  : VectorXd(-0.5 * slip * across.head(d));
+            x.segment(v * d, d) += shift + 1e-3 * eps * test::random_vector(d, unsigned(v + 1));
+        }
+        // Steps well inside the smooth pieces; at y = eps, f1' jumps, so there only the gradient is checked tightly.
+        const double h = 1e-4 * eps;
+        const Errors e = fd_check(D, sim, x, h);
+        std::printf("  slip %.1f eps: gradient %.2e, Hessian %.2e, min eigenvalue / |H| %.2e\n", slip / eps, e.gradient,
+            e.hessian, e.min_eigenvalue);
+        EXPECT_LT(e.gradient, 1e-6) << "slip " << slip / eps << " eps";
+        if (slip != eps)
+            EXPECT_LT(e.hessian, 1e-5) << "slip " << slip / eps << " eps";
+        EXPECT_GT(e.min_eigenvalue, -1e-12);
+        // Friction dissipates: the force -g opposes the motion, g . (x - x0) > 0.
+        VectorXd g = VectorXd::Zero(x.size());
+        D.add_gradient(x, 1.0, g);
+        EXPECT_GT(g.dot(x - x0), 0);
+    }
+}
+
+} // namespace
+
+TEST(FrictionPotential, F0IsC1AndF1IsItsDerivative)
+{
+    const double eps = 1e-3;
+    for (double y : { 1e-6, 3e-4, 0.999e-3, 1.001e-3, 5e-3 }) {
+        const double h = 1e-9;
+        EXPECT_NEAR((FrictionPotential::f0(y + h, eps) - FrictionPotential::f0(y - h, eps)) / (2 * h),
+            FrictionPotential::f1(y, eps), 1e-6);
+        if (std::abs(y - eps) > 1e-6)
+            EXPECT_NEAR((FrictionPotential::f1(y + h, eps) - FrictionPotential::f1(y - h, eps)) / (2 * h),
+                FrictionPotential::f1_derivative(y, eps), 1e-4);
+    }
+    EXPECT_NEAR(FrictionPotential::f0(eps, eps), eps, 1e-18);
+    EXPECT_NEAR(FrictionPotential::f1(eps, eps), 1.0, 1e-15);
+}
+
+TEST(FrictionPotential, FiniteDifferences2DVertexEdgeAndPlane)
+{
+    json s;
+    s["dimension"] = 2;
+    auto box = [](const std::string& name, std::vector<double> lo, std::vector<double> hi) {
+        return json { { "name", name },
+            { "mesh", { { "box", { { "min", lo }, { "max", hi }, { "cells", { 2, 1 } } } } } },
+            { "material", { { "model", "neo_hookean" }, { "E", 1e5 }, { "nu", 0.3 }, { "density", 1000 } } } };
+    };
+    // Body 0 rests within dhat on body 1 (vertex-edge) and on a plane (vertex-plane) at its left end.
+    s["bodies"] = { box("top", { 0.25, 0.5004 }, { 1.25, 1.0 }), box("bottom", { 0, 0.0004 }, { 1, 0.5 }) };
+    s["obstacles"] = { { { "plane", { { "point", { 0, 0 } }, { "normal", { 0, 1 } } } } } };
+    s["contact"] = { { "dhat", 1e-3 }, { "kappa", 1e3 } };
+    s["time"] = { { "integrator", "implicit_euler" }, { "dt", 0.01 }, { "steps", 1 } };
+    Eigen::VectorXd dir(3);
+    dir << 1, 0, 0;
+    check_scene(s, dir, (1 << int(ContactKind::VERTEX_EDGE)) | (1 << int(ContactKind::VERTEX_PLANE)));
+}
+
+TEST(FrictionPotential, FiniteDifferences3DVertexFaceEdgeEdgeAndPlane)
+{
+    json s;
+    s["dimension"] = 3;
+    auto box = [](const std::string& name, std::vector<double> lo, std::vector<double> hi) {
+        return json { { "name", name },
+            { "mesh", { { "box", { { "min", lo }, { "max", hi }, { "cells", { 2, 1, 2 } } } } } },
+            { "material", { { "model", "neo_hookean" }, { "E", 1e5 }, { "nu", 0.3 }, { "density", 1000 } } } };
+    };
+    // Body 0 rotated about y sits within dhat on body 1 (vertex-face and edge-edge); body 1 on a plane.
+    s["bodies"]
+        = { box("top", { 0.1, 0.5005, 0.1 }, { 0.9, 1.0, 0.9 }), box("bottom", { 0, 0.0005, 0 }, { 1, 0.5, 1 }) };
+    s["bodies"][0]["rotation"] = { 0, 17, 0 };
+    s["bodies"][0]["translation"] = { 0.1, 0, -0.05 };
+    s["obstacles"] = { { { "plane", { { "point", { 0, 0, 0 } }, { "normal", { 0, 1, 0 } } } } } };
+    s["contact"] = { { "dhat", 1e-3 }, { "kappa", 1e3 } };
+    s["time"] = { { "integrator", "implicit_euler" }, { "dt", 0.01 }, { "steps", 1 } };
+    Eigen::VectorXd dir(3);
+    dir << 0.8, 0, 0.6;
+    check_scene(s, dir,
+        (1 << int(ContactKind::VERTEX_FACE)) | (1 << int(ContactKind::EDGE_EDGE))
+            | (1 << int(ContactKind::VERTEX_PLANE)));
+}
