@@ -102,6 +102,10 @@ void write_hdf5(const std::string& path, const Mesh& mesh, const Trajectory& tra
             ccd.push_back(s.phases.ccd);
             broad.push_back(s.phases.broad_phase);
         }
+        std::vector<double> friction_residual;
+        for (const auto& s : trajectory.steps)
+            friction_residual.push_back(s.friction_residual);
+        write_dataset(file, root, "friction_residual", { T }, friction_residual.data());
         write_dataset(file, root, "ccd_time", { T }, ccd.data());
         write_dataset(file, root, "broad_phase_time", { T }, broad.data());
         write_dataset(file, root, "min_distance", { T }, min_distance.data());

@@ -172,6 +172,47 @@ namespace {
         return out;
     }
 
+    double parse_local_friction(const JsonField& f)
+    {
+        f.require_object({ "coefficient" });
+        const double mu = f["coefficient"].number();
+        if (mu < 0)
+            f["coefficient"].fail("must be >= 0");
+        return mu;
+    }
+
+    void parse_friction(const JsonField& root, Scene& scene)
+    {
+        FrictionSpec& fr = scene.friction;
+        if (root.has("friction")) {
+            const JsonField f = root["friction"];
+            f.require_object({ "coefficient", "eps_v", "iterations", "policy" });
+            if (f.has("coefficient")) {
+                fr.coefficient = f["coefficient"].number();
+                if (fr.coefficient < 0)
+                    f["coefficient"].fail("must be >= 0");
+            }
+            if (f.has("eps_v"))
+                fr.eps_v = f["eps_v"].positive();
+            if (f.has("iterations"))
+                fr.iterations = f["iterations"].integer(1);
+            if (f.has("policy")) {
+                const std::string p = f["policy"].string();
+                if (p != "permissive" && p != "strict")
+                    f["policy"].fail("expected \"permissive\" or \"strict\"");
+                fr.strict = p == "strict";
+            }
+        }
+        bool any = fr.coefficient > 0;
+        for (const auto& b : scene.bodies)
+            any = any || b.friction_coefficient > 0;
+        for (const auto& o : scene.obstacles)
+            any = any || o.friction_coefficient > 0;
+        if (any && !scene.contact.enabled)
+            root[root.has("friction") ? "friction" : "bodies"].fail(
+                "friction needs contact (a \"contact\" block or obstacles)");
+    }
+
     void parse_contact(const JsonField& root, Scene& scene)
     {
         const Eigen::RowVectorXd extent
@@ -222,11 +263,13 @@ namespace {
         list.require_array();
         for (size_t i = 0; i < list.size(); ++i) {
             const JsonField f = list.at(i);
-            f.require_object({ "name", "plane", "mesh" });
+            f.require_object({ "name", "plane", "mesh", "friction" });
             if (f.has("plane") == f.has("mesh"))
                 f.fail("give exactly one of \"plane\" or \"mesh\"");
             ObstacleSpec o;
             o.field = f.path();
+            if (f.has("friction"))
+                o.friction_coefficient = parse_local_friction(f["friction"]);
             o.name = f.has("name") ? f["name"].string() : "obstacle" + std::to_string(i);
             const int group = int(scene.bodies.size() + i);
             Mesh mesh;
@@ -284,7 +327,7 @@ Scene parse_scene(const nlohmann::json& document, const std::string& base_direct
     scene.source = source;
     const JsonField root(document, "");
     root.require_object({ "dimension", "bodies", "gravity", "dirichlet", "neumann", "time", "mass", "solver", "output",
-        "description", "contact", "obstacles" });
+        "description", "contact", "obstacles", "friction" });
     if (root.has("description"))
         root["description"].string();
 
@@ -301,7 +344,7 @@ Scene parse_scene(const nlohmann::json& document, const std::string& base_direct
     for (size_t b = 0; b < bodies.size(); ++b) {
         const JsonField bf = bodies.at(b);
         bf.require_object(
-            { "name", "mesh", "material", "initial_velocity", "translation", "rotation", "self_contact" });
+            { "name", "mesh", "material", "initial_velocity", "translation", "rotation", "self_contact", "friction" });
         BodySpec body;
         body.name = bf.has("name") ? bf["name"].string() : "body" + std::to_string(b);
         for (const auto& other : scene.bodies)
@@ -310,6 +353,8 @@ Scene parse_scene(const nlohmann::json& document, const std::string& base_direct
         body.material = parse_material(bf["material"]);
         body.initial_velocity = bf.has("initial_velocity") ? bf["initial_velocity"].vector(dim) : VectorXd::Zero(dim);
         body.translation = bf.has("translation") ? bf["translation"].vector(dim) : VectorXd::Zero(dim);
+        if (bf.has("friction"))
+            body.friction_coefficient = parse_local_friction(bf["friction"]);
         self_contact_fields.push_back(
             bf.has("self_contact") ? std::optional<bool>(bf["self_contact"].boolean()) : std::nullopt);
         Mesh mesh = parse_mesh(bf["mesh"], dim, base_directory, body.mesh_source);
@@ -337,6 +382,7 @@ Scene parse_scene(const nlohmann::json& document, const std::string& base_direct
     for (size_t b = 0; b < scene.bodies.size(); ++b)
         scene.bodies[b].self_contact = self_contact_fields[b].value_or(scene.contact.self_contact);
     parse_obstacles(root, base_directory, scene);
+    parse_friction(root, scene);
 
     scene.gravity = root.has("gravity") ? root["gravity"].vector(dim) : VectorXd::Zero(dim);
 

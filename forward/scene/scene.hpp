@@ -37,6 +37,7 @@ struct BoxRegion {
 struct BodySpec {
     std::string name;
     bool self_contact = true; ///< may this body touch itself (when contact is enabled)?
+    double friction_coefficient = -1; ///< mu of this body; < 0: the global one
     std::string mesh_source; ///< "box" or the resolved file path
     MaterialSpec material;
     VectorXd initial_velocity; ///< dim (m/s)
@@ -86,6 +87,14 @@ struct ContactSpec {
     double ccd_rescaling = 0.9; ///< conservative rescaling s of the additive CCD
 };
 
+/// Friction (docs/scene_format.md "friction"); needs contact.
+struct FrictionSpec {
+    double coefficient = 0; ///< global mu; bodies and obstacles may override it
+    double eps_v = 1e-3; ///< m/s, slip speed below which friction is smoothed
+    int iterations = 1; ///< lagging iterations (Newton solves) per step
+    bool strict = false; ///< FRICTION_EXHAUSTED if lagging has not converged after `iterations`
+};
+
 enum class ObstacleType { PLANE, MESH };
 
 /// A kinematic obstacle: its vertices are appended to the mesh after the bodies'
@@ -99,6 +108,7 @@ struct ObstacleSpec {
     std::vector<Expression> motion;
     Index first_vertex = 0; ///< index of its first vertex in Scene::mesh
     Index num_vertices = 0; ///< 1 for a plane (its point)
+    double friction_coefficient = -1; ///< mu of this obstacle; < 0: the global one
     std::string field;
 };
 
@@ -122,6 +132,7 @@ struct Scene {
     MassType mass = MassType::LUMPED;
     SolverSpec solver;
     ContactSpec contact;
+    FrictionSpec friction;
     std::vector<ObstacleSpec> obstacles;
     OutputSpec output;
     std::string source; ///< file name, or "<dict>"

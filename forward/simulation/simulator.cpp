@@ -52,8 +52,10 @@ Simulator::Simulator(Scene scene)
     m_problem.add(m_elastic.get(), w);
     m_problem.add(m_external.get(), w);
     m_assembler.build(d, mesh.num_vertices(), mesh.elements);
-    if (m_scene.contact.enabled)
+    if (m_scene.contact.enabled) {
         setup_contact();
+        setup_friction();
+    }
     m_linear = std::make_unique<LinearSolver>(m_scene.solver.linear_solver);
 
     // Dirichlet dofs: later entries override earlier ones on the same dof.
@@ -239,6 +241,34 @@ double Simulator::balancing_kappa(const VectorXd& x) const
     return initial_barrier_stiffness(grad_barrier.dot(grad_energy) / w, grad_barrier.squaredNorm(), m_kappa_min);
 }
 
+void Simulator::setup_friction()
+{
+    const FrictionSpec& spec = m_scene.friction;
+    std::vector<double> mu;
+    bool any = false;
+    for (const BodySpec& b : m_scene.bodies)
+        mu.push_back(b.friction_coefficient >= 0 ? b.friction_coefficient : spec.coefficient);
+    for (const ObstacleSpec& o : m_scene.obstacles)
+        mu.push_back(o.friction_coefficient >= 0 ? o.friction_coefficient : spec.coefficient);
+    for (double m : mu)
+        any = any || m > 0;
+    if (!any)
+        return; // zero coefficients: no friction work at all
+    m_friction = std::make_unique<FrictionPotential>(m_scene.dim, mu, m_scene.mesh.vertex_body, spec.eps_v);
+    m_problem.add(m_friction.get(), m_integrator->potential_weight());
+}
+
+double Simulator::force_residual(const VectorXd& x) const
+{
+    VectorXd g;
+    m_problem.gradient(x, g);
+    double gmax = 0;
+    for (Index i = 0; i < g.size(); ++i)
+        if (!m_constrained[size_t(i)])
+            gmax = std::max(gmax, std::abs(g[i]));
+    return gmax / (m_integrator->potential_weight() * m_force_scale);
+}
+
 void Simulator::update_kappa_for_step(const VectorXd& x)
 {
     if (!m_scene.contact.adaptive_kappa)
@@ -359,9 +389,40 @@ StepStatus Simulator::step()
             return record.status;
         }
         update_kappa_for_step(x);
+        if (m_friction) {
+            m_problem.set_weight(m_friction.get(), w);
+            m_friction->set_step(x, m_scene.time.dt);
+            m_friction->lag(*m_contact, x);
+        }
     }
     const double step_scale = m_integrator->dynamic() ? m_scene.time.dt : m_bbox_diagonal;
-    const NewtonResult result = newton.solve(x, target, m_constrained, w * m_force_scale, step_scale);
+    NewtonResult result = newton.solve(x, target, m_constrained, w * m_force_scale, step_scale);
+    if (m_friction && result.status == StepStatus::CONVERGED) {
+        // Lagging: refresh normal forces, tangents and weights at the converged state and
+        // solve again, up to `iterations` solves; the residual of the re-lagged problem
+        // at the converged state says whether the lagged data describes it.
+        record.friction_iterations = 1;
+        for (;;) {
+            std::vector<FrictionContact> used = m_friction->lagged();
+            m_friction->lag(*m_contact, x);
+            record.friction_residual = force_residual(x);
+            record.friction_converged = record.friction_residual <= settings.residual_tolerance;
+            if (record.friction_converged || record.friction_iterations >= m_scene.friction.iterations) {
+                record.friction = std::move(used);
+                break;
+            }
+            NewtonResult again = newton.solve(x, target, m_constrained, w * m_force_scale, step_scale);
+            ++record.friction_iterations;
+            again.iterations += result.iterations;
+            again.linear_fallbacks += result.linear_fallbacks;
+            again.times += result.times;
+            result = again;
+            if (result.status != StepStatus::CONVERGED)
+                break;
+        }
+        if (result.status == StepStatus::CONVERGED && !record.friction_converged && m_scene.friction.strict)
+            result.status = StepStatus::FRICTION_EXHAUSTED;
+    }
 
     record.status = result.status;
     record.newton_iterations = result.iterations;

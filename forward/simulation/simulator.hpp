@@ -33,6 +33,8 @@ public:
     const ElasticPotential& elastic() const { return *m_elastic; }
     /// The barrier potential, or nullptr when the scene has no contact.
     const ContactPotential* contact() const { return m_contact.get(); }
+    /// The friction potential, or nullptr when no coefficient is positive.
+    const FrictionPotential* friction() const { return m_friction.get(); }
     double bbox_diagonal() const { return m_bbox_diagonal; }
 
     /// @brief Attempts the next time step. On CONVERGED the step is committed
@@ -66,6 +68,9 @@ public:
 private:
     void dirichlet_targets(double t, VectorXd& x) const;
     void setup_contact();
+    void setup_friction();
+    /// max |free-dof gradient| / (w f_s) at x.
+    double force_residual(const VectorXd& x) const;
     /// Adaptive kappa at the start of a step (docs/math.md "Barrier stiffness").
     void update_kappa_for_step(const VectorXd& x);
     /// IPC's balancing stiffness -(grad B . grad E) / (w |grad B|^2), clamped.
@@ -79,6 +84,7 @@ private:
     std::unique_ptr<InertiaPotential> m_inertia;
     std::unique_ptr<ExternalForcePotential> m_external;
     std::unique_ptr<ContactPotential> m_contact;
+    std::unique_ptr<FrictionPotential> m_friction;
     double m_kappa_min = 0;
     Problem m_problem;
     SparseAssembler m_assembler;

@@ -6,6 +6,7 @@
 
 #include "forward/common/types.hpp"
 #include "forward/contact/contact_set.hpp"
+#include "forward/contact/friction/friction_potential.hpp"
 #include "forward/solver/status.hpp"
 
 #include <limits>
@@ -39,6 +40,15 @@ struct StepRecord {
     int active_contacts = 0; ///< pairs closer than dmin + dhat at the converged state
     double kappa = 0; ///< barrier stiffness at the end of this step (adaptive kappa may grow within a step)
     ContactSet contacts; ///< the active contacts at the converged state
+
+    // Friction (when some coefficient is positive).
+    /// The lagged friction data of the last Newton solve (the converged state satisfies its equations).
+    std::vector<FrictionContact> friction;
+    /// Force residual (as `residual`) of the problem re-lagged at the converged state:
+    /// how far the lagged data is from the state it describes.
+    double friction_residual = 0;
+    int friction_iterations = 0; ///< Newton solves (lagging iterations) taken
+    bool friction_converged = true; ///< friction_residual <= the residual tolerance
 };
 
 /// A run: the initial state and every committed step, in order.

@@ -32,6 +32,9 @@ NewtonResult NewtonSolver::solve(VectorXd& x, const VectorXd& target, const std:
         result.status = StepStatus::INVALID_INITIAL_STATE;
         return result;
     }
+    // Round-off of energy differences scales with the terms, not with their
+    // (possibly cancelling) sum.
+    const double magnitude = m_problem.energy_magnitude(x);
 
     for (int it = 0;; ++it) {
         {
@@ -153,10 +156,11 @@ NewtonResult NewtonSolver::solve(VectorXd& x, const VectorXd& target, const std:
         bool accepted = false;
         double new_energy = energy;
         // Differences below this are round-off in the energy sum.
-        const double roundoff = 1e-13 * std::abs(energy);
+        const double roundoff = 1e-13 * std::max(std::abs(energy), magnitude);
         // Near the solution the predicted decrease can drop below what the energy
         // sum resolves; there a full step is judged by the free-dof gradient instead.
-        const bool unresolvable = !lifting && std::abs(alpha * slope) < ENERGY_RESOLUTION * std::abs(energy);
+        const bool unresolvable
+            = !lifting && std::abs(alpha * slope) < ENERGY_RESOLUTION * std::max(std::abs(energy), magnitude);
         for (int h = 0; h <= m_settings.line_search_max_halvings && alpha > 0; ++h, alpha *= 0.5) {
             trial = x + alpha * p;
             new_energy = m_problem.energy(trial);

@@ -1,6 +1,7 @@
 #include "forward/solver/problem.hpp"
 
 #include <algorithm>
+#include <cmath>
 #include <stdexcept>
 
 namespace diffipc {
@@ -29,6 +30,15 @@ double Problem::energy(const VectorXd& x) const
     for (const auto& t : m_terms)
         if (t.weight != 0)
             e += t.weight * t.potential->value(x);
+    return e;
+}
+
+double Problem::energy_magnitude(const VectorXd& x) const
+{
+    double e = 0;
+    for (const auto& t : m_terms)
+        if (t.weight != 0)
+            e += std::abs(t.weight * t.potential->value(x));
     return e;
 }
 
