@@ -314,4 +314,13 @@ MatrixXd element_hessian(
                             : element_hessian_impl<3>(model, rest, deformed, mu, lambda, project_to_psd);
 }
 
+double ElasticPotential::value_scale(const VectorXd& x) const
+{
+    (void)x;
+    double scale = 0;
+    for (Index e = 0; e < m_space.num_elements(); ++e)
+        scale += m_space.rest_volume(e) * (m_mu[e] + std::abs(m_lambda[e])) * m_space.dim();
+    return scale;
+}
+
 } // namespace diffipc

@@ -7,6 +7,7 @@
 
 #include "forward/common/types.hpp"
 
+#include <cmath>
 #include <string>
 
 namespace diffipc {
@@ -20,6 +21,9 @@ public:
 
     /// @brief Energy at x (J); +inf where undefined (an inverted element).
     virtual double value(const VectorXd& x) const = 0;
+    /// @brief Size of the terms that value(x) sums and cancels (J): its round-off
+    /// is about machine epsilon times this. Default |value(x)|.
+    virtual double value_scale(const VectorXd& x) const { return std::abs(value(x)); }
     /// @brief Adds weight * dE/dx to g (length #V*dim).
     virtual void add_gradient(const VectorXd& x, double weight, VectorXd& g) const = 0;
     /// @brief Adds weight * d2E/dx2 into the assembler's pattern; with

@@ -38,7 +38,7 @@ double Problem::energy_magnitude(const VectorXd& x) const
     double e = 0;
     for (const auto& t : m_terms)
         if (t.weight != 0)
-            e += std::abs(t.weight * t.potential->value(x));
+            e += std::abs(t.weight) * t.potential->value_scale(x);
     return e;
 }
 

@@ -18,8 +18,8 @@ public:
     double weight(const Potential* potential) const;
 
     double energy(const VectorXd& x) const;
-    /// sum_k |w_k E_k(x)|: the size of the terms whose sum is energy(x); the
-    /// round-off of the energy is relative to this, not to |E| (which can cancel to ~0).
+    /// sum_k |w_k| scale_k(x) (Potential::value_scale): the size of the terms whose sum is
+    /// energy(x); its round-off is relative to this, not to |E| (which can cancel to ~0).
     double energy_magnitude(const VectorXd& x) const;
     void gradient(const VectorXd& x, VectorXd& g) const;
     /// Assembles the (projected or true) Hessian into H's fixed pattern (H is zeroed first).
