@@ -317,6 +317,27 @@ VectorXd Simulator::external_forces(double t) const
     return f;
 }
 
+void Simulator::set_initial_state(const VectorXd& positions, const VectorXd& velocities)
+{
+    const Index n = m_scene.mesh.num_dofs();
+    if (steps_done() > 0)
+        throw InputError("initial_state", "the initial state can only be set before the first step");
+    if (positions.size() != n || velocities.size() != n)
+        throw InputError("initial_state", "expected " + std::to_string(n) + " positions and velocities (#V*dim)");
+    if (!positions.allFinite() || !velocities.allFinite())
+        throw InputError("initial_state", "non-finite value");
+    VectorXd x = positions, v = velocities;
+    for (Index i = 0; i < n; ++i)
+        if (m_constrained[size_t(i)]) {
+            x[i] = m_integrator->positions()[i];
+            v[i] = m_integrator->velocities()[i];
+        }
+    const VectorXd a = m_integrator->accelerations();
+    m_integrator->initialize(x, v, a);
+    m_trajectory.initial_positions = x;
+    m_trajectory.initial_velocities = v;
+}
+
 void Simulator::set_element_materials(const VectorXd& youngs_modulus, const VectorXd& poisson_ratio)
 {
     const Index ne = m_space->num_elements();

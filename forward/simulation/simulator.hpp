@@ -61,6 +61,12 @@ public:
     /// Dirichlet flags per dof.
     const std::vector<char>& constrained() const { return m_constrained; }
 
+    /// @brief Replaces the initial state (before the first step): positions and
+    /// velocities of all #V*dim dofs; prescribed dofs (Dirichlet, obstacles) keep
+    /// their own values. Newmark's a0 is not recomputed (it stays the scene's).
+    /// @throws InputError("initial_state", ...) for wrong sizes, non-finite values or after a step.
+    void set_initial_state(const VectorXd& positions, const VectorXd& velocities);
+
     /// @brief Per-element Young's modulus and Poisson's ratio (#E each);
     /// only before the first step.
     void set_element_materials(const VectorXd& youngs_modulus, const VectorXd& poisson_ratio);

@@ -127,3 +127,65 @@ TEST(FrictionScenes, InclinedPlaneSticking3D)
     check_sticking(3, 1e-3);
     check_sticking(3, 1e-2);
 }
+
+namespace {
+
+/// Total mechanical energy: kinetic + gravitational + elastic + barrier (the contact's
+/// stored energy, kappa sum b) (J, per unit thickness in 2D).
+double mechanical_energy(const Simulator& sim, const VectorXd& x, const VectorXd& v, const VectorXd& gravity)
+{
+    const int d = sim.scene().dim;
+    VectorXd density(sim.mesh().num_elements());
+    for (Index e = 0; e < density.size(); ++e)
+        density[e] = sim.scene().bodies[size_t(sim.mesh().element_body[e])].material.density;
+    const VectorXd m = sim.space().lumped_masses(density);
+    double energy = sim.elastic().value(x) + sim.contact()->value(x);
+    for (Index i = 0; i < sim.scene().body_vertices; ++i)
+        energy += 0.5 * m[i] * v.segment(i * d, d).squaredNorm() - m[i] * gravity.dot(x.segment(i * d, d));
+    return energy;
+}
+
+/// A block settled on a horizontal plane (its resting gap found by a first run).
+json settled_block(int dim, double mu, double dt, int steps)
+{
+    json s = block_on_incline(dim, 0.0, mu, dt, steps);
+    s["friction"]["iterations"] = 5;
+    return s;
+}
+
+} // namespace
+
+TEST(FrictionScenes, StoppingDistanceAndEnergyDecay)
+{
+    for (int dim : { 2, 3 }) {
+        const double mu = 0.5, v0 = 1.0, dt = 1e-3;
+        const double expected = v0 * v0 / (2 * mu * G); // 0.102 m
+        const int steps = int(1.3 * v0 / (mu * G) / dt); // 30% past the stopping time
+        // Settle at rest first, so the block starts on its barrier equilibrium gap.
+        Simulator settle(test::make_scene(settled_block(dim, mu, dt, 100)));
+        settle.run();
+        ASSERT_EQ(settle.trajectory().final_status, StepStatus::CONVERGED);
+        Simulator sim(test::make_scene(settled_block(dim, mu, dt, steps)));
+        VectorXd v = VectorXd::Zero(sim.positions().size());
+        for (Index i = 0; i < sim.scene().body_vertices; ++i)
+            v[i * dim] = v0;
+        sim.set_initial_state(settle.positions(), v);
+        VectorXd gravity = VectorXd::Zero(dim);
+        gravity[1] = -G;
+        const VectorXd x_start = sim.positions();
+        double energy = mechanical_energy(sim, sim.positions(), sim.velocities(), gravity);
+        for (int k = 1; k <= steps; ++k) {
+            ASSERT_EQ(sim.step(), StepStatus::CONVERGED) << sim.trajectory().failure_message;
+            const double e = mechanical_energy(sim, sim.positions(), sim.velocities(), gravity);
+            // Never increases (a round-off allowance of 1e-9 of the initial kinetic energy).
+            EXPECT_LE(e, energy + 1e-9 * 0.5 * v0 * v0) << dim << "D step " << k;
+            energy = e;
+        }
+        double distance = 0;
+        for (Index i = 0; i < sim.scene().body_vertices; ++i)
+            distance += (sim.positions()[i * dim] - x_start[i * dim]) / double(sim.scene().body_vertices);
+        std::printf("  %dD: stopping distance %.5f m, closed form %.5f m, error %.2f%%\n", dim, distance, expected,
+            100 * std::abs(distance / expected - 1));
+        EXPECT_LT(std::abs(distance / expected - 1), 0.02);
+    }
+}
