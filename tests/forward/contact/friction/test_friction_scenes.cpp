@@ -189,3 +189,83 @@ TEST(FrictionScenes, StoppingDistanceAndEnergyDecay)
         EXPECT_LT(std::abs(distance / expected - 1), 0.02);
     }
 }
+
+TEST(FrictionScenes, DiskRollsDownASlopeWithTheRollingAcceleration)
+{
+    // A stiff 2D disk (64 boundary segments; a pin-hole of 2% of the radius at its
+    // centre, as the annulus generator needs one) on a 30 degree slope with mu = 0.5,
+    // enough to roll without slipping (mu >= tan(theta) / 3).
+    const double theta = 30 * M_PI / 180, R = 0.1, r0 = 0.002, dt = 1e-3;
+    auto scene = [&](std::vector<double> g, int steps) {
+        json s;
+        s["dimension"] = 2;
+        s["bodies"] = { { { "name", "disk" },
+            { "mesh",
+                { { "annulus",
+                    { { "center", { 0, R + 5e-5 } }, { "inner_radius", r0 }, { "outer_radius", R }, { "segments", 64 },
+                        { "layers", 6 } } } } },
+            { "material", { { "model", "neo_hookean" }, { "E", 1e8 }, { "nu", 0.3 }, { "density", 1000 } } } } };
+        s["gravity"] = g;
+        s["obstacles"] = { { { "plane", { { "point", { 0, 0 } }, { "normal", { 0, 1 } } } } } };
+        s["contact"] = { { "dhat", 1e-4 } };
+        s["friction"] = { { "coefficient", 0.5 }, { "eps_v", 1e-3 }, { "iterations", 5 } };
+        s["time"] = { { "integrator", "implicit_euler" }, { "dt", dt }, { "steps", steps } };
+        s["solver"] = { { "residual_tolerance", 1e-8 } };
+        return s;
+    };
+    // Settle under the normal component of gravity, then tilt.
+    Simulator settle(test::make_scene(scene({ 0, -G * std::cos(theta) }, 60)));
+    settle.run();
+    ASSERT_EQ(settle.trajectory().final_status, StepStatus::CONVERGED) << settle.trajectory().failure_message;
+    const int steps = 200;
+    Simulator sim(test::make_scene(scene({ G * std::sin(theta), -G * std::cos(theta) }, steps)));
+    sim.set_initial_state(settle.positions(), VectorXd::Zero(settle.positions().size()));
+    std::vector<double> v(size_t(steps) + 1, 0.0);
+    for (int k = 1; k <= steps; ++k) {
+        ASSERT_EQ(sim.step(), StepStatus::CONVERGED) << sim.trajectory().failure_message;
+        v[size_t(k)] = slope_velocity(sim, sim.velocities());
+    }
+    const int k0 = steps / 2;
+    const double a = (v[size_t(steps)] - v[size_t(k0)]) / ((steps - k0) * dt);
+    const double solid = 2.0 / 3.0 * G * std::sin(theta);
+    const double annulus = G * std::sin(theta) / (1 + (R * R + r0 * r0) / (2 * R * R));
+    // Rolling, not sliding: the contact point's tangential speed is small. Compare
+    // with frictionless sliding (g sin theta) to make sure friction acted.
+    std::printf("  a = %.4f m/s^2; solid disk (2/3) g sin(theta) = %.4f (error %.2f%%), annulus %.4f, sliding %.4f\n", a,
+        solid, 100 * std::abs(a / solid - 1), annulus, G * std::sin(theta));
+    EXPECT_LT(std::abs(a / solid - 1), 0.05);
+}
+
+TEST(FrictionScenes, ConveyorPlaneDragsARestingBlock)
+{
+    // The plane's point moves along x at 0.5 m/s from t = 0; the block resting on it is
+    // dragged by friction (mu = 0.5: the belt accelerates it at up to mu g until it
+    // rides along) and ends moving with the belt.
+    for (int dim : { 2, 3 }) {
+        json s = settled_block(dim, 0.5, 1e-3, 300);
+        s["obstacles"][0]["plane"]["motion"] = dim == 2 ? json { "0.5*t", 0 } : json { "0.5*t", 0, 0 };
+        Simulator settle(test::make_scene(settled_block(dim, 0.5, 1e-3, 60)));
+        settle.run();
+        ASSERT_EQ(settle.trajectory().final_status, StepStatus::CONVERGED);
+        Simulator sim(test::make_scene(s));
+        VectorXd x = settle.positions();
+        sim.set_initial_state(x, VectorXd::Zero(x.size()));
+        sim.run();
+        ASSERT_EQ(sim.trajectory().final_status, StepStatus::CONVERGED) << sim.trajectory().failure_message;
+        const double v = slope_velocity(sim, sim.velocities());
+        std::printf("  %dD: block speed after 0.3 s %.4f m/s (belt 0.5 m/s; reaches it after 0.5/(mu g) = %.3f s)\n",
+            dim, v, 0.5 / (0.5 * G));
+        EXPECT_NEAR(v, 0.5, 0.01);
+    }
+}
+
+TEST(FrictionScenes, ZeroCoefficientBuildsNoFriction)
+{
+    json s = block_on_incline(2, 0.3, 0.0, 1e-3, 1);
+    Simulator sim(test::make_scene(s));
+    EXPECT_NE(sim.contact(), nullptr);
+    EXPECT_EQ(sim.friction(), nullptr);
+    s["bodies"][0]["friction"] = { { "coefficient", 0.4 } };
+    Simulator with_body_mu(test::make_scene(s));
+    EXPECT_NE(with_body_mu.friction(), nullptr);
+}
