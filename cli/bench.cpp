@@ -47,7 +47,7 @@ namespace {
     }
 
     /// A ~20k-tet contact scene: a soft slab dropped on a clamped one.
-    nlohmann::json contact_slabs(bool full, int steps)
+    nlohmann::json contact_slabs(bool full, int steps, double friction)
     {
         const int n = full ? 1 : 0;
         auto slab = [](const std::string& name, std::vector<double> lo, std::vector<double> hi, std::vector<int> cells,
@@ -71,6 +71,8 @@ namespace {
         s["contact"] = { { "dhat", 1e-3 }, { "kappa", "adaptive" } };
         s["time"] = { { "integrator", "implicit_euler" }, { "dt", 0.005 }, { "steps", steps } };
         s["solver"] = { { "residual_tolerance", 1e-6 } };
+        if (friction > 0)
+            s["friction"] = { { "coefficient", friction } };
         return s;
     }
 
@@ -89,9 +91,10 @@ namespace {
     int run_contact_bench(const BenchOptions& options)
     {
         const bool full = options.size == "full";
-        Simulator sim(parse_scene(contact_slabs(full, options.steps), ".", "contact-slabs"));
-        std::printf("contact-slabs (%s): %ld vertices, %ld elements, %ld dofs, %d steps (first is warm-up)\n",
-            options.size.c_str(), long(sim.mesh().num_vertices()), long(sim.mesh().num_elements()),
+        Simulator sim(parse_scene(contact_slabs(full, options.steps, options.friction), ".", "contact-slabs"));
+        std::printf(
+            "contact-slabs (%s, friction %g): %ld vertices, %ld elements, %ld dofs, %d steps (first is warm-up)\n",
+            options.size.c_str(), options.friction, long(sim.mesh().num_vertices()), long(sim.mesh().num_elements()),
             long(sim.mesh().num_dofs()), options.steps);
         if (sim.step() != StepStatus::CONVERGED) {
             std::printf("  warm-up step failed: %s\n", sim.trajectory().failure_message.c_str());

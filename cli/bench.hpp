@@ -10,6 +10,7 @@ struct BenchOptions {
     /// scenes: the full contact studies (studies/2xx) run to the end with exact checks
     std::string suite = "forward";
     std::string source_dir = "."; ///< repository root (for the studies)
+    double friction = 0; ///< contact suite: friction coefficient of the slabs (0: frictionless)
 };
 
 /// Runs the fixed benchmark scenes and prints per-phase timings; returns an exit code.

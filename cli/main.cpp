@@ -116,6 +116,8 @@ int main(int argc, char** argv)
     bench_cmd->add_option("--suite", bench_options.suite, "forward | contact | scenes")
         ->check(CLI::IsMember({ "forward", "contact", "scenes" }));
     bench_cmd->add_option("--source-dir", bench_options.source_dir, "repository root, where studies/ lives");
+    bench_cmd->add_option("--friction", bench_options.friction, "contact suite: friction coefficient (0: none)")
+        ->check(CLI::NonNegativeNumber);
 
     try {
         app.parse(argc, argv);

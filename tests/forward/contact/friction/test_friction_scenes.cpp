@@ -231,8 +231,8 @@ TEST(FrictionScenes, DiskRollsDownASlopeWithTheRollingAcceleration)
     const double annulus = G * std::sin(theta) / (1 + (R * R + r0 * r0) / (2 * R * R));
     // Rolling, not sliding: the contact point's tangential speed is small. Compare
     // with frictionless sliding (g sin theta) to make sure friction acted.
-    std::printf("  a = %.4f m/s^2; solid disk (2/3) g sin(theta) = %.4f (error %.2f%%), annulus %.4f, sliding %.4f\n", a,
-        solid, 100 * std::abs(a / solid - 1), annulus, G * std::sin(theta));
+    std::printf("  a = %.4f m/s^2; solid disk (2/3) g sin(theta) = %.4f (error %.2f%%), annulus %.4f, sliding %.4f\n",
+        a, solid, 100 * std::abs(a / solid - 1), annulus, G * std::sin(theta));
     EXPECT_LT(std::abs(a / solid - 1), 0.05);
 }
 
