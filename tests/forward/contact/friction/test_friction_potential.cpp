@@ -167,3 +167,56 @@ TEST(FrictionPotential, FiniteDifferences3DVertexFaceEdgeEdgeAndPlane)
         (1 << int(ContactKind::VERTEX_FACE)) | (1 << int(ContactKind::EDGE_EDGE))
             | (1 << int(ContactKind::VERTEX_PLANE)));
 }
+
+TEST(FrictionPotential, ClosestPointWeightsReproduceTheDistance)
+{
+    // For every lagged contact, r = sum_i gamma_i x_i is the vector between the
+    // closest points: |r| must equal the classified distance and r must be along
+    // the stored normal. Slides a box over another in small steps so that vertices
+    // cross edges and corners (every point-triangle and edge-edge type appears).
+    json s;
+    s["dimension"] = 3;
+    auto box = [](const std::string& name, std::vector<double> lo, std::vector<double> hi, std::vector<int> cells) {
+        return json { { "name", name }, { "mesh", { { "box", { { "min", lo }, { "max", hi }, { "cells", cells } } } } },
+            { "material", { { "model", "neo_hookean" }, { "E", 1e5 }, { "nu", 0.3 }, { "density", 1000 } } } };
+    };
+    s["bodies"] = { box("top", { 0.3, 0.5004, 0.3 }, { 0.7, 0.7, 0.7 }, { 1, 1, 1 }),
+        box("bottom", { 0, 0, 0 }, { 1, 0.5, 1 }, { 2, 1, 2 }) };
+    s["bodies"][0]["rotation"] = { 0, 11, 0 };
+    s["contact"] = { { "dhat", 1e-3 }, { "kappa", 1e3 } };
+    s["time"] = { { "integrator", "implicit_euler" }, { "dt", 0.01 }, { "steps", 1 } };
+    Simulator sim(test::make_scene(s));
+    const int d = 3;
+    FrictionPotential D(d, std::vector<double>(2, 0.5), sim.mesh().vertex_body, 1e-3);
+    std::set<std::pair<int, int>> seen;
+    int checked = 0;
+    for (double shift = -0.45; shift <= 0.45; shift += 0.0137) {
+        VectorXd x = sim.positions();
+        for (Index v = 0; v < sim.scene().body_vertices; ++v)
+            if (sim.mesh().vertex_body[v] == 0) {
+                x[v * d] += shift;
+                x[v * d + 2] += 0.3 * shift;
+            }
+        D.lag(*sim.contact(), x);
+        const ContactSet& set = sim.contact()->contacts(x);
+        for (const Contact& c : set)
+            seen.insert({ int(c.kind), c.distance_type });
+        ASSERT_EQ(D.lagged().size(), set.size());
+        for (size_t k = 0; k < set.size(); ++k) {
+            const FrictionContact& f = D.lagged()[k];
+            Eigen::Vector3d r = Eigen::Vector3d::Zero();
+            for (int i = 0; i < f.num_vertices; ++i)
+                r += f.weights[size_t(i)] * x.segment<3>(f.vertices[size_t(i)] * d);
+            const double dist = std::sqrt(set[k].distance_squared);
+            EXPECT_NEAR(r.norm(), dist, 1e-9 * dist + 1e-15) << "kind " << int(f.kind) << " type " << set[k].distance_type;
+            EXPECT_NEAR(std::abs(r.normalized().dot(f.normal)), 1.0, 1e-9);
+            EXPECT_LT((f.tangent.transpose() * f.normal).norm(), 1e-12);
+            ++checked;
+        }
+    }
+    std::printf("  %d lagged contacts checked, %zu (kind, type) combinations\n", checked, seen.size());
+    // Point-triangle interior and edge types, and edge-edge line-line and point-line types.
+    for (auto [kind, type] : std::vector<std::pair<int, int>> { { 1, 6 }, { 2, 8 } })
+        EXPECT_TRUE(seen.count({ kind, type })) << kind << "/" << type;
+    EXPECT_GE(seen.size(), 6u);
+}
