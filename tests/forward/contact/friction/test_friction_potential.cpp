@@ -208,7 +208,8 @@ TEST(FrictionPotential, ClosestPointWeightsReproduceTheDistance)
             for (int i = 0; i < f.num_vertices; ++i)
                 r += f.weights[size_t(i)] * x.segment<3>(f.vertices[size_t(i)] * d);
             const double dist = std::sqrt(set[k].distance_squared);
-            EXPECT_NEAR(r.norm(), dist, 1e-9 * dist + 1e-15) << "kind " << int(f.kind) << " type " << set[k].distance_type;
+            EXPECT_NEAR(r.norm(), dist, 1e-9 * dist + 1e-15)
+                << "kind " << int(f.kind) << " type " << set[k].distance_type;
             EXPECT_NEAR(std::abs(r.normalized().dot(f.normal)), 1.0, 1e-9);
             EXPECT_LT((f.tangent.transpose() * f.normal).norm(), 1e-12);
             ++checked;

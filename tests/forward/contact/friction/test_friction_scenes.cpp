@@ -36,6 +36,22 @@ json block_on_incline(int dim, double theta, double mu, double dt, int steps)
     return s;
 }
 
+/// Lagging statistics of a run: mean Newton solves per step and the largest friction residual.
+void print_lagging(const Simulator& sim, const char* what)
+{
+    double solves = 0, residual = 0;
+    int unconverged = 0;
+    for (const StepRecord& r : sim.trajectory().steps) {
+        solves += r.friction_iterations;
+        residual = std::max(residual, r.friction_residual);
+        unconverged += !r.friction_converged;
+    }
+    const size_t n = sim.trajectory().steps.size();
+    std::printf("    lagging (%s): %.2f solves per step on average, max friction residual %.2e, %d of %zu steps not "
+                "converged\n",
+        what, n ? solves / double(n) : 0.0, residual, unconverged, n);
+}
+
 /// Mass-weighted mean of the body's x velocity (along the slope).
 double slope_velocity(const Simulator& sim, const VectorXd& v)
 {
@@ -66,6 +82,7 @@ void check_sliding(int dim, double dt)
     const double a = (v[size_t(steps)] - v[size_t(k0)]) / ((steps - k0) * dt);
     std::printf("  %dD dt = %g: a = %.5f m/s^2, closed form %.5f, error %.3f%%\n", dim, dt, a, expected,
         100 * std::abs(a / expected - 1));
+    print_lagging(sim, "sliding block");
     EXPECT_LT(std::abs(a / expected - 1), 0.01);
     const Positions X = unflatten(sim.positions(), dim);
     EXPECT_EQ(count_inverted_elements(sim.scene().mesh, X), 0);
@@ -100,6 +117,7 @@ void check_sticking(int dim, double dt)
         dim, dt, late, bound, total, sliding);
     EXPECT_LT(late, bound);
     EXPECT_LT(total, 1e-2 * sliding);
+    print_lagging(sim, "sticking block");
 }
 
 } // namespace
@@ -187,6 +205,7 @@ TEST(FrictionScenes, StoppingDistanceAndEnergyDecay)
         std::printf("  %dD: stopping distance %.5f m, closed form %.5f m, error %.2f%%\n", dim, distance, expected,
             100 * std::abs(distance / expected - 1));
         EXPECT_LT(std::abs(distance / expected - 1), 0.02);
+        print_lagging(sim, "stopping block");
     }
 }
 
@@ -234,6 +253,7 @@ TEST(FrictionScenes, DiskRollsDownASlopeWithTheRollingAcceleration)
     std::printf("  a = %.4f m/s^2; solid disk (2/3) g sin(theta) = %.4f (error %.2f%%), annulus %.4f, sliding %.4f\n",
         a, solid, 100 * std::abs(a / solid - 1), annulus, G * std::sin(theta));
     EXPECT_LT(std::abs(a / solid - 1), 0.05);
+    print_lagging(sim, "rolling disk");
 }
 
 TEST(FrictionScenes, ConveyorPlaneDragsARestingBlock)
@@ -268,4 +288,59 @@ TEST(FrictionScenes, ZeroCoefficientBuildsNoFriction)
     s["bodies"][0]["friction"] = { { "coefficient", 0.4 } };
     Simulator with_body_mu(test::make_scene(s));
     EXPECT_NE(with_body_mu.friction(), nullptr);
+}
+
+TEST(FrictionScenes, ExtremeHighCoefficientAndTinyEpsV)
+{
+    // mu = 2 on a 60 degree slope (tan 60 = 1.73 < 2: sticks) with eps_v = 1e-5 m/s.
+    for (int dim : { 2, 3 }) {
+        json s = block_on_incline(dim, 60 * M_PI / 180, 2.0, 1e-3, 100);
+        s["friction"]["eps_v"] = 1e-5;
+        Simulator sim(test::make_scene(s));
+        sim.run();
+        const StepStatus status = sim.trajectory().final_status;
+        std::printf("  %dD: %s after %d steps\n", dim, to_string(status).c_str(), sim.steps_done());
+        print_lagging(sim, "mu = 2, eps_v = 1e-5");
+        // Finishes, or fails transactionally with a status; never an invalid state.
+        EXPECT_EQ(status, StepStatus::CONVERGED) << sim.trajectory().failure_message;
+        const Positions X = unflatten(sim.positions(), dim);
+        EXPECT_EQ(count_inverted_elements(sim.scene().mesh, X), 0);
+        EXPECT_EQ(find_intersection(sim.contact()->collision_mesh(), X, true), "");
+        for (Index v = 0; v < sim.scene().body_vertices; ++v)
+            EXPECT_GT(sim.positions()[v * dim + 1], 0.0);
+    }
+}
+
+TEST(FrictionScenes, StackOfThinCardsSettles3D)
+{
+    // Four thin cards (0.3 x 0.01 x 0.2 m) stacked with 0.5 mm gaps and offsets, mu = 0.5,
+    // falling and settling on a plane: finishes with zero intersections (a flat stack, not
+    // a leaning card house).
+    json s;
+    s["dimension"] = 3;
+    s["bodies"] = json::array();
+    for (int k = 0; k < 4; ++k) {
+        const double y = 0.0005 + k * 0.0105, x = 0.03 * (k % 2 ? 1 : -1);
+        s["bodies"].push_back({ { "name", "card" + std::to_string(k) },
+            { "mesh",
+                { { "box",
+                    { { "min", { x, y, 0 } }, { "max", { x + 0.3, y + 0.01, 0.2 } }, { "cells", { 6, 1, 4 } } } } } },
+            { "material", { { "model", "neo_hookean" }, { "E", 1e6 }, { "nu", 0.3 }, { "density", 500 } } },
+            { "self_contact", false } });
+    }
+    s["gravity"] = { 0, -G, 0 };
+    s["obstacles"] = { { { "plane", { { "point", { 0, 0, 0 } }, { "normal", { 0, 1, 0 } } } } } };
+    s["contact"] = { { "dhat", 2e-4 } };
+    s["friction"] = { { "coefficient", 0.5 }, { "iterations", 2 } };
+    s["time"] = { { "integrator", "implicit_euler" }, { "dt", 5e-3 }, { "steps", 40 } };
+    s["solver"] = { { "residual_tolerance", 1e-6 } };
+    Simulator sim(test::make_scene(s));
+    for (int k = 0; k < 40; ++k) {
+        ASSERT_EQ(sim.step(), StepStatus::CONVERGED) << sim.trajectory().failure_message;
+        const Positions X = unflatten(sim.positions(), 3);
+        ASSERT_EQ(count_inverted_elements(sim.scene().mesh, X), 0);
+        ASSERT_EQ(find_intersection(sim.contact()->collision_mesh(), X, true), "") << "step " << k + 1;
+    }
+    print_lagging(sim, "card stack");
+    EXPECT_GT(sim.trajectory().steps.back().active_contacts, 0);
 }
