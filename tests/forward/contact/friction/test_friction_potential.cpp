@@ -221,3 +221,36 @@ TEST(FrictionPotential, ClosestPointWeightsReproduceTheDistance)
         EXPECT_TRUE(seen.count({ kind, type })) << kind << "/" << type;
     EXPECT_GE(seen.size(), 6u);
 }
+
+TEST(FrictionPotential, FiniteDifferencesLaggedAtClassificationSwitchPoints)
+{
+    // Lagged exactly where the closest-feature type switches: in 2D the top box's
+    // vertices sit exactly above the bottom box's vertices (point-edge interior /
+    // endpoint boundary), in 3D above the bottom box's edges and vertices.
+    json s;
+    s["dimension"] = 2;
+    auto box2 = [](const std::string& name, std::vector<double> lo, std::vector<double> hi) {
+        return json { { "name", name }, { "mesh", { { "box", { { "min", lo }, { "max", hi }, { "cells", { 2, 1 } } } } } },
+            { "material", { { "model", "neo_hookean" }, { "E", 1e5 }, { "nu", 0.3 }, { "density", 1000 } } } };
+    };
+    s["bodies"] = { box2("top", { 0.5, 0.5004 }, { 1.5, 1.0 }), box2("bottom", { 0, 0 }, { 1, 0.5 }) };
+    s["contact"] = { { "dhat", 1e-3 }, { "kappa", 1e3 } };
+    s["time"] = { { "integrator", "implicit_euler" }, { "dt", 0.01 }, { "steps", 1 } };
+    Eigen::VectorXd dir(3);
+    dir << 1, 0, 0;
+    check_scene(s, dir, 1 << int(ContactKind::VERTEX_EDGE));
+
+    json t;
+    t["dimension"] = 3;
+    auto box3 = [](const std::string& name, std::vector<double> lo, std::vector<double> hi, std::vector<int> cells) {
+        return json { { "name", name }, { "mesh", { { "box", { { "min", lo }, { "max", hi }, { "cells", cells } } } } },
+            { "material", { { "model", "neo_hookean" }, { "E", 1e5 }, { "nu", 0.3 }, { "density", 1000 } } } };
+    };
+    t["bodies"] = { box3("top", { 0.5, 0.5004, 0.5 }, { 1.0, 0.8, 1.0 }, { 1, 1, 1 }),
+        box3("bottom", { 0, 0, 0 }, { 1, 0.5, 1 }, { 2, 1, 2 }) };
+    t["contact"] = { { "dhat", 1e-3 }, { "kappa", 1e3 } };
+    t["time"] = { { "integrator", "implicit_euler" }, { "dt", 0.01 }, { "steps", 1 } };
+    Eigen::VectorXd dir3(3);
+    dir3 << 0.6, 0, 0.8;
+    check_scene(t, dir3, 1 << int(ContactKind::VERTEX_FACE));
+}
