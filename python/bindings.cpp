@@ -69,6 +69,7 @@ py::dict trajectory_dict(const Simulator& sim)
         out["kappa"] = per_step<double>(tr, [](const StepRecord& s) { return s.kappa; });
         out["ccd_time"] = per_step<double>(tr, [](const StepRecord& s) { return s.phases.ccd; });
         out["broad_phase_time"] = per_step<double>(tr, [](const StepRecord& s) { return s.phases.broad_phase; });
+        out["friction_residual"] = per_step<double>(tr, [](const StepRecord& s) { return s.friction_residual; });
     }
     out["final_status"] = to_string(tr.final_status);
     out["failed_step"] = tr.failed_step;

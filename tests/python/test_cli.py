@@ -167,6 +167,7 @@ def test_contact_scene_writes_contact_datasets(cli, tmp_path, root):
         dist = f["min_distance"][:]
         kappa = f["kappa"][:]
         assert active.shape == dist.shape == kappa.shape == f["ccd_time"].shape == f["broad_phase_time"].shape == (30,)
+        assert f["friction_residual"].shape == (30,) and (f["friction_residual"][:] == 0).all()  # no friction here
         assert active.max() > 0 and (kappa > 0).all()
         touching = active > 0
         # Where contacts are active the minimum distance is below dhat and positive.
@@ -175,3 +176,22 @@ def test_contact_scene_writes_contact_datasets(cli, tmp_path, root):
         body = f["mesh/body"][:]
         y = f["positions"][:, body == 0, 1]
         assert (y > 0).all()
+
+
+def test_friction_study_slides_with_the_closed_form_acceleration(cli, tmp_path, root):
+    h5py = pytest.importorskip("h5py")
+    out = tmp_path / "slope"
+    r = run(cli, "simulate", root / "studies" / "207_block_on_slope" / "scene.json", "-o", out, "-q", "--vtu-every", "0")
+    assert r.returncode == 0, r.stderr
+    with h5py.File(out / "trajectory.h5", "r") as f:
+        body = f["mesh/body"][:] == 0
+        t = f["time"][:]
+        v = f["velocities"][:, body, :].mean(axis=1)
+        residual = f["friction_residual"][:]
+    direction = np.array([np.cos(np.pi / 6), -np.sin(np.pi / 6)])  # down the slope
+    speed = v @ direction
+    half = len(t) // 2
+    a = (speed[-1] - speed[half]) / (t[-1] - t[half])
+    expected = 9.81 * (np.sin(np.pi / 6) - 0.2 * np.cos(np.pi / 6))
+    assert abs(a / expected - 1) < 0.01, (a, expected)
+    assert residual.max() < 1e-6

@@ -230,7 +230,8 @@ TEST(FrictionPotential, FiniteDifferencesLaggedAtClassificationSwitchPoints)
     json s;
     s["dimension"] = 2;
     auto box2 = [](const std::string& name, std::vector<double> lo, std::vector<double> hi) {
-        return json { { "name", name }, { "mesh", { { "box", { { "min", lo }, { "max", hi }, { "cells", { 2, 1 } } } } } },
+        return json { { "name", name },
+            { "mesh", { { "box", { { "min", lo }, { "max", hi }, { "cells", { 2, 1 } } } } } },
             { "material", { { "model", "neo_hookean" }, { "E", 1e5 }, { "nu", 0.3 }, { "density", 1000 } } } };
     };
     s["bodies"] = { box2("top", { 0.5, 0.5004 }, { 1.5, 1.0 }), box2("bottom", { 0, 0 }, { 1, 0.5 }) };
