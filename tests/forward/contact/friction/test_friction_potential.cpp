@@ -5,6 +5,7 @@
 #include "../../test_utils.hpp"
 
 #include "forward/contact/contact_potential.hpp"
+#include "forward/contact/distance/distance_type.hpp"
 #include "forward/contact/friction/friction_potential.hpp"
 #include "forward/simulation/simulator.hpp"
 #include "forward/solver/sparse_assembler.hpp"
@@ -58,8 +59,9 @@ Errors fd_check(const FrictionPotential& D, const Simulator& sim, const VectorXd
 
 /// Lagged friction at a resting contact state of scene s, then slides the
 /// first body tangentially by `slip` (m) along `direction`.
-void check_scene(const json& s, const VectorXd& direction, int expected_kinds_mask)
+std::set<std::pair<int, int>> check_scene(const json& s, const VectorXd& direction, int expected_kinds_mask)
 {
+    std::set<std::pair<int, int>> types;
     Simulator sim(test::make_scene(s));
     const int d = sim.scene().dim;
     const VectorXd x0 = sim.positions();
@@ -68,7 +70,9 @@ void check_scene(const json& s, const VectorXd& direction, int expected_kinds_ma
     const double dt = 0.01;
     D.set_step(x0, dt);
     D.lag(*sim.contact(), x0);
-    ASSERT_FALSE(D.lagged().empty());
+    EXPECT_FALSE(D.lagged().empty());
+    for (const Contact& c : sim.contact()->contacts(x0))
+        types.insert({ int(c.kind), c.distance_type });
     int mask = 0;
     for (const auto& c : D.lagged())
         mask |= 1 << int(c.kind);
@@ -106,6 +110,7 @@ void check_scene(const json& s, const VectorXd& direction, int expected_kinds_ma
         D.add_gradient(x, 1.0, g);
         EXPECT_GT(g.dot(x - x0), 0);
     }
+    return types;
 }
 
 } // namespace
@@ -163,9 +168,18 @@ TEST(FrictionPotential, FiniteDifferences3DVertexFaceEdgeEdgeAndPlane)
     s["time"] = { { "integrator", "implicit_euler" }, { "dt", 0.01 }, { "steps", 1 } };
     Eigen::VectorXd dir(3);
     dir << 0.8, 0, 0.6;
-    check_scene(s, dir,
+    const auto types = check_scene(s, dir,
         (1 << int(ContactKind::VERTEX_FACE)) | (1 << int(ContactKind::EDGE_EDGE))
             | (1 << int(ContactKind::VERTEX_PLANE)));
+    // Point-triangle vertex-face types, and point-line / line-line edge-edge types.
+    using PT = PointTriangleDistanceType;
+    using EE = EdgeEdgeDistanceType;
+    const int VF = int(ContactKind::VERTEX_FACE), EDGES = int(ContactKind::EDGE_EDGE);
+    EXPECT_TRUE(types.count({ VF, int(PT::P_T) })) << "no point-triangle type";
+    int edge_types = 0;
+    for (EE t : { EE::EA_EB0, EE::EA_EB1, EE::EA0_EB, EE::EA1_EB, EE::EA_EB })
+        edge_types += int(types.count({ EDGES, int(t) }));
+    EXPECT_GT(edge_types, 0) << "no point-line or line-line edge-edge type";
 }
 
 TEST(FrictionPotential, ClosestPointWeightsReproduceTheDistance)
@@ -253,5 +267,27 @@ TEST(FrictionPotential, FiniteDifferencesLaggedAtClassificationSwitchPoints)
     t["time"] = { { "integrator", "implicit_euler" }, { "dt", 0.01 }, { "steps", 1 } };
     Eigen::VectorXd dir3(3);
     dir3 << 0.6, 0, 0.8;
-    check_scene(t, dir3, 1 << int(ContactKind::VERTEX_FACE));
+    const auto types = check_scene(t, dir3, 1 << int(ContactKind::VERTEX_FACE));
+    // Point-point, point-edge and point-triangle distance types all lagged and differentiated here.
+    using PT = PointTriangleDistanceType;
+    const int VF = int(ContactKind::VERTEX_FACE);
+    auto has = [&](std::initializer_list<PT> any) {
+        for (PT t : any)
+            if (types.count({ VF, int(t) }))
+                return true;
+        return false;
+    };
+    // Vertices exactly above vertices: point-point types next to point-triangle ones.
+    EXPECT_TRUE(has({ PT::P_T0, PT::P_T1, PT::P_T2 })) << "no point-point type";
+    EXPECT_TRUE(has({ PT::P_T })) << "no point-triangle type";
+
+    // Vertices 0.3 mm beyond the bottom box's top edge (and 0.4 mm above it): their
+    // closest feature is the edge's interior (vertex-face point-edge types).
+    t["bodies"][0]["mesh"]["box"]["min"] = { 0.5003, 0.5004, 0.25 };
+    t["bodies"][0]["mesh"]["box"]["max"] = { 1.0003, 0.8, 0.75 };
+    const auto edge_types = check_scene(t, dir3, 1 << int(ContactKind::VERTEX_FACE));
+    int point_edge = 0;
+    for (PT e : { PT::P_E0, PT::P_E1, PT::P_E2 })
+        point_edge += int(edge_types.count({ VF, int(e) }));
+    EXPECT_GT(point_edge, 0) << "no vertex-face point-edge type";
 }
