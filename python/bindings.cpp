@@ -143,6 +143,14 @@ PYBIND11_MODULE(_diffipc, m)
             py::arg("positions"), "Incremental potential of the last prepared step at #V by dim positions.")
         .def("set_element_materials", &Simulator::set_element_materials, py::arg("E"), py::arg("nu"),
             "Per-element Young's modulus and Poisson's ratio (before the first step).")
+        .def(
+            "set_initial_state",
+            [](Simulator& s, const Positions& x, const Positions& v) {
+                const Positions xc = x, vc = v;
+                s.set_initial_state(flatten(xc), flatten(vc));
+            },
+            py::arg("positions"), py::arg("velocities"),
+            "Initial #V by dim positions and velocities (before the first step); prescribed dofs keep theirs.")
         .def("write_hdf5",
             [](const Simulator& s, const std::string& path) {
                 write_hdf5(path, s.mesh(), s.trajectory(), s.contact() != nullptr);

@@ -139,3 +139,17 @@ def test_contact_trajectory_arrays(root):
     # point is the one vertex with body index 3 (#bodies + 0).
     body = np.asarray(diffipc.scene(s).vertex_body)
     assert np.all(tr["positions"][:, body < 3, 1] > 0)
+
+
+def test_set_initial_state_from_python():
+    s = box_scene(dim=2, steps=2)
+    sim = diffipc.Simulator(diffipc.scene(s))
+    x0 = np.asarray(diffipc.scene(s).rest_positions)
+    v0 = np.zeros_like(x0)
+    v0[:, 0] = 0.25
+    sim.set_initial_state(x0, v0)
+    tr = sim.run()
+    assert tr["final_status"] == "CONVERGED"
+    np.testing.assert_allclose(tr["velocities"][0][:, 0], 0.25)
+    with pytest.raises(Exception, match="initial_state"):
+        sim.set_initial_state(x0, v0)  # after a step

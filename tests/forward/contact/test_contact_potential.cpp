@@ -3,7 +3,7 @@
 // 2D vertex-edge and vertex-plane, 3D vertex-face, edge-edge (mollified) and
 // vertex-plane.
 
-#include "../test_utils.hpp"
+#include "../potential_fd.hpp"
 
 #include "forward/contact/contact_potential.hpp"
 #include "forward/simulation/simulator.hpp"
@@ -24,37 +24,14 @@ struct Check {
     double gradient_norm;
 };
 
-/// Central differences along random directions, relative to the derivative's size.
 Check fd_check(const Simulator& sim, const VectorXd& x)
 {
-    const ContactPotential& B = *sim.contact();
-    const Index n = x.size();
-    const int count = int(B.contacts(x).size());
-    VectorXd g = VectorXd::Zero(n);
-    B.add_gradient(x, 1.0, g);
-    SparseAssembler H;
-    H.build(sim.scene().dim, sim.mesh().num_vertices(), sim.mesh().elements);
-    H.set_zero();
-    B.add_hessian(x, 1.0, false, H);
-    H.finalize();
-    const MatrixXd Hd = MatrixXd(H.matrix()).selfadjointView<Eigen::Lower>();
-    double gradient_error = 0, hessian_error = 0;
-    for (unsigned seed = 1; seed <= 4; ++seed) {
-        const VectorXd dir = test::random_vector(n, seed);
-        const double h = 1e-7 * 1e-3; // a small fraction of dhat (1e-3)
-        const double fd = (B.value(x + h * dir) - B.value(x - h * dir)) / (2 * h);
-        const double an = g.dot(dir);
-        gradient_error = std::max(gradient_error, std::abs(fd - an) / std::max(std::abs(an), 1e-300));
-        VectorXd gp = VectorXd::Zero(n), gm = VectorXd::Zero(n);
-        B.add_gradient(x + h * dir, 1.0, gp);
-        B.add_gradient(x - h * dir, 1.0, gm);
-        const VectorXd fdH = (gp - gm) / (2 * h);
-        const VectorXd anH = Hd * dir;
-        hessian_error = std::max(hessian_error, (fdH - anH).norm() / std::max(anH.norm(), 1e-300));
-    }
-    std::printf("  %d contacts, |g| = %.3e, relative errors: gradient %.2e, Hessian %.2e\n", count, g.norm(),
-        gradient_error, hessian_error);
-    return { gradient_error, hessian_error, count, g.norm() };
+    const int count = int(sim.contact()->contacts(x).size());
+    // A small fraction of dhat (1e-3).
+    const test::PotentialFD e = test::potential_fd(*sim.contact(), sim.mesh(), sim.scene().dim, x, 1e-7 * 1e-3);
+    std::printf("  %d contacts, |g| = %.3e, relative errors: gradient %.2e, Hessian %.2e\n", count, e.gradient_norm,
+        e.gradient, e.hessian);
+    return { e.gradient, e.hessian, count, e.gradient_norm };
 }
 
 /// Moves body vertices of x by a random smooth perturbation, keeping contacts active.
