@@ -174,7 +174,8 @@ namespace {
 
     template <int dim, typename MaterialOf>
     void gradient_impl(const FESpace& space, const std::vector<MaterialModel>& models, const VectorXd& mu,
-        const VectorXd& lambda, const VectorXd& x, double weight, VectorXd& g, std::vector<double>& local, MaterialOf material)
+        const VectorXd& lambda, const VectorXd& x, double weight, VectorXd& g, std::vector<double>& local,
+        MaterialOf material)
     {
         constexpr int L = Kernel<dim>::L;
         const Mesh& mesh = space.mesh();
@@ -316,10 +317,11 @@ MatrixXd element_hessian(
 
 double ElasticPotential::value_scale(const VectorXd& x) const
 {
-    (void)x;
-    double scale = 0;
+    double scale = std::abs(value(x));
     for (Index e = 0; e < m_space.num_elements(); ++e)
-        scale += m_space.rest_volume(e) * (m_mu[e] + std::abs(m_lambda[e])) * m_space.dim();
+        if (m_models[size_t(e)] == MaterialModel::NEO_HOOKEAN
+            || m_models[size_t(e)] == MaterialModel::STABLE_NEO_HOOKEAN)
+            scale += m_space.rest_volume(e) * m_mu[e] * m_space.dim();
     return scale;
 }
 

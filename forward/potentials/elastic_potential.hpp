@@ -23,8 +23,8 @@ public:
 
     std::string name() const override { return "elastic"; }
     double value(const VectorXd& x) const override;
-    /// sum_e |e| (mu_e + |lambda_e|) d: the energy density's terms (tr F^T F, ln J) are of
-    /// this size, so near rest their cancellation leaves round-off relative to it.
+    /// Round-off scale of value(): |value| plus, for the neo-Hookean models, sum_e |e| mu_e d,
+    /// the size of the terms mu/2 (tr F^T F - d) and mu ln J that cancel near rest.
     double value_scale(const VectorXd& x) const override;
     void add_gradient(const VectorXd& x, double weight, VectorXd& g) const override;
     void add_hessian(const VectorXd& x, double weight, bool project_to_psd, SparseAssembler& H) const override;

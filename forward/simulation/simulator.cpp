@@ -234,6 +234,8 @@ double Simulator::balancing_kappa(const VectorXd& x) const
     m_problem.gradient(x, grad_energy);
     VectorXd grad_barrier = m_contact->barrier_gradient(x);
     grad_energy -= w * m_contact->kappa() * grad_barrier;
+    if (m_friction) // IPC's rule balances the barrier against the rest without friction
+        m_friction->add_gradient(x, -m_problem.weight(m_friction.get()), grad_energy);
     for (size_t i = 0; i < m_constrained.size(); ++i)
         if (m_constrained[i])
             grad_energy[Index(i)] = grad_barrier[Index(i)] = 0;
@@ -432,14 +434,25 @@ StepStatus Simulator::step()
                 record.friction = std::move(used);
                 break;
             }
-            NewtonResult again = newton.solve(x, target, m_constrained, w * m_force_scale, step_scale);
+            // Solve a copy: if this re-solve fails, the last converged state (with the
+            // data it satisfies) is still there for the permissive policy.
+            VectorXd y = x;
+            NewtonResult again = newton.solve(y, target, m_constrained, w * m_force_scale, step_scale);
             ++record.friction_iterations;
-            again.iterations += result.iterations;
-            again.linear_fallbacks += result.linear_fallbacks;
-            again.times += result.times;
-            result = again;
-            if (result.status != StepStatus::CONVERGED)
+            result.iterations += again.iterations;
+            result.linear_fallbacks += again.linear_fallbacks;
+            result.times += again.times;
+            if (again.status != StepStatus::CONVERGED) {
+                record.friction = std::move(used);
+                record.friction_converged = false;
+                if (m_scene.friction.strict)
+                    result.status = again.status;
                 break;
+            }
+            result.residual = again.residual;
+            result.newton_step = again.newton_step;
+            result.roundoff_limited = again.roundoff_limited;
+            x = std::move(y);
         }
         if (result.status == StepStatus::CONVERGED && !record.friction_converged && m_scene.friction.strict)
             result.status = StepStatus::FRICTION_EXHAUSTED;

@@ -156,11 +156,12 @@ NewtonResult NewtonSolver::solve(VectorXd& x, const VectorXd& target, const std:
         bool accepted = false;
         double new_energy = energy;
         // Differences below this are round-off in the energy sum.
-        const double roundoff = 1e-13 * std::max(std::abs(energy), magnitude);
+        constexpr double EPS = std::numeric_limits<double>::epsilon();
+        const double roundoff = std::max(1e-13 * std::abs(energy), 16 * EPS * magnitude);
         // Near the solution the predicted decrease can drop below what the energy
         // sum resolves; there a full step is judged by the free-dof gradient instead.
-        const bool unresolvable
-            = !lifting && std::abs(alpha * slope) < ENERGY_RESOLUTION * std::max(std::abs(energy), magnitude);
+        const bool unresolvable = !lifting
+            && std::abs(alpha * slope) < std::max(ENERGY_RESOLUTION * std::abs(energy), 1e3 * EPS * magnitude);
         for (int h = 0; h <= m_settings.line_search_max_halvings && alpha > 0; ++h, alpha *= 0.5) {
             trial = x + alpha * p;
             new_energy = m_problem.energy(trial);

@@ -7,6 +7,7 @@
 
 #include <Eigen/Geometry>
 
+#include <algorithm>
 #include <cmath>
 #include <stdexcept>
 
@@ -28,19 +29,24 @@ namespace {
         return (p - a).dot(e) / e.squaredNorm();
     }
 
-    /// Closest points of the two lines (parameters along a and along b).
+    /// Closest points of the two lines (parameters along a and along b), clamped to
+    /// [0, 1]. D = |u x v|^2 as in the classifier: a*c - b*b cancels to 0 for
+    /// edges within ~1e-8 rad of parallel that the classifier still calls EA_EB.
     Eigen::Vector2d line_line_parameters(
         const Eigen::Vector3d& a0, const Eigen::Vector3d& a1, const Eigen::Vector3d& b0, const Eigen::Vector3d& b1)
     {
         const Eigen::Vector3d u = a1 - a0, v = b1 - b0, w = a0 - b0;
-        const double a = u.dot(u), b = u.dot(v), c = v.dot(v), d = u.dot(w), e = v.dot(w);
-        const double D = a * c - b * b;
-        return { (b * e - c * d) / D, (a * e - b * d) / D };
+        const double b = u.dot(v), a = u.dot(u), c = v.dot(v), d = u.dot(w), e = v.dot(w);
+        const double D = u.cross(v).squaredNorm();
+        if (!(D > 0))
+            return { 0.5, std::clamp(line_parameter(0.5 * (a0 + a1), b0, b1), 0.0, 1.0) };
+        return { std::clamp((b * e - c * d) / D, 0.0, 1.0), std::clamp((a * e - b * d) / D, 0.0, 1.0) };
     }
 
-    /// Weights gamma with p - q = sum_i gamma_i x_i for the closest points of the
-    /// classified feature pair (the same classification as the barrier).
-    std::array<double, 4> closest_point_weights(const Contact& c, const VectorXd& x, int dim)
+} // namespace
+
+std::array<double, 4> closest_point_weights(const Contact& c, const VectorXd& x, int dim)
+{
     {
         const auto& v = c.vertices;
         switch (c.kind) {
@@ -129,6 +135,9 @@ namespace {
         }
         throw std::logic_error("closest_point_weights: unknown contact");
     }
+}
+
+namespace {
 
     /// Orthonormal columns spanning the plane normal to n (2D: one column).
     Eigen::Matrix<double, 3, 2> tangent_basis(const Eigen::Vector3d& n, int dim)
@@ -205,6 +214,11 @@ void FrictionPotential::lag(const ContactPotential& contact, const VectorXd& x_l
         for (int i = 0; i < f.num_vertices; ++i)
             r += f.weights[size_t(i)] * point(x_lagged, f.vertices[size_t(i)], m_dim);
         f.normal = c.kind == ContactKind::VERTEX_PLANE ? contact.planes()[size_t(c.plane)].normal : r.normalized();
+        bool finite = f.normal.allFinite();
+        for (double g : f.weights)
+            finite = finite && std::isfinite(g);
+        if (!finite)
+            continue; // a degenerate pair (its barrier is finite; it simply exerts no friction)
         f.tangent = tangent_basis(f.normal, m_dim);
         // lambda = kappa m |d b / d d| = kappa m |b'(s)| 2 d, with s = d^2 - dmin^2.
         const double d = std::sqrt(c.distance_squared);

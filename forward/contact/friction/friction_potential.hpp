@@ -32,6 +32,11 @@ struct FrictionContact {
     double coefficient = 0; ///< mu of the pair
 };
 
+/// @brief Weights gamma with p - q = sum_i gamma_i x_i, where p, q are the closest
+/// points of the contact's classified feature pair at x (edge parameters clamped to [0, 1]).
+/// @param x #V*dim positions
+std::array<double, 4> closest_point_weights(const Contact& c, const VectorXd& x, int dim);
+
 class FrictionPotential : public Potential {
 public:
     /// @param dim          2 or 3

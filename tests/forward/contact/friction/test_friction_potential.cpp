@@ -266,3 +266,56 @@ TEST(FrictionPotential, FiniteDifferencesLaggedAtClassificationSwitchPoints)
         point_edge += int(edge_types.count({ VF, int(e) }));
     EXPECT_GT(point_edge, 0) << "no vertex-face point-edge type";
 }
+
+TEST(FrictionPotential, NearlyParallelEdgesGiveFiniteLaggedData)
+{
+    // Two boxes whose x-aligned edges are 1e-9 rad from parallel and 0.4 mm apart:
+    // the classifier may call such pairs line-line (EA_EB) although a*c - b*b
+    // cancels to zero; the lagged data must stay finite (and the FD checks pass).
+    json s;
+    s["dimension"] = 3;
+    auto box = [](const std::string& name, std::vector<double> lo, std::vector<double> hi) {
+        return json { { "name", name },
+            { "mesh", { { "box", { { "min", lo }, { "max", hi }, { "cells", { 1, 1, 1 } } } } } },
+            { "material", { { "model", "neo_hookean" }, { "E", 1e5 }, { "nu", 0.3 }, { "density", 1000 } } } };
+    };
+    s["bodies"] = { box("top", { 0.2, 0.5004, 0.5 }, { 0.8, 0.8, 1.1 }), box("bottom", { 0, 0, 0 }, { 1, 0.5, 1 }) };
+    s["bodies"][0]["rotation"] = { 0, 1e-9 * 180 / M_PI, 0 };
+    s["contact"] = { { "dhat", 1e-3 }, { "kappa", 1e3 } };
+    s["time"] = { { "integrator", "implicit_euler" }, { "dt", 0.01 }, { "steps", 1 } };
+    Simulator sim(test::make_scene(s));
+    FrictionPotential D(3, std::vector<double>(2, 0.5), sim.mesh().vertex_body, 1e-3);
+    D.set_step(sim.positions(), 0.01);
+    D.lag(*sim.contact(), sim.positions());
+    int line_line = 0;
+    for (const Contact& c : sim.contact()->contacts(sim.positions()))
+        line_line += c.kind == ContactKind::EDGE_EDGE && c.distance_type == int(EdgeEdgeDistanceType::EA_EB);
+    std::printf("  %d line-line edge-edge contacts, %zu lagged\n", line_line, D.lagged().size());
+    for (const FrictionContact& f : D.lagged()) {
+        EXPECT_TRUE(f.normal.allFinite());
+        for (double g : f.weights)
+            EXPECT_TRUE(std::isfinite(g));
+    }
+    VectorXd x = sim.positions();
+    x.head(3 * sim.scene().body_vertices / 2) += 1e-6 * test::random_vector(3 * sim.scene().body_vertices / 2, 3);
+    VectorXd g = VectorXd::Zero(x.size());
+    D.add_gradient(x, 1.0, g);
+    EXPECT_TRUE(g.allFinite());
+
+    // The case directly: a*c - b*b is exactly 0 in double for these edges (2e-9 rad apart),
+    // |u x v|^2 is not, and the classifier calls the pair line-line.
+    VectorXd e(12);
+    e << 0, 0, 0, 1, 0, 0, 0, -1e-9, 1e-3, 1, 1e-9, 1e-3;
+    Contact c;
+    c.kind = ContactKind::EDGE_EDGE;
+    c.vertices = { 0, 1, 2, 3 };
+    c.distance_type = int(edge_edge_distance_type(e.segment<3>(0), e.segment<3>(3), e.segment<3>(6), e.segment<3>(9)));
+    ASSERT_EQ(c.distance_type, int(EdgeEdgeDistanceType::EA_EB));
+    const auto w = closest_point_weights(c, e, 3);
+    Eigen::Vector3d r = Eigen::Vector3d::Zero();
+    for (int i = 0; i < 4; ++i) {
+        ASSERT_TRUE(std::isfinite(w[size_t(i)]));
+        r += w[size_t(i)] * e.segment<3>(3 * i);
+    }
+    EXPECT_NEAR(r.norm(), 1e-3, 1e-9);
+}
