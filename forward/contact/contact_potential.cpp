@@ -303,9 +303,8 @@ double ContactPotential::value(const VectorXd& x) const
     return std::isfinite(b) ? m_settings.kappa * b : INF;
 }
 
-VectorXd ContactPotential::barrier_gradient(const VectorXd& x) const
+void ContactPotential::scatter_gradient(const VectorXd& x, double scale, VectorXd& g) const
 {
-    VectorXd g = VectorXd::Zero(x.size());
     const ContactSet& set = contacts(x);
     Timer t;
     const int dim = m_mesh.dim;
@@ -313,18 +312,21 @@ VectorXd ContactPotential::barrier_gradient(const VectorXd& x) const
     for (const Contact& c : set) {
         local_barrier(c, x, &local, nullptr);
         for (int k = 0; k < c.num_vertices(); ++k)
-            g.segment(c.vertices[size_t(k)] * dim, dim) += local.segment(k * dim, dim);
+            g.segment(c.vertices[size_t(k)] * dim, dim) += scale * local.segment(k * dim, dim);
     }
     t.add_to(m_times.barrier);
+}
+
+VectorXd ContactPotential::barrier_gradient(const VectorXd& x) const
+{
+    VectorXd g = VectorXd::Zero(x.size());
+    scatter_gradient(x, 1.0, g);
     return g;
 }
 
 void ContactPotential::add_gradient(const VectorXd& x, double weight, VectorXd& g) const
 {
-    const ContactSet& set = contacts(x);
-    if (set.empty())
-        return;
-    g += (weight * m_settings.kappa) * barrier_gradient(x);
+    scatter_gradient(x, weight * m_settings.kappa, g);
 }
 
 void ContactPotential::add_hessian(const VectorXd& x, double weight, bool project_to_psd, SparseAssembler& H) const

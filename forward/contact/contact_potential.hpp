@@ -90,6 +90,8 @@ public:
 
 private:
     void build_contacts(const VectorXd& x, ContactSet& out, double radius) const;
+    /// Adds scale * grad(sum_k m_k b_k) into g (no full-size temporary).
+    void scatter_gradient(const VectorXd& x, double scale, VectorXd& g) const;
     /// Energy (without kappa), gradient and Hessian of one contact at x; local
     /// dofs are the contact's vertices in order, dim each.
     double local_barrier(const Contact& c, const VectorXd& x, Eigen::VectorXd* grad, Eigen::MatrixXd* hess) const;

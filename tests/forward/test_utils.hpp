@@ -27,6 +27,14 @@ inline nlohmann::json box_scene(int dim, std::vector<double> max, std::vector<in
     return s;
 }
 
+/// A neo-Hookean box body (E = 1e5, nu = 0.3, density 1000) for contact scenes.
+inline nlohmann::json box_body(
+    const std::string& name, std::vector<double> lo, std::vector<double> hi, std::vector<int> cells)
+{
+    return { { "name", name }, { "mesh", { { "box", { { "min", lo }, { "max", hi }, { "cells", cells } } } } },
+        { "material", { { "model", "neo_hookean" }, { "E", 1e5 }, { "nu", 0.3 }, { "density", 1000 } } } };
+}
+
 inline nlohmann::json region(std::vector<double> lo, std::vector<double> hi)
 {
     return { { "min", lo }, { "max", hi } };

@@ -75,9 +75,7 @@ TEST(ContactPotential, GradientAndHessian3DBoxesAndPlane)
     json s;
     s["dimension"] = 3;
     auto box = [](const std::string& name, std::vector<double> lo, std::vector<double> hi) {
-        return json { { "name", name },
-            { "mesh", { { "box", { { "min", lo }, { "max", hi }, { "cells", { 2, 1, 2 } } } } } },
-            { "material", { { "model", "neo_hookean" }, { "E", 1e5 }, { "nu", 0.3 }, { "density", 1000 } } } };
+        return test::box_body(name, lo, hi, std::vector<int> { 2, 1, 2 });
     };
     s["bodies"] = { box("a", { 0, 0.0005, 0 }, { 1, 0.5, 1 }), box("b", { 0.1, 0.5005, 0.1 }, { 0.9, 1.0, 0.9 }) };
     s["obstacles"] = { { { "plane", { { "point", { 0, 0, 0 } }, { "normal", { 0, 1, 0 } } } } } };

@@ -110,9 +110,7 @@ TEST(FrictionPotential, FiniteDifferences2DVertexEdgeAndPlane)
     json s;
     s["dimension"] = 2;
     auto box = [](const std::string& name, std::vector<double> lo, std::vector<double> hi) {
-        return json { { "name", name },
-            { "mesh", { { "box", { { "min", lo }, { "max", hi }, { "cells", { 2, 1 } } } } } },
-            { "material", { { "model", "neo_hookean" }, { "E", 1e5 }, { "nu", 0.3 }, { "density", 1000 } } } };
+        return test::box_body(name, lo, hi, std::vector<int> { 2, 1 });
     };
     // Body 0 rests within dhat on body 1 (vertex-edge) and on a plane (vertex-plane) at its left end.
     s["bodies"] = { box("top", { 0.25, 0.5004 }, { 1.25, 1.0 }), box("bottom", { 0, 0.0004 }, { 1, 0.5 }) };
@@ -129,9 +127,7 @@ TEST(FrictionPotential, FiniteDifferences3DVertexFaceEdgeEdgeAndPlane)
     json s;
     s["dimension"] = 3;
     auto box = [](const std::string& name, std::vector<double> lo, std::vector<double> hi) {
-        return json { { "name", name },
-            { "mesh", { { "box", { { "min", lo }, { "max", hi }, { "cells", { 2, 1, 2 } } } } } },
-            { "material", { { "model", "neo_hookean" }, { "E", 1e5 }, { "nu", 0.3 }, { "density", 1000 } } } };
+        return test::box_body(name, lo, hi, std::vector<int> { 2, 1, 2 });
     };
     // Body 0 rotated about y sits within dhat on body 1 (vertex-face and edge-edge); body 1 on a plane.
     s["bodies"]
@@ -166,8 +162,7 @@ TEST(FrictionPotential, ClosestPointWeightsReproduceTheDistance)
     json s;
     s["dimension"] = 3;
     auto box = [](const std::string& name, std::vector<double> lo, std::vector<double> hi, std::vector<int> cells) {
-        return json { { "name", name }, { "mesh", { { "box", { { "min", lo }, { "max", hi }, { "cells", cells } } } } },
-            { "material", { { "model", "neo_hookean" }, { "E", 1e5 }, { "nu", 0.3 }, { "density", 1000 } } } };
+        return test::box_body(name, lo, hi, cells);
     };
     s["bodies"] = { box("top", { 0.3, 0.5004, 0.3 }, { 0.7, 0.7, 0.7 }, { 1, 1, 1 }),
         box("bottom", { 0, 0, 0 }, { 1, 0.5, 1 }, { 2, 1, 2 }) };
@@ -219,9 +214,7 @@ TEST(FrictionPotential, FiniteDifferencesLaggedAtClassificationSwitchPoints)
     json s;
     s["dimension"] = 2;
     auto box2 = [](const std::string& name, std::vector<double> lo, std::vector<double> hi) {
-        return json { { "name", name },
-            { "mesh", { { "box", { { "min", lo }, { "max", hi }, { "cells", { 2, 1 } } } } } },
-            { "material", { { "model", "neo_hookean" }, { "E", 1e5 }, { "nu", 0.3 }, { "density", 1000 } } } };
+        return test::box_body(name, lo, hi, std::vector<int> { 2, 1 });
     };
     s["bodies"] = { box2("top", { 0.5, 0.5004 }, { 1.5, 1.0 }), box2("bottom", { 0, 0 }, { 1, 0.5 }) };
     s["contact"] = { { "dhat", 1e-3 }, { "kappa", 1e3 } };
@@ -233,8 +226,7 @@ TEST(FrictionPotential, FiniteDifferencesLaggedAtClassificationSwitchPoints)
     json t;
     t["dimension"] = 3;
     auto box3 = [](const std::string& name, std::vector<double> lo, std::vector<double> hi, std::vector<int> cells) {
-        return json { { "name", name }, { "mesh", { { "box", { { "min", lo }, { "max", hi }, { "cells", cells } } } } },
-            { "material", { { "model", "neo_hookean" }, { "E", 1e5 }, { "nu", 0.3 }, { "density", 1000 } } } };
+        return test::box_body(name, lo, hi, cells);
     };
     t["bodies"] = { box3("top", { 0.5, 0.5004, 0.5 }, { 1.0, 0.8, 1.0 }, { 1, 1, 1 }),
         box3("bottom", { 0, 0, 0 }, { 1, 0.5, 1 }, { 2, 1, 2 }) };
@@ -275,9 +267,7 @@ TEST(FrictionPotential, NearlyParallelEdgesGiveFiniteLaggedData)
     json s;
     s["dimension"] = 3;
     auto box = [](const std::string& name, std::vector<double> lo, std::vector<double> hi) {
-        return json { { "name", name },
-            { "mesh", { { "box", { { "min", lo }, { "max", hi }, { "cells", { 1, 1, 1 } } } } } },
-            { "material", { { "model", "neo_hookean" }, { "E", 1e5 }, { "nu", 0.3 }, { "density", 1000 } } } };
+        return test::box_body(name, lo, hi, std::vector<int> { 1, 1, 1 });
     };
     s["bodies"] = { box("top", { 0.2, 0.5004, 0.5 }, { 0.8, 0.8, 1.1 }), box("bottom", { 0, 0, 0 }, { 1, 0.5, 1 }) };
     s["bodies"][0]["rotation"] = { 0, 1e-9 * 180 / M_PI, 0 };
