@@ -481,4 +481,40 @@ bool ContactPotential::end_iteration(const VectorXd& x)
     return true;
 }
 
+void ContactPotential::add_shape_derivative(
+    const VectorXd& x, const VectorXd& direction, double weight, VectorXd& d_rest_positions) const
+{
+    const int dim = m_mesh.dim;
+    if (dim != 3)
+        return;
+    const double dmin2 = m_settings.min_distance * m_settings.min_distance;
+    const double shat = barrier_activation(m_settings.dhat, m_settings.min_distance);
+    const double scale = weight * m_settings.kappa;
+    for (const Contact& c : contacts(x)) {
+        if (c.kind != ContactKind::EDGE_EDGE)
+            continue;
+        const auto& v = c.vertices;
+        const Eigen::Vector3d a0 = point(x, v[0], dim), a1 = point(x, v[1], dim), b0 = point(x, v[2], dim),
+                              b1 = point(x, v[3], dim);
+        const double eps = c.mollifier_threshold;
+        const double dm = edge_edge_mollifier_gradient_wrt_eps_x(a0, a1, b0, b1, eps);
+        const Eigen::Matrix<double, 12, 1> dgm = edge_edge_mollifier_gradient_jacobian_wrt_eps_x(a0, a1, b0, b1, eps);
+        if (dm == 0 && dgm.isZero())
+            continue;
+        const auto type = EdgeEdgeDistanceType(c.distance_type);
+        const double z = edge_edge_distance(a0, a1, b0, b1, type) - dmin2;
+        const Eigen::Matrix<double, 12, 1> gs = edge_edge_distance_gradient(a0, a1, b0, b1, type);
+        Eigen::Matrix<double, 12, 1> local;
+        for (int k = 0; k < 4; ++k)
+            local.segment<3>(3 * k) = direction.segment(v[size_t(k)] * dim, dim);
+        // d/d eps_x of grad(m b) = dm/deps b'(z) grad s + b(z) d(grad m)/deps
+        const double sens
+            = scale * (dm * barrier_first_derivative(z, shat) * local.dot(gs) + barrier(z, shat) * local.dot(dgm));
+        const Eigen::Matrix<double, 12, 1> deps = edge_edge_mollifier_threshold_gradient(
+            rest_point(m_rest, v[0]), rest_point(m_rest, v[1]), rest_point(m_rest, v[2]), rest_point(m_rest, v[3]));
+        for (int k = 0; k < 4; ++k)
+            d_rest_positions.segment(v[size_t(k)] * dim, dim) += sens * deps.segment<3>(3 * k);
+    }
+}
+
 } // namespace diffipc

@@ -52,6 +52,10 @@ public:
     double max_step(const VectorXd& x, const VectorXd& p) const override;
     bool step_unresolved() const override { return m_ccd_unresolved; }
     bool end_iteration(const VectorXd& x) override;
+    /// Shape derivative of direction^T grad B: only the edge-edge mollifier
+    /// thresholds depend on the rest positions.
+    void add_shape_derivative(
+        const VectorXd& x, const VectorXd& direction, double weight, VectorXd& d_rest_positions) const override;
 
     /// Active contacts at x (cached for the last x asked about).
     const ContactSet& contacts(const VectorXd& x) const;

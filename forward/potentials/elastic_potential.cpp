@@ -325,4 +325,87 @@ double ElasticPotential::value_scale(const VectorXd& x) const
     return scale;
 }
 
+namespace {
+
+    /// Per element e with L = Lambda_e^T G (the direction's "gradient") and A = dP/dF:
+    /// d/dDm [|e| P : L] = |e| [ (P : L) Dm^-T - F^T A[L] Dm^-T - L^T P Dm^-T ],
+    /// from dG = -G dDm Dm^-1, dF = -F dDm Dm^-1, d|e| = |e| tr(Dm^-1 dDm).
+    /// Dm^-1 is the last dim rows of G; columns of Dm are X_a - X_0 (a = 1..dim).
+    template <int dim, typename MaterialOf>
+    void shape_impl(const FESpace& space, const std::vector<MaterialModel>& models, const VectorXd& mu,
+        const VectorXd& lambda, const VectorXd& x, const VectorXd& dir, double weight, VectorXd& out,
+        MaterialOf material)
+    {
+        using Mat = Eigen::Matrix<double, dim, dim>;
+        const Mesh& mesh = space.mesh();
+        for (Index e = 0; e < space.num_elements(); ++e) {
+            const auto G = shape<dim>(space, e);
+            const auto F = Kernel<dim>::deformation(G, gather<dim>(mesh, e, x));
+            const Mat L = Kernel<dim>::deformation(G, gather<dim>(mesh, e, dir));
+            const Material<dim>& m = material(models[size_t(e)]);
+            const Mat P = m.stress(F, mu[e], lambda[e]);
+            const typename Kernel<dim>::Tensor A = m.stress_derivative(F, mu[e], lambda[e]);
+            Eigen::Matrix<double, dim * dim, 1> l;
+            for (int i = 0; i < dim; ++i)
+                for (int j = 0; j < dim; ++j)
+                    l[i * dim + j] = L(i, j);
+            const Eigen::Matrix<double, dim * dim, 1> al = A * l;
+            Mat AL;
+            for (int i = 0; i < dim; ++i)
+                for (int j = 0; j < dim; ++j)
+                    AL(i, j) = al[i * dim + j];
+            const Mat DinvT = G.bottomRows(dim).transpose();
+            const double PL = (P.array() * L.array()).sum();
+            const Mat Q
+                = weight * space.rest_volume(e) * (PL * DinvT - F.transpose() * AL * DinvT - L.transpose() * P * DinvT);
+            for (int a = 1; a <= dim; ++a) {
+                const Index va = mesh.elements(e, a), v0 = mesh.elements(e, 0);
+                for (int i = 0; i < dim; ++i) {
+                    out[va * dim + i] += Q(i, a - 1);
+                    out[v0 * dim + i] -= Q(i, a - 1);
+                }
+            }
+        }
+    }
+
+    template <int dim, typename MaterialOf>
+    void lame_impl(const FESpace& space, const std::vector<MaterialModel>& models, const VectorXd& x,
+        const VectorXd& dir, double weight, VectorXd& dmu, VectorXd& dlambda, MaterialOf material)
+    {
+        const Mesh& mesh = space.mesh();
+        for (Index e = 0; e < space.num_elements(); ++e) {
+            const auto G = shape<dim>(space, e);
+            const auto F = Kernel<dim>::deformation(G, gather<dim>(mesh, e, x));
+            const auto L = Kernel<dim>::deformation(G, gather<dim>(mesh, e, dir));
+            const Material<dim>& m = material(models[size_t(e)]);
+            const double c = weight * space.rest_volume(e);
+            dmu[e] += c * (m.stress(F, 1.0, 0.0).array() * L.array()).sum();
+            dlambda[e] += c * (m.stress(F, 0.0, 1.0).array() * L.array()).sum();
+        }
+    }
+
+} // namespace
+
+void ElasticPotential::add_shape_derivative(
+    const VectorXd& x, const VectorXd& direction, double weight, VectorXd& d_rest_positions) const
+{
+    if (m_space.dim() == 2)
+        shape_impl<2>(m_space, m_models, m_mu, m_lambda, x, direction, weight, d_rest_positions,
+            [this](MaterialModel m) -> const Material<2>& { return m_impl->material<2>(m); });
+    else
+        shape_impl<3>(m_space, m_models, m_mu, m_lambda, x, direction, weight, d_rest_positions,
+            [this](MaterialModel m) -> const Material<3>& { return m_impl->material<3>(m); });
+}
+
+void ElasticPotential::add_lame_derivative(
+    const VectorXd& x, const VectorXd& direction, double weight, VectorXd& dmu, VectorXd& dlambda) const
+{
+    if (m_space.dim() == 2)
+        lame_impl<2>(m_space, m_models, x, direction, weight, dmu, dlambda,
+            [this](MaterialModel m) -> const Material<2>& { return m_impl->material<2>(m); });
+    else
+        lame_impl<3>(m_space, m_models, x, direction, weight, dmu, dlambda,
+            [this](MaterialModel m) -> const Material<3>& { return m_impl->material<3>(m); });
+}
+
 } // namespace diffipc

@@ -28,6 +28,13 @@ public:
     double value_scale(const VectorXd& x) const override;
     void add_gradient(const VectorXd& x, double weight, VectorXd& g) const override;
     void add_hessian(const VectorXd& x, double weight, bool project_to_psd, SparseAssembler& H) const override;
+    /// Shape derivative of direction^T grad Psi (docs/math.md "Adjoint").
+    void add_shape_derivative(
+        const VectorXd& x, const VectorXd& direction, double weight, VectorXd& d_rest_positions) const override;
+    /// @brief Adds weight * d/dmu_e [direction^T grad Psi] and d/dlambda_e to
+    /// dmu and dlambda (#E each); every material law is linear in (mu, lambda).
+    void add_lame_derivative(
+        const VectorXd& x, const VectorXd& direction, double weight, VectorXd& dmu, VectorXd& dlambda) const;
     /// Inversion bound: no element may lose more than 90% of its volume along the step.
     double max_step(const VectorXd& x, const VectorXd& p) const override;
 
@@ -35,6 +42,7 @@ public:
     void set_lame_parameters(const VectorXd& mu, const VectorXd& lambda);
     const VectorXd& mu() const { return m_mu; }
     const VectorXd& lambda() const { return m_lambda; }
+    const std::vector<MaterialModel>& models() const { return m_models; }
 
     /// @brief #E by dim*dim first Piola-Kirchhoff stress per element (row-major flattening).
     MatrixXd element_stresses(const VectorXd& x) const;

@@ -58,4 +58,65 @@ void InertiaPotential::add_hessian(const VectorXd&, double weight, bool, SparseA
     }
 }
 
+namespace {
+
+    /// d/d(rho_e |e|) of direction^T M_e (x - x~) for element e: lumped mass gives
+    /// sum_a direction_a . delta_a / (d+1), consistent mass
+    /// sum_ab (1 + delta_ab) direction_a . delta_b / ((d+1)(d+2)).
+    double element_mass_sensitivity(
+        const Mesh& mesh, Index e, const VectorXd& dir, const VectorXd& delta, bool consistent)
+    {
+        const int d = mesh.dim;
+        double s = 0;
+        if (!consistent) {
+            for (int a = 0; a <= d; ++a) {
+                const Index v = mesh.elements(e, a);
+                s += dir.segment(v * d, d).dot(delta.segment(v * d, d));
+            }
+            return s / (d + 1);
+        }
+        for (int a = 0; a <= d; ++a)
+            for (int b = 0; b <= d; ++b) {
+                const Index va = mesh.elements(e, a), vb = mesh.elements(e, b);
+                s += (a == b ? 2.0 : 1.0) * dir.segment(va * d, d).dot(delta.segment(vb * d, d));
+            }
+        return s / ((d + 1) * (d + 2));
+    }
+
+} // namespace
+
+void InertiaPotential::add_mass_derivatives(const VectorXd& direction, const VectorXd& delta, double weight,
+    VectorXd* d_rest_positions, VectorXd* d_density) const
+{
+    const Mesh& mesh = m_space.mesh();
+    const int d = mesh.dim;
+    for (Index e = 0; e < m_space.num_elements(); ++e) {
+        const double s = weight * element_mass_sensitivity(mesh, e, direction, delta, m_consistent);
+        if (s == 0)
+            continue;
+        if (d_density)
+            (*d_density)[e] += m_space.rest_volume(e) * s;
+        if (d_rest_positions) {
+            // d|e|/dX_a = |e| G_a
+            const double c = m_density[e] * s * m_space.rest_volume(e);
+            const double* G = m_space.shape_gradients(e);
+            for (int a = 0; a <= d; ++a)
+                for (int j = 0; j < d; ++j)
+                    (*d_rest_positions)[mesh.elements(e, a) * d + j] += c * G[a * d + j];
+        }
+    }
+}
+
+void InertiaPotential::add_shape_derivative(
+    const VectorXd& x, const VectorXd& direction, double weight, VectorXd& d_rest_positions) const
+{
+    add_mass_derivatives(direction, x - m_target, weight, &d_rest_positions, nullptr);
+}
+
+void InertiaPotential::add_density_derivative(
+    const VectorXd& x, const VectorXd& direction, double weight, VectorXd& d_density) const
+{
+    add_mass_derivatives(direction, x - m_target, weight, nullptr, &d_density);
+}
+
 } // namespace diffipc

@@ -18,6 +18,16 @@ public:
     void add_gradient(const VectorXd& x, double weight, VectorXd& g) const override;
     void add_hessian(const VectorXd& x, double weight, bool project_to_psd, SparseAssembler& H) const override;
 
+    /// Shape derivative of direction^T M (x - x~) through the element volumes (x, x~ fixed).
+    void add_shape_derivative(
+        const VectorXd& x, const VectorXd& direction, double weight, VectorXd& d_rest_positions) const override;
+    /// @brief Adds weight * d/drho_e [direction^T M (x - x~)] to d_density (#E).
+    void add_density_derivative(const VectorXd& x, const VectorXd& direction, double weight, VectorXd& d_density) const;
+    /// @brief Adds weight * d/dp [direction^T M delta] at fixed direction and delta
+    /// (#V*dim each) for p = X (d_rest_positions, #V*dim) and rho (d_density, #E); null outputs are skipped.
+    void add_mass_derivatives(const VectorXd& direction, const VectorXd& delta, double weight,
+        VectorXd* d_rest_positions, VectorXd* d_density) const;
+
     /// Flattened inertial target x~ (#V*dim).
     void set_target(const VectorXd& target) { m_target = target; }
     const VectorXd& target() const { return m_target; }
@@ -26,6 +36,8 @@ public:
     /// Lumped nodal masses (#V), also used for gravity loads.
     const VectorXd& lumped_masses() const { return m_lumped; }
     bool consistent() const { return m_consistent; }
+    /// #E element densities (kg/m^3).
+    const VectorXd& density() const { return m_density; }
     const SparseMatrixd& consistent_matrix() const { return m_matrix; }
 
 private:

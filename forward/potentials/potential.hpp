@@ -30,6 +30,18 @@ public:
     /// `project_to_psd` each local contribution is made positive semi-definite
     /// first (the Newton search matrix), without it the true Hessian is added.
     virtual void add_hessian(const VectorXd& x, double weight, bool project_to_psd, SparseAssembler& H) const = 0;
+    /// @brief Shape derivative of the gradient along a direction: adds
+    /// weight * d/dX [direction^T dE/dx (x; X)] at fixed x to d_rest_positions
+    /// (#V*dim), X the rest positions. The default adds nothing: a potential
+    /// whose gradient depends on X must override it (the adjoint relies on it).
+    virtual void add_shape_derivative(
+        const VectorXd& x, const VectorXd& direction, double weight, VectorXd& d_rest_positions) const
+    {
+        (void)x;
+        (void)direction;
+        (void)weight;
+        (void)d_rest_positions;
+    }
     /// @brief Largest t in (0, 1] such that x + s p stays valid for this term
     /// for all s in [0, t] (1 if this term has no restriction).
     virtual double max_step(const VectorXd& x, const VectorXd& p) const

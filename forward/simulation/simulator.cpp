@@ -15,11 +15,68 @@
 namespace diffipc {
 
 Simulator::Simulator(Scene scene)
+    : Simulator(std::move(scene), SimulationParameters {})
+{
+}
+
+namespace {
+
+    void check_size(const VectorXd& v, Index n, const std::string& field, const std::string& what)
+    {
+        if (v.size() != 0 && v.size() != n)
+            throw InputError(
+                field, "expected " + std::to_string(n) + " values (" + what + "), got " + std::to_string(v.size()));
+        if (!v.allFinite())
+            throw InputError(field, "non-finite value");
+    }
+
+    double element_det(const Positions& X, const MatrixXi& elements, Index e, int d)
+    {
+        Eigen::MatrixXd Dm(d, d);
+        for (int a = 0; a < d; ++a)
+            Dm.col(a) = (X.row(elements(e, a + 1)) - X.row(elements(e, 0))).transpose();
+        return Dm.determinant();
+    }
+
+} // namespace
+
+Simulator::Simulator(Scene scene, const SimulationParameters& parameters)
     : m_scene(std::move(scene))
+    , m_overrides(parameters)
 {
     const Mesh& mesh = m_scene.mesh;
     const int d = mesh.dim;
     const Index ne = mesh.num_elements(), n = mesh.num_dofs();
+    const SimulationParameters& P = m_overrides;
+    check_size(P.rest_positions, n, "rest_positions", "#V*dim");
+    check_size(P.mu, ne, "mu", "one per element");
+    check_size(P.lambda, ne, "lambda", "one per element");
+    check_size(P.youngs_modulus, ne, "E", "one per element");
+    check_size(P.poisson_ratio, ne, "nu", "one per element");
+    check_size(P.density, ne, "density", "one per element");
+    check_size(P.friction, Index(num_groups()), "friction", "one per body and obstacle");
+    check_size(P.initial_displacement, n, "initial_displacement", "#V*dim");
+    check_size(P.initial_velocity, n, "initial_velocity", "#V*dim");
+    if (!P.prescribed.allFinite())
+        throw InputError("prescribed", "non-finite value");
+    if (!(P.kappa >= 0) || !std::isfinite(P.kappa))
+        throw InputError("kappa", "must be a positive finite barrier stiffness (or 0 for the scene's)");
+    // Regions and boundary expressions stay tied to the scene's own rest positions.
+    const Positions reference = mesh.rest_positions;
+    if (P.rest_positions.size()) {
+        const Positions X = unflatten(P.rest_positions, d);
+        for (Index e = 0; e < ne; ++e) {
+            const double before = element_det(reference, mesh.elements, e, d),
+                         after = element_det(X, mesh.elements, e, d);
+            if (!(after * before > 0) || !(std::abs(after) > 1e-12 * std::abs(before)))
+                throw InputError("rest_positions", "element " + std::to_string(e) + " degenerates or inverts");
+        }
+        m_scene.mesh.rest_positions = X;
+    }
+    if (P.kappa > 0 && m_scene.contact.enabled) {
+        m_scene.contact.kappa = P.kappa;
+        m_scene.contact.adaptive_kappa = false;
+    }
     m_space = std::make_unique<FESpace>(mesh);
 
     std::vector<MaterialModel> models(static_cast<size_t>(ne));
@@ -28,10 +85,23 @@ Simulator::Simulator(Scene scene)
     for (Index e = 0; e < ne; ++e) {
         const MaterialSpec& m = m_scene.bodies[size_t(mesh.element_body[e])].material;
         models[size_t(e)] = m.model;
-        mu[e] = lame_mu(m.youngs_modulus, m.poisson_ratio);
-        lambda[e] = lame_lambda(m.youngs_modulus, m.poisson_ratio);
-        density[e] = m.density;
-        mean_E += m.youngs_modulus / double(ne);
+        const double E = P.youngs_modulus.size() ? P.youngs_modulus[e] : m.youngs_modulus;
+        const double nu = P.poisson_ratio.size() ? P.poisson_ratio[e] : m.poisson_ratio;
+        if (!(E > 0))
+            throw InputError("E[" + std::to_string(e) + "]", "Young's modulus must be positive");
+        if (!(nu > -1 && nu < 0.5))
+            throw InputError("nu[" + std::to_string(e) + "]", "Poisson's ratio must lie in (-1, 0.5)");
+        mu[e] = P.mu.size() ? P.mu[e] : lame_mu(E, nu);
+        lambda[e] = P.lambda.size() ? P.lambda[e] : lame_lambda(E, nu);
+        if (!(mu[e] > 0))
+            throw InputError("mu[" + std::to_string(e) + "]", "the shear modulus must be positive");
+        if (!(lambda[e] > -2.0 / d * mu[e]))
+            throw InputError(
+                "lambda[" + std::to_string(e) + "]", "the bulk modulus lambda + 2 mu / dim must be positive");
+        density[e] = P.density.size() ? P.density[e] : m.density;
+        if (!(density[e] > 0))
+            throw InputError("density[" + std::to_string(e) + "]", "must be positive");
+        mean_E += E / double(ne);
     }
     double mean_volume = 0;
     for (double v : m_space->rest_volumes())
@@ -41,7 +111,6 @@ Simulator::Simulator(Scene scene)
     const auto bodies = mesh.rest_positions.topRows(m_scene.body_vertices);
     const Eigen::RowVectorXd extent = bodies.colwise().maxCoeff() - bodies.colwise().minCoeff();
     m_bbox_diagonal = extent.norm();
-
     m_elastic = std::make_unique<ElasticPotential>(*m_space, models, mu, lambda);
     m_inertia = std::make_unique<InertiaPotential>(*m_space, density, m_scene.mass == MassType::CONSISTENT);
     m_external = std::make_unique<ExternalForcePotential>(flatten(mesh.rest_positions));
@@ -64,7 +133,7 @@ Simulator::Simulator(Scene scene)
     for (size_t k = 0; k < m_scene.dirichlet.size(); ++k) {
         const DirichletSpec& spec = m_scene.dirichlet[k];
         for (Index v = 0; v < mesh.num_vertices(); ++v) {
-            if (mesh.vertex_body[v] != spec.body || !spec.region.contains(mesh.rest_positions.row(v).transpose(), tol))
+            if (mesh.vertex_body[v] != spec.body || !spec.region.contains(reference.row(v).transpose(), tol))
                 continue;
             for (int a = 0; a < d; ++a)
                 if (spec.displacement[size_t(a)])
@@ -76,9 +145,11 @@ Simulator::Simulator(Scene scene)
         if (owner[size_t(i)] < 0)
             continue;
         m_constrained[size_t(i)] = 1;
-        Eigen::Vector3d rest = Eigen::Vector3d::Zero();
+        Eigen::Vector3d rest = Eigen::Vector3d::Zero(), ref = Eigen::Vector3d::Zero();
         rest.head(d) = mesh.rest_positions.row(i / d).transpose();
-        m_dirichlet.push_back({ i, &*m_scene.dirichlet[size_t(owner[size_t(i)])].displacement[size_t(i % d)], rest });
+        ref.head(d) = reference.row(i / d).transpose();
+        m_dirichlet.push_back(
+            { i, &*m_scene.dirichlet[size_t(owner[size_t(i)])].displacement[size_t(i % d)], rest, ref });
     }
     // Obstacle vertices are prescribed dofs that follow the obstacle's motion.
     for (const ObstacleSpec& o : m_scene.obstacles)
@@ -86,9 +157,10 @@ Simulator::Simulator(Scene scene)
             for (int a = 0; a < d; ++a) {
                 const Index i = v * d + a;
                 m_constrained[size_t(i)] = 1;
-                Eigen::Vector3d rest = Eigen::Vector3d::Zero();
+                Eigen::Vector3d rest = Eigen::Vector3d::Zero(), ref = Eigen::Vector3d::Zero();
                 rest.head(d) = mesh.rest_positions.row(v).transpose();
-                m_dirichlet.push_back({ i, &o.motion[size_t(a)], rest });
+                ref.head(d) = reference.row(v).transpose();
+                m_dirichlet.push_back({ i, &o.motion[size_t(a)], rest, ref });
             }
 
     // Neumann: boundary facets whose vertices all lie in the region.
@@ -102,9 +174,11 @@ Simulator::Simulator(Scene scene)
             Eigen::Matrix3d corners = Eigen::Matrix3d::Zero();
             for (int a = 0; a < d; ++a) {
                 const Index v = mesh.boundary_facets(f, a);
-                inside = inside && spec.region.contains(mesh.rest_positions.row(v).transpose(), tol);
+                inside = inside && spec.region.contains(reference.row(v).transpose(), tol);
                 corners.col(a).head(d) = mesh.rest_positions.row(v).transpose();
-                centroid += corners.col(a) / d;
+                Eigen::Vector3d r = Eigen::Vector3d::Zero();
+                r.head(d) = reference.row(v).transpose();
+                centroid += r / d;
             }
             if (!inside)
                 continue;
@@ -124,12 +198,23 @@ Simulator::Simulator(Scene scene)
     // Initial state: rest positions with Dirichlet values at t = 0; body
     // velocities, with the prescribed rate on Dirichlet dofs.
     VectorXd x0 = flatten(mesh.rest_positions);
+    if (P.initial_displacement.size())
+        x0 += P.initial_displacement;
     dirichlet_targets(0.0, x0);
     VectorXd v0(n);
     for (Index v = 0; v < mesh.num_vertices(); ++v)
         v0.segment(v * d, d) = v < m_scene.body_vertices
             ? VectorXd(m_scene.bodies[size_t(mesh.vertex_body[v])].initial_velocity)
             : VectorXd::Zero(d);
+    if (P.initial_velocity.size())
+        for (Index i = 0; i < n; ++i)
+            if (!m_constrained[size_t(i)])
+                v0[i] = P.initial_velocity[i];
+    if (P.prescribed.size()
+        && (P.prescribed.rows() != m_scene.time.steps || P.prescribed.cols() != Index(m_dirichlet.size())))
+        throw InputError("prescribed",
+            "expected " + std::to_string(m_scene.time.steps) + " by " + std::to_string(m_dirichlet.size())
+                + " values (steps by prescribed dofs)");
     {
         const double dt = m_scene.time.dt * 1e-3;
         VectorXd x1 = x0;
@@ -252,6 +337,12 @@ void Simulator::setup_friction()
         mu.push_back(b.friction_coefficient >= 0 ? b.friction_coefficient : spec.coefficient);
     for (const ObstacleSpec& o : m_scene.obstacles)
         mu.push_back(o.friction_coefficient >= 0 ? o.friction_coefficient : spec.coefficient);
+    if (m_overrides.friction.size())
+        for (size_t k = 0; k < mu.size(); ++k) {
+            mu[k] = m_overrides.friction[Index(k)];
+            if (!(mu[k] >= 0))
+                throw InputError("friction[" + std::to_string(k) + "]", "friction coefficients must be >= 0");
+        }
     for (double m : mu)
         any = any || m > 0;
     if (!any)
@@ -301,7 +392,20 @@ double Simulator::time() const { return steps_done() * m_scene.time.dt; }
 void Simulator::dirichlet_targets(double t, VectorXd& x) const
 {
     for (const auto& dd : m_dirichlet)
-        x[dd.dof] = dd.rest[dd.dof % m_scene.dim] + (*dd.expression)(t, dd.rest[0], dd.rest[1], dd.rest[2]);
+        x[dd.dof]
+            = dd.rest[dd.dof % m_scene.dim] + (*dd.expression)(t, dd.reference[0], dd.reference[1], dd.reference[2]);
+}
+
+void Simulator::prescribed_targets(int k, VectorXd& x) const
+{
+    if (m_overrides.prescribed.size() == 0 || k < 1 || k > m_overrides.prescribed.rows()) {
+        dirichlet_targets(k * m_scene.time.dt, x);
+        return;
+    }
+    for (size_t j = 0; j < m_dirichlet.size(); ++j) {
+        const auto& dd = m_dirichlet[j];
+        x[dd.dof] = dd.rest[dd.dof % m_scene.dim] + m_overrides.prescribed(k - 1, Index(j));
+    }
 }
 
 VectorXd Simulator::external_forces(double t) const
@@ -379,7 +483,7 @@ StepStatus Simulator::step()
     VectorXd target = m_integrator->positions();
     try {
         m_external->set_force(external_forces(t_next));
-        dirichlet_targets(t_next, target);
+        prescribed_targets(index, target);
     } catch (const InputError& e) {
         // A boundary expression that is not finite at this time: not committable.
         record.status = StepStatus::NON_FINITE;
@@ -512,6 +616,149 @@ const Trajectory& Simulator::run(const std::function<void(const StepRecord&)>& p
             progress(m_trajectory.steps.back());
     }
     return m_trajectory;
+}
+
+std::vector<Index> Simulator::prescribed_dofs() const
+{
+    std::vector<Index> dofs;
+    dofs.reserve(m_dirichlet.size());
+    for (const auto& dd : m_dirichlet)
+        dofs.push_back(dd.dof);
+    return dofs;
+}
+
+SimulationParameters Simulator::parameters() const
+{
+    SimulationParameters p;
+    const int d = m_scene.dim;
+    p.rest_positions = flatten(m_scene.mesh.rest_positions);
+    p.mu = m_elastic->mu();
+    p.lambda = m_elastic->lambda();
+    const Index ne = p.mu.size();
+    p.youngs_modulus.resize(ne);
+    p.poisson_ratio.resize(ne);
+    for (Index e = 0; e < ne; ++e) {
+        const double m = p.mu[e], l = p.lambda[e];
+        p.youngs_modulus[e] = m * (3 * l + 2 * m) / (l + m);
+        p.poisson_ratio[e] = l / (2 * (l + m));
+    }
+    p.density = m_inertia->density();
+    p.friction = VectorXd::Zero(num_groups());
+    if (m_friction)
+        for (int k = 0; k < num_groups(); ++k)
+            p.friction[k] = m_friction->group_coefficients()[size_t(k)];
+    p.initial_displacement = m_trajectory.initial_positions - p.rest_positions;
+    p.initial_velocity = m_trajectory.initial_velocities;
+    const int T = m_scene.time.steps;
+    p.prescribed.resize(T, Index(m_dirichlet.size()));
+    VectorXd x = p.rest_positions;
+    for (int k = 1; k <= T; ++k) {
+        prescribed_targets(k, x);
+        for (size_t j = 0; j < m_dirichlet.size(); ++j)
+            p.prescribed(k - 1, Index(j)) = x[m_dirichlet[j].dof] - m_dirichlet[j].rest[m_dirichlet[j].dof % d];
+    }
+    p.kappa = m_contact ? m_contact->kappa() : 0.0;
+    return p;
+}
+
+const Problem& Simulator::step_problem(int k)
+{
+    if (k < 1 || k > steps_done())
+        throw std::out_of_range("Simulator::step_problem: step " + std::to_string(k) + " was not committed");
+    const StepScheme s = m_integrator->scheme(k);
+    const auto state = [this](int j, int which) -> const VectorXd& {
+        if (j == 0)
+            return which == 0 ? m_trajectory.initial_positions
+                : which == 1  ? m_trajectory.initial_velocities
+                              : m_trajectory.initial_accelerations;
+        const StepRecord& r = m_trajectory.steps[size_t(j - 1)];
+        return which == 0 ? r.positions : which == 1 ? r.velocities : r.accelerations;
+    };
+    VectorXd target = VectorXd::Zero(m_scene.mesh.num_dofs());
+    for (int j = 1; j <= 2 && k - j >= 0; ++j) {
+        if (s.tx[j] != 0)
+            target += s.tx[j] * state(k - j, 0);
+        if (s.tv[j] != 0)
+            target += s.tv[j] * state(k - j, 1);
+        if (s.ta[j] != 0)
+            target += s.ta[j] * state(k - j, 2);
+    }
+    m_inertia->set_target(target);
+    m_problem.set_weight(m_elastic.get(), s.weight);
+    m_problem.set_weight(m_external.get(), s.weight);
+    m_external->set_force(external_forces(k * m_scene.time.dt));
+    const StepRecord& record = m_trajectory.steps[size_t(k - 1)];
+    if (m_contact) {
+        m_problem.set_weight(m_contact.get(), s.weight);
+        m_contact->set_kappa(record.kappa);
+    }
+    if (m_friction) {
+        m_problem.set_weight(m_friction.get(), s.weight);
+        m_friction->set_step(state(k - 1, 0), m_scene.time.dt);
+        m_friction->set_lagged(record.friction);
+    }
+    return m_problem;
+}
+
+void Simulator::external_force_derivatives(
+    double t, const VectorXd& direction, VectorXd* d_rest_positions, VectorXd* d_density) const
+{
+    const Mesh& mesh = m_scene.mesh;
+    const int d = mesh.dim;
+    const VectorXd& density = m_inertia->density();
+    Eigen::VectorXd g = Eigen::VectorXd::Zero(d);
+    for (int a = 0; a < d; ++a)
+        g[a] = m_scene.gravity[a];
+    if (g.squaredNorm() > 0) {
+        // direction^T f_gravity = sum_e rho_e |e| / (d+1) sum_{a in e} direction_a . g
+        for (Index e = 0; e < mesh.num_elements(); ++e) {
+            double s = 0;
+            for (int a = 0; a <= d; ++a)
+                s += direction.segment(mesh.elements(e, a) * d, d).dot(g);
+            const double vol = m_space->rest_volume(e);
+            if (d_density)
+                (*d_density)[e] += vol / (d + 1) * s;
+            if (d_rest_positions) {
+                // d|e|/dX_a = |e| G_a
+                const double* G = m_space->shape_gradients(e);
+                const double c = density[e] / (d + 1) * s * vol;
+                for (int a = 0; a <= d; ++a)
+                    for (int j = 0; j < d; ++j)
+                        (*d_rest_positions)[mesh.elements(e, a) * d + j] += c * G[a * d + j];
+            }
+        }
+    }
+    if (!d_rest_positions)
+        return;
+    for (const auto& lf : m_loaded_facets) {
+        const NeumannSpec& spec = m_scene.neumann[size_t(lf.spec)];
+        // direction^T f = area / d * sum_a sum_c direction_(a,c) t_c
+        double s = 0;
+        for (int c = 0; c < d; ++c) {
+            const double traction = spec.traction[size_t(c)](t, lf.centroid[0], lf.centroid[1], lf.centroid[2]);
+            for (int a = 0; a < d; ++a)
+                s += direction[mesh.boundary_facets(lf.facet, a) * d + c] * traction;
+        }
+        s /= d;
+        Eigen::Vector3d X[3];
+        for (int a = 0; a < d; ++a) {
+            X[a].setZero();
+            X[a].head(d) = mesh.rest_positions.row(mesh.boundary_facets(lf.facet, a)).transpose();
+        }
+        Eigen::Vector3d grad[3];
+        if (d == 2) {
+            const Eigen::Vector3d u = (X[1] - X[0]).normalized();
+            grad[0] = -u;
+            grad[1] = u;
+        } else {
+            // dA/dX_i = 1/2 n^ x (X_{i+2} - X_{i+1})
+            const Eigen::Vector3d n = (X[1] - X[0]).cross(X[2] - X[0]).normalized();
+            for (int i = 0; i < 3; ++i)
+                grad[i] = 0.5 * n.cross(X[(i + 2) % 3] - X[(i + 1) % 3]);
+        }
+        for (int a = 0; a < d; ++a)
+            d_rest_positions->segment(mesh.boundary_facets(lf.facet, a) * d, d) += s * grad[a].head(d);
+    }
 }
 
 } // namespace diffipc

@@ -8,6 +8,7 @@
 #include "forward/potentials/elastic_potential.hpp"
 #include "forward/potentials/inertia_potential.hpp"
 #include "forward/scene/scene.hpp"
+#include "forward/simulation/parameters.hpp"
 #include "forward/simulation/step_record.hpp"
 #include "forward/solver/linear_solver.hpp"
 #include "forward/solver/problem.hpp"
@@ -22,6 +23,11 @@ namespace diffipc {
 class Simulator {
 public:
     explicit Simulator(Scene scene);
+    /// @brief A simulation of `scene` with some of its values replaced
+    /// (forward/simulation/parameters.hpp).
+    /// @throws InputError naming the parameter for wrong sizes, non-finite or
+    /// out-of-range values, or rest positions that degenerate or invert an element.
+    Simulator(Scene scene, const SimulationParameters& parameters);
     ~Simulator();
     Simulator(const Simulator&) = delete;
     Simulator& operator=(const Simulator&) = delete;
@@ -31,6 +37,7 @@ public:
     const FESpace& space() const { return *m_space; }
     const Problem& problem() const { return m_problem; }
     const ElasticPotential& elastic() const { return *m_elastic; }
+    const InertiaPotential& inertia() const { return *m_inertia; }
     /// The barrier potential, or nullptr when the scene has no contact.
     const ContactPotential* contact() const { return m_contact.get(); }
     /// The friction potential, or nullptr when no coefficient is positive.
@@ -71,8 +78,31 @@ public:
     /// only before the first step.
     void set_element_materials(const VectorXd& youngs_modulus, const VectorXd& poisson_ratio);
 
+    /// @name For the adjoint: the scene's canonical parameters and the problem of a committed step.
+    /// @{
+    /// Prescribed dofs (Dirichlet, then obstacle vertices), the order of SimulationParameters::prescribed.
+    std::vector<Index> prescribed_dofs() const;
+    /// The canonical parameter values of this simulation, every field filled
+    /// (rest positions, mu, lambda, E, nu, density, friction per group, u0, v0,
+    /// prescribed displacements for the scene's T steps, kappa).
+    SimulationParameters parameters() const;
+    /// @brief Sets the problem (inertial target, weights, external forces, barrier
+    /// stiffness, lagged friction data) to that of committed step k (1-based) and returns it.
+    const Problem& step_problem(int k);
+    /// The integrator's linear maps of step k (1-based).
+    StepScheme step_scheme(int k) const { return m_integrator->scheme(k); }
+    /// @brief Adds d(direction^T f_ext(t))/dX (#V*dim) and d/drho (#E) to the
+    /// non-null outputs: gravity through the lumped masses, tractions through facet areas.
+    void external_force_derivatives(
+        double t, const VectorXd& direction, VectorXd* d_rest_positions, VectorXd* d_density) const;
+    /// Number of contact groups (bodies, then obstacles).
+    int num_groups() const { return int(m_scene.bodies.size() + m_scene.obstacles.size()); }
+    /// @}
+
 private:
     void dirichlet_targets(double t, VectorXd& x) const;
+    /// Prescribed positions at step k (1-based): the override's g_k if given, else the expressions at t_k.
+    void prescribed_targets(int k, VectorXd& x) const;
     void setup_contact();
     void setup_friction();
     /// max |free-dof gradient| / (w f_s) at x.
@@ -100,15 +130,17 @@ private:
     struct DirichletDof {
         Index dof;
         const Expression* expression;
-        Eigen::Vector3d rest;
+        Eigen::Vector3d rest; ///< X of the vertex (the parameter's, if overridden)
+        Eigen::Vector3d reference; ///< the scene's own rest position: the expression's argument
     };
+    SimulationParameters m_overrides;
     std::vector<DirichletDof> m_dirichlet;
     std::vector<char> m_constrained;
     struct LoadedFacet {
         Index facet;
         int spec;
         double area;
-        Eigen::Vector3d centroid;
+        Eigen::Vector3d centroid; ///< at the scene's own rest positions (the traction's argument)
     };
     std::vector<LoadedFacet> m_loaded_facets;
     VectorXd m_gravity_forces;

@@ -39,7 +39,31 @@ namespace {
             v_next = (x_next - m_x) / m_dt;
             a_next = VectorXd::Zero(x_next.size());
         }
+        StepScheme scheme(int) const override
+        {
+            StepScheme s;
+            s.inertia = false;
+            s.weight = 1;
+            s.vx[0] = 1 / m_dt;
+            s.vx[1] = -1 / m_dt;
+            return s;
+        }
     };
+
+    /// Implicit Euler's maps (also BDF2's first step).
+    StepScheme implicit_euler_scheme(double h)
+    {
+        StepScheme s;
+        s.weight = h * h;
+        s.tx[1] = 1;
+        s.tv[1] = h;
+        s.vx[0] = 1 / h;
+        s.vx[1] = -1 / h;
+        s.ax[0] = 1 / (h * h);
+        s.ax[1] = -1 / (h * h);
+        s.av[1] = -1 / h;
+        return s;
+    }
 
     /// Implicit Euler: x~ = x_n + h v_n, c = 1, v_{n+1} = (x_{n+1} - x_n) / h.
     class ImplicitEuler final : public TimeIntegrator {
@@ -56,6 +80,7 @@ namespace {
             v_next = (x_next - m_x) / m_dt;
             a_next = (v_next - m_v) / m_dt;
         }
+        StepScheme scheme(int) const override { return implicit_euler_scheme(m_dt); }
     };
 
     /// BDF2 (first step by implicit Euler):
@@ -86,6 +111,26 @@ namespace {
             v_next = (3.0 * x_next - 4.0 * m_x + m_x_prev) / (2.0 * m_dt);
             a_next = (3.0 * v_next - 4.0 * m_v + m_v_prev) / (2.0 * m_dt);
         }
+        StepScheme scheme(int k) const override
+        {
+            const double h = m_dt;
+            if (k <= 1)
+                return implicit_euler_scheme(h);
+            StepScheme s;
+            s.weight = 4.0 / 9.0 * h * h;
+            s.tx[1] = 4.0 / 3.0;
+            s.tx[2] = -1.0 / 3.0;
+            s.tv[1] = 8.0 * h / 9.0;
+            s.tv[2] = -2.0 * h / 9.0;
+            s.vx[0] = 3.0 / (2.0 * h);
+            s.vx[1] = -2.0 / h;
+            s.vx[2] = 1.0 / (2.0 * h);
+            for (int j = 0; j < 3; ++j)
+                s.ax[j] = 3.0 / (2.0 * h) * s.vx[j];
+            s.av[1] = -2.0 / h;
+            s.av[2] = 1.0 / (2.0 * h);
+            return s;
+        }
     };
 
     /// Newmark, average acceleration (beta = 1/4, gamma = 1/2):
@@ -105,6 +150,24 @@ namespace {
         {
             a_next = (x_next - inertial_target()) / (BETA * m_dt * m_dt);
             v_next = m_v + m_dt * ((1.0 - GAMMA) * m_a + GAMMA * a_next);
+        }
+        StepScheme scheme(int) const override
+        {
+            const double h = m_dt, c = 1.0 / (BETA * h * h);
+            StepScheme s;
+            s.weight = BETA * h * h;
+            s.tx[1] = 1;
+            s.tv[1] = h;
+            s.ta[1] = (0.5 - BETA) * h * h;
+            s.ax[0] = c;
+            s.ax[1] = -c * s.tx[1];
+            s.av[1] = -c * s.tv[1];
+            s.aa[1] = -c * s.ta[1];
+            s.vx[0] = h * GAMMA * s.ax[0];
+            s.vx[1] = h * GAMMA * s.ax[1];
+            s.vv[1] = 1 + h * GAMMA * s.av[1];
+            s.va[1] = h * (1 - GAMMA) + h * GAMMA * s.aa[1];
+            return s;
         }
     };
 

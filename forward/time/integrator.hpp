@@ -12,6 +12,20 @@
 
 namespace diffipc {
 
+/// Step k of a scheme as linear maps of the states of steps k-1 and k-2
+/// (index j of each array: the state k-j; entries for j = 0 only in vx, ax):
+///   x~_k = sum_{j=1,2} tx_j x_{k-j} + tv_j v_{k-j} + ta_j a_{k-j},
+///   v_k  = vx_0 x_k + sum_{j=1,2} (vx_j x_{k-j} + vv_j v_{k-j} + va_j a_{k-j}),
+///   a_k  = ax_0 x_k + sum_{j=1,2} (ax_j x_{k-j} + av_j v_{k-j} + aa_j a_{k-j}).
+/// The adjoint runs these maps backward.
+struct StepScheme {
+    bool inertia = true; ///< false: static (no inertial term)
+    double weight = 1; ///< c h^2 of the non-inertial potentials
+    double tx[3] = { 0, 0, 0 }, tv[3] = { 0, 0, 0 }, ta[3] = { 0, 0, 0 };
+    double vx[3] = { 0, 0, 0 }, vv[3] = { 0, 0, 0 }, va[3] = { 0, 0, 0 };
+    double ax[3] = { 0, 0, 0 }, av[3] = { 0, 0, 0 }, aa[3] = { 0, 0, 0 };
+};
+
 class TimeIntegrator {
 public:
     virtual ~TimeIntegrator() = default;
@@ -29,6 +43,8 @@ public:
     virtual double potential_weight() const = 0;
     /// @brief Velocity and acceleration that the scheme assigns to x_next.
     virtual void update(const VectorXd& x_next, VectorXd& v_next, VectorXd& a_next) const = 0;
+    /// @brief The linear maps of step k (1-based), independent of the state.
+    virtual StepScheme scheme(int k) const = 0;
     /// @brief Shifts the history after a committed step.
     virtual void commit(const VectorXd& x_next, const VectorXd& v_next, const VectorXd& a_next);
 

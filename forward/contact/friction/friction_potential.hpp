@@ -58,6 +58,12 @@ public:
     void set_step(const VectorXd& x_start, double dt);
 
     const std::vector<FrictionContact>& lagged() const { return m_contacts; }
+    /// @brief Restores lagged data recorded earlier (StepRecord::friction).
+    void set_lagged(std::vector<FrictionContact> contacts) { m_contacts = std::move(contacts); }
+    /// Start-of-step positions x0 (#V*dim).
+    const VectorXd& step_start() const { return m_x_start; }
+    /// Friction coefficient per contact group.
+    const std::vector<double>& group_coefficients() const { return m_group_coefficient; }
     double eps() const { return m_eps; }
 
     /// f0, f1 = f0' and f1' of the mollified speed (exposed for tests).

@@ -1,0 +1,271 @@
+#include "adjoint/adjoint.hpp"
+
+#include "adjoint/friction_adjoint.hpp"
+#include "forward/common/timer.hpp"
+#include "forward/solver/linear_solver.hpp"
+#include "forward/solver/sparse_assembler.hpp"
+
+#include <Eigen/SparseCholesky>
+
+#include <cmath>
+
+namespace diffipc {
+
+namespace {
+
+    bool nonzero(const VectorXd& v) { return v.size() > 0 && !v.isZero(0.0); }
+
+    void check_run(const Simulator& sim)
+    {
+        const Trajectory& tr = sim.trajectory();
+        if (tr.final_status != StepStatus::CONVERGED)
+            throw AdjointError("no gradient: the forward run failed at step " + std::to_string(tr.failed_step) + " ("
+                + tr.failure_message + ")");
+        if (sim.steps_done() != sim.scene().time.steps)
+            throw AdjointError("no gradient: the forward run committed " + std::to_string(sim.steps_done()) + " of "
+                + std::to_string(sim.scene().time.steps) + " steps");
+        if (sim.contact() && sim.scene().contact.adaptive_kappa)
+            throw AdjointError("no gradient: the barrier stiffness must be fixed during a differentiated run "
+                               "(give contact.kappa a number, or SimulationParameters::kappa)");
+        for (const StepRecord& r : tr.steps) {
+            if (!r.positions.allFinite())
+                throw AdjointError("no gradient: non-finite state at step " + std::to_string(r.index));
+            if (sim.friction() && r.friction_iterations > 1)
+                throw AdjointError("no gradient: step " + std::to_string(r.index)
+                    + " re-lagged friction within the step (friction.iterations > 1); the adjoint differentiates "
+                      "friction lagged once at the start of each step");
+        }
+    }
+
+    /// Zero-sized blocks for what was not requested, zeros for what was.
+    ParameterGradient allocate(const Simulator& sim, const ParameterRequest& request)
+    {
+        ParameterGradient g;
+        const Index n = sim.mesh().num_dofs(), ne = sim.space().num_elements();
+        if (request.rest_positions)
+            g.rest_positions = VectorXd::Zero(n);
+        if (request.lame) {
+            g.mu = VectorXd::Zero(ne);
+            g.lambda = VectorXd::Zero(ne);
+        }
+        if (request.density)
+            g.density = VectorXd::Zero(ne);
+        if (request.friction)
+            g.friction = VectorXd::Zero(sim.num_groups());
+        if (request.initial_displacement)
+            g.initial_displacement = VectorXd::Zero(n);
+        if (request.initial_velocity)
+            g.initial_velocity = VectorXd::Zero(n);
+        if (request.prescribed)
+            g.prescribed = MatrixXd::Zero(sim.scene().time.steps, Index(sim.prescribed_dofs().size()));
+        return g;
+    }
+
+    void add_requested(VectorXd& block, const VectorXd& v)
+    {
+        if (block.size() && v.size())
+            block += v;
+    }
+
+    /// Adds s * v to bar (allocating zeros if bar is empty).
+    void push(VectorXd& bar, double s, const VectorXd& v)
+    {
+        if (s == 0)
+            return;
+        if (bar.size() == 0)
+            bar = VectorXd::Zero(v.size());
+        bar += s * v;
+    }
+
+} // namespace
+
+ParameterGradient adjoint_gradient(
+    Simulator& sim, const StateSeed& seed, const ParameterRequest& request, AdjointStatistics* stats)
+{
+    Timer total;
+    check_run(sim);
+    const Trajectory& tr = sim.trajectory();
+    const int T = int(tr.steps.size());
+    const Index n = sim.mesh().num_dofs();
+    const int d = sim.mesh().dim;
+    if (seed.positions.size() != size_t(T) + 1 || seed.velocities.size() != size_t(T) + 1)
+        throw AdjointError("the state seed must have T + 1 = " + std::to_string(T + 1) + " entries");
+
+    ParameterGradient grad = allocate(sim, request);
+    // J's explicit partials, restricted to the requested blocks.
+    const ParameterGradient& ex = seed.explicit_partials;
+    add_requested(grad.rest_positions, ex.rest_positions);
+    add_requested(grad.mu, ex.mu);
+    add_requested(grad.lambda, ex.lambda);
+    add_requested(grad.density, ex.density);
+    add_requested(grad.friction, ex.friction);
+
+    std::vector<VectorXd> xbar(seed.positions), vbar(seed.velocities), abar(size_t(T) + 1);
+    const std::vector<char>& constrained = sim.constrained();
+    const std::vector<Index> prescribed = sim.prescribed_dofs();
+
+    SparseAssembler assembler;
+    assembler.build(d, sim.mesh().num_vertices(), sim.mesh().elements);
+    LinearSolver linear(sim.scene().solver.linear_solver);
+    AdjointStatistics st;
+
+    const ElasticPotential& elastic = sim.elastic();
+    const InertiaPotential& inertia = sim.inertia();
+    VectorXd* d_rest = grad.rest_positions.size() ? &grad.rest_positions : nullptr;
+    VectorXd* d_density = grad.density.size() ? &grad.density : nullptr;
+
+    for (int k = T; k >= 1; --k) {
+        const StepScheme s = sim.step_scheme(k);
+        // v_k and a_k are linear in x_k and the history.
+        for (int which = 0; which < 2; ++which) {
+            VectorXd& bar = which == 0 ? abar[size_t(k)] : vbar[size_t(k)];
+            if (!nonzero(bar))
+                continue;
+            const double* cx = which == 0 ? s.ax : s.vx;
+            const double* cv = which == 0 ? s.av : s.vv;
+            const double* ca = which == 0 ? s.aa : s.va;
+            push(xbar[size_t(k)], cx[0], bar);
+            for (int j = 1; j <= 2 && k - j >= 0; ++j) {
+                push(xbar[size_t(k - j)], cx[j], bar);
+                push(vbar[size_t(k - j)], cv[j], bar);
+                push(abar[size_t(k - j)], ca[j], bar);
+            }
+        }
+        VectorXd& xb = xbar[size_t(k)];
+        if (xb.size() == 0)
+            xb = VectorXd::Zero(n);
+        VectorXd rhs = xb;
+        for (Index i = 0; i < n; ++i)
+            if (constrained[size_t(i)])
+                rhs[i] = 0;
+        const StepRecord& record = tr.steps[size_t(k - 1)];
+        const VectorXd& x = record.positions;
+        // The friction potential at this step depends on x_{k-1} (start of step and lagged data).
+        const bool friction_history = sim.friction() && !sim.friction()->lagged().empty();
+        if (!rhs.isZero(0.0)) {
+            Timer ta;
+            const Problem& problem = sim.step_problem(k);
+            problem.hessian(x, false, assembler);
+            const SparseMatrixd H = assembler.matrix(); // lower triangle, before the constraints
+            assembler.apply_constraints(constrained);
+            ta.add_to(st.assembly_time);
+            Timer tf;
+            if (!linear.factorize(assembler.matrix(), true))
+                throw AdjointError("no gradient: the adjoint system of step " + std::to_string(k)
+                    + " is singular (true Hessian at the converged state)");
+            tf.add_to(st.factorization_time);
+            Timer ts;
+            VectorXd lambda = linear.solve(rhs);
+            ts.add_to(st.solve_time);
+            if (!lambda.allFinite())
+                throw AdjointError("no gradient: non-finite adjoint at step " + std::to_string(k));
+            for (Index i = 0; i < n; ++i)
+                if (constrained[size_t(i)])
+                    lambda[i] = 0;
+            ++st.steps;
+            Timer tp;
+            // Prescribed entries of x_k enter every free row through H.
+            const VectorXd Hl = H.selfadjointView<Eigen::Lower>() * lambda;
+            for (Index i = 0; i < n; ++i)
+                if (constrained[size_t(i)])
+                    xb[i] -= Hl[i];
+            // History: g_k contains -M x~_k.
+            if (s.inertia) {
+                const VectorXd Ml = inertia.apply_mass(lambda);
+                for (int j = 1; j <= 2 && k - j >= 0; ++j) {
+                    push(xbar[size_t(k - j)], s.tx[j], Ml);
+                    push(vbar[size_t(k - j)], s.tv[j], Ml);
+                    push(abar[size_t(k - j)], s.ta[j], Ml);
+                }
+            }
+            // Parameters: dJ/dp -= lambda^T dg_k/dp.
+            const double w = s.weight;
+            if (d_rest) {
+                elastic.add_shape_derivative(x, lambda, -w, *d_rest);
+                if (s.inertia)
+                    inertia.add_shape_derivative(x, lambda, -1.0, *d_rest);
+                if (sim.contact())
+                    sim.contact()->add_shape_derivative(x, lambda, -w, *d_rest);
+            }
+            if (request.lame)
+                elastic.add_lame_derivative(x, lambda, -w, grad.mu, grad.lambda);
+            if (d_density && s.inertia)
+                inertia.add_density_derivative(x, lambda, -1.0, *d_density);
+            // g_k contains -w f_ext(t_k).
+            if (d_rest || d_density)
+                sim.external_force_derivatives(record.time, w * lambda, d_rest, d_density);
+            if (friction_history) {
+                FrictionAdjointTerms terms { &xbar[size_t(k - 1)], grad.friction.size() ? &grad.friction : nullptr };
+                friction_step_adjoint(sim, k, lambda, w, terms);
+            }
+            tp.add_to(st.assembly_time);
+        }
+        // Prescribed dofs: x_k = X + g_k.
+        for (size_t j = 0; j < prescribed.size(); ++j) {
+            const Index i = prescribed[j];
+            if (d_rest)
+                (*d_rest)[i] += xb[i];
+            if (grad.prescribed.size())
+                grad.prescribed(k - 1, Index(j)) += xb[i];
+        }
+    }
+
+    // Initial state: x_0 = X + u0 (free dofs; prescribed ones X + g(0)), v_0 free, and
+    // Newmark's a_0 = M_ff^-1 (f(0) - grad Psi(x_0))_f.
+    VectorXd& xb0 = xbar[0];
+    if (xb0.size() == 0)
+        xb0 = VectorXd::Zero(n);
+    if (nonzero(abar[0]) && sim.scene().time.integrator == IntegratorType::NEWMARK
+        && std::isfinite(elastic.value(tr.initial_positions))) {
+        VectorXd mu = VectorXd::Zero(n);
+        const VectorXd& m = inertia.lumped_masses();
+        if (!inertia.consistent()) {
+            for (Index i = 0; i < n; ++i)
+                mu[i] = constrained[size_t(i)] ? 0.0 : abar[0][i] / m[i / d];
+        } else {
+            SparseMatrixd M = inertia.consistent_matrix();
+            for (Index c = 0; c < M.outerSize(); ++c)
+                for (SparseMatrixd::InnerIterator it(M, c); it; ++it)
+                    if (constrained[size_t(it.row())] || constrained[size_t(it.col())])
+                        it.valueRef() = it.row() == it.col() ? 1.0 : 0.0;
+            VectorXd b = abar[0];
+            for (Index i = 0; i < n; ++i)
+                if (constrained[size_t(i)])
+                    b[i] = 0;
+            Eigen::SimplicialLDLT<SparseMatrixd> ldlt(M);
+            mu = ldlt.solve(b);
+        }
+        const VectorXd& x0 = tr.initial_positions;
+        // d a0 = M^-1 (df - d grad Psi - dM a0)
+        assembler.set_zero();
+        elastic.add_hessian(x0, 1.0, false, assembler);
+        assembler.finalize();
+        xb0 -= assembler.matrix().selfadjointView<Eigen::Lower>() * mu;
+        if (d_rest) {
+            elastic.add_shape_derivative(x0, mu, -1.0, *d_rest);
+        }
+        if (request.lame)
+            elastic.add_lame_derivative(x0, mu, -1.0, grad.mu, grad.lambda);
+        if (d_rest || d_density) {
+            sim.external_force_derivatives(0.0, mu, d_rest, d_density);
+            inertia.add_mass_derivatives(mu, tr.initial_accelerations, -1.0, d_rest, d_density);
+        }
+    }
+    if (d_rest)
+        *d_rest += xb0;
+    if (grad.initial_displacement.size())
+        for (Index i = 0; i < n; ++i)
+            if (!constrained[size_t(i)])
+                grad.initial_displacement[i] += xb0[i];
+    if (grad.initial_velocity.size() && vbar[0].size())
+        for (Index i = 0; i < n; ++i)
+            if (!constrained[size_t(i)])
+                grad.initial_velocity[i] += vbar[0][i];
+
+    st.total_time = total.seconds();
+    if (stats)
+        *stats = st;
+    return grad;
+}
+
+} // namespace diffipc

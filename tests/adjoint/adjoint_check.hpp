@@ -1,0 +1,251 @@
+#pragma once
+// Finite-difference checks of adjoint gradients: central differences in a
+// random direction per parameter block and a Taylor test (remainder rates),
+// every forward run built from SimulationParameters.
+
+#include "adjoint/adjoint.hpp"
+#include "forward/test_utils.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdio>
+#include <string>
+#include <vector>
+
+namespace diffipc::test {
+
+enum class Block { REST_POSITIONS, MU, LAMBDA, DENSITY, INITIAL_DISPLACEMENT, INITIAL_VELOCITY, PRESCRIBED };
+
+inline const char* block_name(Block b)
+{
+    switch (b) {
+    case Block::REST_POSITIONS:
+        return "rest_positions";
+    case Block::MU:
+        return "mu";
+    case Block::LAMBDA:
+        return "lambda";
+    case Block::DENSITY:
+        return "density";
+    case Block::INITIAL_DISPLACEMENT:
+        return "initial_displacement";
+    case Block::INITIAL_VELOCITY:
+        return "initial_velocity";
+    case Block::PRESCRIBED:
+        return "prescribed";
+    }
+    return "";
+}
+
+/// J = sum_k a_k . (x_k - X) + b_k . v_k + c/2 |x_T - X|^2 with fixed random a_k, b_k: every
+/// state of the run is seeded, so every backward path of the adjoint is exercised.
+struct StateObjective {
+    std::vector<VectorXd> a, b;
+    double c = 1.0;
+
+    StateObjective(int steps, Index n, double length, double dt, unsigned seed)
+    {
+        for (int k = 0; k <= steps; ++k) {
+            a.push_back(random_vector(n, seed + 2 * unsigned(k)) / length);
+            b.push_back(random_vector(n, seed + 2 * unsigned(k) + 1) * dt / length);
+        }
+        c = 1.0 / (length * length);
+    }
+    static const VectorXd& x(const Trajectory& tr, int k)
+    {
+        return k == 0 ? tr.initial_positions : tr.steps[size_t(k - 1)].positions;
+    }
+    static const VectorXd& v(const Trajectory& tr, int k)
+    {
+        return k == 0 ? tr.initial_velocities : tr.steps[size_t(k - 1)].velocities;
+    }
+    double value(const Simulator& sim) const
+    {
+        const Trajectory& tr = sim.trajectory();
+        const int T = int(tr.steps.size());
+        const VectorXd X = flatten(sim.mesh().rest_positions);
+        double J = 0;
+        for (int k = 0; k <= T; ++k)
+            J += a[size_t(k)].dot(x(tr, k) - X) + b[size_t(k)].dot(v(tr, k));
+        const VectorXd u = x(tr, T) - X;
+        return J + 0.5 * c * u.squaredNorm();
+    }
+    StateSeed seed(const Simulator& sim) const
+    {
+        const Trajectory& tr = sim.trajectory();
+        const int T = int(tr.steps.size());
+        StateSeed s;
+        s.resize(T);
+        VectorXd sum_a = VectorXd::Zero(a[0].size());
+        for (int k = 0; k <= T; ++k) {
+            s.add_position(k, a[size_t(k)]);
+            s.add_velocity(k, b[size_t(k)]);
+            sum_a += a[size_t(k)];
+        }
+        const VectorXd u = x(tr, T) - flatten(sim.mesh().rest_positions);
+        s.add_position(T, c * u);
+        s.explicit_partials.rest_positions = -c * u - sum_a;
+        return s;
+    }
+};
+
+struct CheckSettings {
+    double tolerance = 1e-6; ///< relative error of the central difference
+    double min_rate = 1.9; ///< Taylor second-order remainder rate
+    unsigned seed = 7;
+};
+
+inline double block_dot(const ParameterGradient& g, Block b, const VectorXd& dir, const MatrixXd& dir_matrix)
+{
+    switch (b) {
+    case Block::REST_POSITIONS:
+        return g.rest_positions.dot(dir);
+    case Block::MU:
+        return g.mu.dot(dir);
+    case Block::LAMBDA:
+        return g.lambda.dot(dir);
+    case Block::DENSITY:
+        return g.density.dot(dir);
+    case Block::INITIAL_DISPLACEMENT:
+        return g.initial_displacement.dot(dir);
+    case Block::INITIAL_VELOCITY:
+        return g.initial_velocity.dot(dir);
+    case Block::PRESCRIBED:
+        return (g.prescribed.array() * dir_matrix.array()).sum();
+    }
+    return 0;
+}
+
+inline SimulationParameters perturbed(
+    const SimulationParameters& base, Block b, const VectorXd& dir, const MatrixXd& dir_matrix, double h)
+{
+    SimulationParameters p = base;
+    switch (b) {
+    case Block::REST_POSITIONS:
+        p.rest_positions += h * dir;
+        break;
+    case Block::MU:
+        p.mu += h * dir;
+        break;
+    case Block::LAMBDA:
+        p.lambda += h * dir;
+        break;
+    case Block::DENSITY:
+        p.density += h * dir;
+        break;
+    case Block::INITIAL_DISPLACEMENT:
+        p.initial_displacement += h * dir;
+        break;
+    case Block::INITIAL_VELOCITY:
+        p.initial_velocity += h * dir;
+        break;
+    case Block::PRESCRIBED:
+        p.prescribed += h * dir_matrix;
+        break;
+    }
+    return p;
+}
+
+/// @brief Runs the scene, the adjoint for `blocks`, and checks each block in a
+/// random direction against central differences and by a Taylor test.
+/// @param kappa fixed barrier stiffness for contact scenes (0: none)
+inline void check_adjoint(const nlohmann::json& scene_json, const std::vector<Block>& blocks,
+    const CheckSettings& settings = {}, double kappa = 0)
+{
+    const Scene scene = make_scene(scene_json);
+    SimulationParameters nominal;
+    nominal.kappa = kappa;
+    Simulator sim(scene, nominal);
+    sim.run();
+    ASSERT_EQ(sim.trajectory().final_status, StepStatus::CONVERGED) << sim.trajectory().failure_message;
+    const SimulationParameters base = sim.parameters();
+    const Index n = sim.mesh().num_dofs();
+    const double length = sim.bbox_diagonal();
+    const int T = sim.steps_done();
+    const StateObjective objective(T, n, length, scene.time.dt, settings.seed);
+
+    ParameterRequest request;
+    for (Block b : blocks) {
+        request.rest_positions |= b == Block::REST_POSITIONS;
+        request.lame |= b == Block::MU || b == Block::LAMBDA;
+        request.density |= b == Block::DENSITY;
+        request.initial_displacement |= b == Block::INITIAL_DISPLACEMENT;
+        request.initial_velocity |= b == Block::INITIAL_VELOCITY;
+        request.prescribed |= b == Block::PRESCRIBED;
+    }
+    const ParameterGradient grad = adjoint_gradient(sim, objective.seed(sim), request);
+    const double J0 = objective.value(sim);
+
+    const auto J = [&](const SimulationParameters& p) {
+        Simulator s(scene, p);
+        s.run();
+        EXPECT_EQ(s.trajectory().final_status, StepStatus::CONVERGED) << s.trajectory().failure_message;
+        return objective.value(s);
+    };
+
+    unsigned seed = settings.seed * 101;
+    for (Block b : blocks) {
+        SCOPED_TRACE(block_name(b));
+        // Directions scaled to the block: lengths for positions, relative for moduli and densities.
+        VectorXd dir;
+        MatrixXd dir_matrix;
+        const double eps = 1e-2;
+        switch (b) {
+        case Block::REST_POSITIONS:
+        case Block::INITIAL_DISPLACEMENT:
+            dir = random_vector(n, ++seed) * 1e-2 * length;
+            break;
+        case Block::INITIAL_VELOCITY:
+            dir = random_vector(n, ++seed) * 1e-1;
+            break;
+        case Block::MU:
+            dir = random_vector(base.mu.size(), ++seed).cwiseProduct(base.mu);
+            break;
+        case Block::LAMBDA:
+            dir = random_vector(base.lambda.size(), ++seed).cwiseProduct(base.lambda);
+            break;
+        case Block::DENSITY:
+            dir = random_vector(base.density.size(), ++seed).cwiseProduct(base.density);
+            break;
+        case Block::PRESCRIBED:
+            ASSERT_GT(base.prescribed.size(), 0) << "the scene has no prescribed dofs";
+            dir_matrix = MatrixXd(base.prescribed.rows(), base.prescribed.cols());
+            {
+                const VectorXd r = random_vector(dir_matrix.size(), ++seed) * 1e-2 * length;
+                dir_matrix = Eigen::Map<const MatrixXd>(r.data(), dir_matrix.rows(), dir_matrix.cols());
+            }
+            break;
+        }
+        const double exact = block_dot(grad, b, dir, dir_matrix);
+        // Fourth-order central difference: truncation O(eps^4) lets eps stay large
+        // enough that the forward solves' round-off does not show.
+        const auto Jh = [&](double h) { return J(perturbed(base, b, dir, dir_matrix, h)); };
+        const double fd = (8 * (Jh(eps) - Jh(-eps)) - (Jh(2 * eps) - Jh(-2 * eps))) / (12 * eps);
+        EXPECT_NEAR(exact, fd, settings.tolerance * std::abs(fd))
+            << "adjoint " << exact << " central difference " << fd << " relative error "
+            << std::abs(exact - fd) / std::abs(fd);
+        EXPECT_GT(std::abs(fd), 1e-8 * std::abs(J0)) << "the direction does not change J: the check would be empty";
+
+        // Taylor test: |J(p + h dp) - J(p) - h dJ.dp| = O(h^2). The rate is read where
+        // it has converged (the last halvings): at the first ones the cubic term can
+        // still compete (density enters as 1/rho through the inertia).
+        std::vector<double> remainder;
+        std::string table;
+        for (double h = 0.1; h > 0.1 / 64 * 0.99; h /= 2) {
+            remainder.push_back(std::abs(Jh(h) - J0 - h * exact));
+            {
+                char line[96];
+                std::snprintf(line, sizeof line, "  h %.5g  remainder %.4e\n", h, remainder.back());
+                table += line;
+            }
+        }
+        const size_t m = remainder.size();
+        const double last_rate = std::log2(remainder[m - 2] / remainder[m - 1]);
+        EXPECT_GE(last_rate, settings.min_rate) << table;
+        for (size_t i = 1; i < m; ++i)
+            EXPECT_LT(remainder[i], remainder[i - 1]) << table;
+    }
+}
+
+} // namespace diffipc::test
