@@ -52,3 +52,110 @@ TEST_P(AdjointNoContact, EveryBlockMatchesFiniteDifferences)
 INSTANTIATE_TEST_SUITE_P(Integrators, AdjointNoContact,
     ::testing::Combine(::testing::Values(2, 3), ::testing::Values("static", "implicit_euler", "bdf2", "newmark")),
     [](const auto& info) { return std::to_string(std::get<0>(info.param)) + "D_" + std::get<1>(info.param); });
+
+namespace {
+
+/// A soft box resting on a plane obstacle (every bottom vertex within dhat from the
+/// start, so the contact set does not change), pressed by gravity while the plane
+/// rises (the plane's point is a prescribed dof) and the box slides sideways.
+json box_on_plane(int dim, const std::string& integrator)
+{
+    const double dhat = 2e-3;
+    json s = dim == 2 ? box_scene(2, { 0.2, 0.1 }, { 4, 2 }, "neo_hookean", 2e4, 0.3, 1000)
+                      : box_scene(3, { 0.2, 0.1, 0.2 }, { 2, 1, 2 }, "neo_hookean", 2e4, 0.3, 1000);
+    s["bodies"][0]["translation"] = dim == 2 ? json { 0, 0.5 * dhat } : json { 0, 0.5 * dhat, 0 };
+    s["gravity"] = dim == 2 ? json { 0, -9.81 } : json { 0, -9.81, 0 };
+    json plane = { { "point", dim == 2 ? json { 0, 0 } : json { 0, 0, 0 } },
+        { "normal", dim == 2 ? json { 0, 1 } : json { 0, 1, 0 } },
+        { "motion", dim == 2 ? json { 0, "0.01*t" } : json { 0, "0.01*t", 0 } } };
+    s["obstacles"] = { { { "name", "floor" }, { "plane", plane } } };
+    s["contact"] = { { "dhat", dhat }, { "kappa", 1e3 } };
+    s["time"] = { { "integrator", integrator }, { "dt", 0.01 }, { "steps", 3 } };
+    s["solver"] = { { "residual_tolerance", 1e-11 } };
+    if (integrator != "static")
+        s["bodies"][0]["initial_velocity"] = dim == 2 ? json { 0.1, 0 } : json { 0.1, 0, -0.05 };
+    else {
+        // Without inertia (and friction) the box needs a hold: its top is clamped while the plane
+        // presses from below. A stronger gravity makes J visibly nonlinear in the density (else
+        // the Taylor remainder of that block sits at round-off, 1e-13).
+        s["gravity"] = dim == 2 ? json { 0, -200 } : json { 0, -200, 0 };
+        s["obstacles"][0]["plane"]["motion"] = dim == 2 ? json { 0, "0.02*t" } : json { 0, "0.02*t", 0 };
+        const double top = 0.1 + 0.5 * dhat - 1e-6;
+        s["dirichlet"] = { { { "body", "body" },
+            { "region", dim == 2 ? region({ -1, top }, { 1, 1 }) : region({ -1, top, -1 }, { 1, 1, 1 }) },
+            { "displacement", dim == 2 ? json { 0, 0 } : json { 0, 0, 0 } } } };
+    }
+    return s;
+}
+
+/// 3D: a box resting on another, turned by 20 degrees about the vertical so that
+/// vertex-face and crossing edge-edge contacts carry the load.
+json stacked_boxes(const std::string& integrator)
+{
+    const double dhat = 2e-3;
+    json s = box_scene(3, { 0.2, 0.1, 0.2 }, { 1, 1, 1 }, "neo_hookean", 2e4, 0.3, 1000);
+    s["bodies"] = { box_body("below", { 0, 0, 0 }, { 0.2, 0.1, 0.2 }, { 1, 1, 1 }),
+        box_body("above", { 0.05, 0.1 + 0.5 * dhat, 0.05 }, { 0.15, 0.15 + 0.5 * dhat, 0.15 }, { 1, 1, 1 }) };
+    for (auto& b : s["bodies"])
+        b["material"]["E"] = 2e4;
+    s["bodies"][1]["rotation"] = { 0, 20, 0 };
+    s["gravity"] = { 0, -9.81, 0 };
+    s["dirichlet"] = { { { "body", "below" }, { "region", region({ -1, -1, -1 }, { 1, 1e-6, 1 }) },
+        { "displacement", { "0.01*t", "0.02*t", 0 } } } };
+    s["contact"] = { { "dhat", dhat }, { "kappa", 1e5 } };
+    s["time"] = { { "integrator", integrator }, { "dt", 0.01 }, { "steps", 3 } };
+    s["solver"] = { { "residual_tolerance", 1e-11 } };
+    return s;
+}
+
+} // namespace
+
+class AdjointContact : public ::testing::TestWithParam<std::tuple<int, std::string>> { };
+
+TEST_P(AdjointContact, EveryBlockMatchesFiniteDifferences)
+{
+    const auto& [dim, integrator] = GetParam();
+    const json scene = box_on_plane(dim, integrator);
+    // The check is only meaningful if the contacts are there all along.
+    Simulator sim(make_scene(scene));
+    sim.run();
+    ASSERT_EQ(sim.trajectory().final_status, StepStatus::CONVERGED);
+    for (const StepRecord& r : sim.trajectory().steps)
+        ASSERT_EQ(r.active_contacts, dim == 2 ? 5 : 9) << "step " << r.index;
+    std::vector<Block> blocks = ALL_BLOCKS;
+    if (integrator == "static")
+        blocks = { Block::REST_POSITIONS, Block::MU, Block::LAMBDA, Block::DENSITY, Block::PRESCRIBED };
+    // Written reason: in the 3D static scene every vertex is either clamped (top layer) or
+    // held by the barrier (bottom layer, one cell high), so gravity, the density's only
+    // effect without inertia, moves J by 1e-10 and no difference quotient resolves it.
+    // Density in static solves is checked by the 2D contact case and both no-contact cases.
+    if (integrator == "static" && dim == 3)
+        blocks = { Block::REST_POSITIONS, Block::MU, Block::LAMBDA, Block::PRESCRIBED };
+    CheckSettings settings;
+    settings.tolerance = 1e-5;
+    settings.fd_step = 1e-3;
+    settings.taylor_step = integrator == "static" ? 0.1 : 1e-2;
+    check_adjoint(scene, blocks, settings);
+}
+
+INSTANTIATE_TEST_SUITE_P(Integrators, AdjointContact,
+    ::testing::Combine(::testing::Values(2, 3), ::testing::Values("static", "implicit_euler", "bdf2", "newmark")),
+    [](const auto& info) { return std::to_string(std::get<0>(info.param)) + "D_" + std::get<1>(info.param); });
+
+TEST(AdjointContact, StackedBoxesVertexFaceAndEdgeEdge)
+{
+    const json scene = stacked_boxes("implicit_euler");
+    Simulator sim(make_scene(scene));
+    sim.run();
+    ASSERT_EQ(sim.trajectory().final_status, StepStatus::CONVERGED) << sim.trajectory().failure_message;
+    int edge_edge = 0, vertex_face = 0;
+    for (const Contact& c : sim.trajectory().steps.back().contacts) {
+        edge_edge += c.kind == ContactKind::EDGE_EDGE;
+        vertex_face += c.kind == ContactKind::VERTEX_FACE;
+    }
+    ASSERT_GT(edge_edge, 0);
+    ASSERT_GT(vertex_face, 0);
+    CheckSettings settings;
+    settings.tolerance = 1e-5;
+    check_adjoint(scene, ALL_BLOCKS, settings);
+}
