@@ -2,7 +2,9 @@
 // Exit codes: 0 success, 1 bad input (one line naming the field or file),
 // 2 a simulation step failed (outputs of the committed steps are still written).
 
+#include "adjoint/adjoint.hpp"
 #include "cli/bench.hpp"
+#include "cli/gradcheck.hpp"
 #include "forward/common/error.hpp"
 #include "forward/common/timer.hpp"
 #include "forward/io/output.hpp"
@@ -119,6 +121,13 @@ int main(int argc, char** argv)
     bench_cmd->add_option("--friction", bench_options.friction, "contact suite: friction coefficient (0: none)")
         ->check(CLI::NonNegativeNumber);
 
+    std::string problem_path;
+    int directions = 0;
+    auto* grad_cmd = app.add_subcommand(
+        "gradcheck", "Adjoint gradient of a problem file against finite differences (Taylor table)");
+    grad_cmd->add_option("problem", problem_path, "problem file (JSON)")->required();
+    grad_cmd->add_option("--directions", directions, "random directions (default: the file's, else 2)");
+
     try {
         app.parse(argc, argv);
     } catch (const CLI::ParseError& e) {
@@ -132,7 +141,14 @@ int main(int argc, char** argv)
             return validate(validate_path);
         if (*bench_cmd)
             return run_bench(bench_options);
+        if (*grad_cmd)
+            return gradcheck(problem_path, directions);
     } catch (const InputError& e) {
+        std::fprintf(stderr, "diffipc: error: %s\n", e.what());
+        return 1;
+    } catch (const AdjointError& e) {
+        std::fprintf(stderr, "diffipc: %s\n", e.what());
+        return 2;
         std::fprintf(stderr, "diffipc: error: %s\n", e.what());
         return 1;
     } catch (const std::exception& e) {

@@ -95,6 +95,8 @@ public:
     /// non-null outputs: gravity through the lumped masses, tractions through facet areas.
     void external_force_derivatives(
         double t, const VectorXd& direction, VectorXd* d_rest_positions, VectorXd* d_density) const;
+    /// False for a static (quasi-static) scene.
+    bool dynamic() const { return m_integrator->dynamic(); }
     /// Number of contact groups (bodies, then obstacles).
     int num_groups() const { return int(m_scene.bodies.size() + m_scene.obstacles.size()); }
     /// @}

@@ -1,0 +1,298 @@
+#include "objectives/objective_json.hpp"
+
+#include "forward/scene/json_field.hpp"
+#include "objectives/boundary_smoothness.hpp"
+#include "objectives/center_of_mass.hpp"
+#include "objectives/combinators.hpp"
+#include "objectives/compliance.hpp"
+#include "objectives/elastic_energy.hpp"
+#include "objectives/kinetic_energy.hpp"
+#include "objectives/markers.hpp"
+#include "objectives/stress_norm.hpp"
+#include "objectives/time_aggregation.hpp"
+#include "objectives/volume.hpp"
+
+#include <nlohmann/json.hpp>
+
+#include <cmath>
+#include <stdexcept>
+
+namespace diffipc {
+
+namespace {
+    /// Body index from a name or an index; -1 when the key is absent.
+    int parse_body(const JsonField& j, const Simulator& sim)
+    {
+        if (!j.has("body"))
+            return -1;
+        const JsonField b = j["body"];
+        const auto& bodies = sim.scene().bodies;
+        if (b.json().is_string()) {
+            const std::string name = b.string();
+            for (size_t i = 0; i < bodies.size(); ++i)
+                if (bodies[i].name == name)
+                    return int(i);
+            b.fail("no body named \"" + name + "\"");
+        }
+        const int index = b.integer(0);
+        if (index >= int(bodies.size()))
+            b.fail("body index " + std::to_string(index) + " out of range (the scene has "
+                + std::to_string(bodies.size()) + " bodies)");
+        return index;
+    }
+
+    std::vector<Index> parse_elements(const JsonField& j, const Simulator& sim)
+    {
+        const int body = parse_body(j, sim);
+        if (body < 0)
+            return {};
+        try {
+            return body_elements(sim.mesh(), body);
+        } catch (const std::out_of_range&) {
+            j["body"].fail("the body has no elements");
+        }
+    }
+
+    /// The states a tracking objective compares: "steps" (each in 0..T) or, without it, 1..T.
+    std::vector<int> parse_steps(const JsonField& j, const Simulator& sim, size_t num_targets)
+    {
+        const int T = sim.scene().time.steps;
+        std::vector<int> steps;
+        if (j.has("steps")) {
+            const JsonField s = j["steps"];
+            s.require_array(1);
+            for (size_t i = 0; i < s.size(); ++i) {
+                const int k = s.at(i).integer(0);
+                if (k > T)
+                    s.at(i).fail(
+                        "step " + std::to_string(k) + " is beyond the scene's " + std::to_string(T) + " steps");
+                steps.push_back(k);
+            }
+            if (steps.size() != num_targets)
+                j["targets"].fail("expected one entry per listed step (" + std::to_string(steps.size()) + "), got "
+                    + std::to_string(num_targets));
+        } else {
+            if (int(num_targets) != T)
+                j["targets"].fail("without \"steps\", expected one entry per step of the scene (" + std::to_string(T)
+                    + "), got " + std::to_string(num_targets));
+            for (int k = 1; k <= T; ++k)
+                steps.push_back(k);
+        }
+        return steps;
+    }
+
+    std::unique_ptr<Objective> aggregate(std::unique_ptr<StateFunctional> f, const JsonField& j)
+    {
+        TimeMode mode = TimeMode::FINAL;
+        double p = 8;
+        if (j.has("time")) {
+            const JsonField t = j["time"];
+            if (t.json().is_object()) {
+                t.require_object({ "max_p" });
+                mode = TimeMode::MAX_P;
+                p = t["max_p"].number();
+                if (p < 1)
+                    t["max_p"].fail("must be at least 1, got " + t["max_p"].json().dump());
+            } else {
+                const std::string name = t.string();
+                if (name == "max_p")
+                    t.fail("write {\"max_p\": p} to give the exponent");
+                mode = parse_time_mode(name, t.path());
+            }
+        }
+        const bool include_initial = j.has("include_initial") ? j["include_initial"].boolean() : false;
+        if (include_initial && mode != TimeMode::SUM && mode != TimeMode::MAX_P)
+            j["include_initial"].fail("only applies to the \"sum\" and max_p time aggregations");
+        return std::make_unique<TimeAggregation>(std::move(f), mode, p, include_initial);
+    }
+
+    std::unique_ptr<Objective> parse(const JsonField& j, const Simulator& sim);
+
+    std::unique_ptr<Objective> parse_stress_norm(const JsonField& j, const Simulator& sim)
+    {
+        j.require_object({ "type", "p", "norm", "stress", "normalized", "body", "time", "include_initial" });
+        StressNormOptions o;
+        if (j.has("p")) {
+            o.p = j["p"].number();
+            if (o.p < 1)
+                j["p"].fail("must be at least 1, got " + j["p"].json().dump());
+        }
+        if (j.has("norm")) {
+            const std::string norm = j["norm"].string();
+            if (norm == "frobenius")
+                o.norm = StressNormType::FROBENIUS;
+            else if (norm == "von_mises")
+                o.norm = StressNormType::VON_MISES;
+            else
+                j["norm"].fail("unknown norm \"" + norm + "\" (expected frobenius or von_mises)");
+        }
+        if (j.has("stress")) {
+            const std::string stress = j["stress"].string();
+            if (stress == "cauchy")
+                o.stress = StressMeasure::CAUCHY;
+            else if (stress == "first_piola")
+                o.stress = StressMeasure::FIRST_PIOLA;
+            else
+                j["stress"].fail("unknown stress \"" + stress + "\" (expected cauchy or first_piola)");
+        }
+        if (j.has("normalized"))
+            o.normalized = j["normalized"].boolean();
+        o.elements = parse_elements(j, sim);
+        return aggregate(std::make_unique<StressNorm>(o), j);
+    }
+
+    std::unique_ptr<Objective> parse_markers(const JsonField& j, const Simulator& sim)
+    {
+        j.require_object({ "type", "vertices", "points", "targets", "steps", "weights" });
+        const Mesh& mesh = sim.mesh();
+        const int d = mesh.dim;
+        std::vector<MarkerPoint> markers;
+        if (j.has("vertices")) {
+            const JsonField v = j["vertices"];
+            v.require_array(1);
+            for (size_t i = 0; i < v.size(); ++i) {
+                const int vertex = v.at(i).integer(0);
+                if (vertex >= mesh.num_vertices())
+                    v.at(i).fail("vertex " + std::to_string(vertex) + " out of range (the mesh has "
+                        + std::to_string(mesh.num_vertices()) + " vertices)");
+                markers.push_back(MarkerPoint::vertex(vertex));
+            }
+        }
+        if (j.has("points")) {
+            const JsonField p = j["points"];
+            p.require_array(1);
+            for (size_t i = 0; i < p.size(); ++i) {
+                const JsonField point = p.at(i);
+                point.require_object({ "element", "weights" });
+                const int e = point["element"].integer(0);
+                if (e >= mesh.num_elements())
+                    point["element"].fail("element " + std::to_string(e) + " out of range (the mesh has "
+                        + std::to_string(mesh.num_elements()) + " elements)");
+                const VectorXd w = point["weights"].vector(d + 1);
+                if (!(std::abs(w.sum() - 1) <= 1e-12))
+                    point["weights"].fail("barycentric weights must sum to 1");
+                markers.push_back(MarkerPoint::barycentric(mesh, e, std::vector<double>(w.data(), w.data() + d + 1)));
+            }
+        }
+        if (markers.empty())
+            j.fail("give marker \"vertices\" or \"points\"");
+        const Index M = Index(markers.size());
+        const JsonField t = j["targets"];
+        t.require_array(1);
+        std::vector<Positions> targets;
+        for (size_t s = 0; s < t.size(); ++s) {
+            const JsonField ts = t.at(s);
+            ts.require_array();
+            if (Index(ts.size()) != M)
+                ts.fail("expected one target per marker (" + std::to_string(M) + "), got " + std::to_string(ts.size()));
+            Positions y(M, d);
+            for (Index m = 0; m < M; ++m)
+                y.row(m) = ts.at(size_t(m)).vector(d).transpose();
+            targets.push_back(y);
+        }
+        const std::vector<int> steps = parse_steps(j, sim, targets.size());
+        VectorXd weights;
+        if (j.has("weights")) {
+            weights = j["weights"].vector(int(M));
+            for (Index m = 0; m < M; ++m)
+                if (weights[m] < 0)
+                    j["weights"].at(size_t(m)).fail("must be nonnegative");
+        }
+        return std::make_unique<MarkerTracking>(std::move(markers), steps, std::move(targets), weights);
+    }
+
+    std::unique_ptr<Objective> parse_center_of_mass(const JsonField& j, const Simulator& sim)
+    {
+        j.require_object({ "type", "targets", "steps", "weight", "body" });
+        const int d = sim.mesh().dim;
+        const JsonField t = j["targets"];
+        t.require_array(1);
+        Positions targets(Index(t.size()), d);
+        for (size_t s = 0; s < t.size(); ++s)
+            targets.row(Index(s)) = t.at(s).vector(d).transpose();
+        const std::vector<int> steps = parse_steps(j, sim, t.size());
+        const double weight = j.has("weight") ? j["weight"].positive() : 1.0;
+        return std::make_unique<CenterOfMassTracking>(steps, targets, weight, parse_elements(j, sim));
+    }
+
+    std::unique_ptr<Objective> parse_sum(const JsonField& j, const Simulator& sim)
+    {
+        j.require_object({ "type", "terms" });
+        const JsonField terms = j["terms"];
+        terms.require_array(1);
+        std::vector<WeightedSum::Term> parsed;
+        for (size_t i = 0; i < terms.size(); ++i) {
+            const JsonField term = terms.at(i);
+            term.require_object({ "weight", "objective" });
+            const double weight = term.has("weight") ? term["weight"].number() : 1.0;
+            parsed.push_back({ weight, parse(term["objective"], sim) });
+        }
+        return std::make_unique<WeightedSum>(std::move(parsed));
+    }
+
+    std::unique_ptr<Objective> parse_power(const JsonField& j, const Simulator& sim)
+    {
+        j.require_object({ "type", "q", "objective" });
+        const double q = j["q"].number();
+        return std::make_unique<Power>(parse(j["objective"], sim), q);
+    }
+
+    std::unique_ptr<Objective> parse_constraint(const JsonField& j, const Simulator& sim)
+    {
+        j.require_object({ "type", "objective", "upper", "lower", "weight" });
+        if (j.has("upper") == j.has("lower"))
+            j.fail("give exactly one of \"upper\" (objective <= bound) and \"lower\" (objective >= bound)");
+        const bool upper = j.has("upper");
+        const double bound = j[upper ? "upper" : "lower"].number();
+        const double weight = j.has("weight") ? j["weight"].positive() : 1.0;
+        return std::make_unique<SoftConstraint>(
+            parse(j["objective"], sim), upper ? ConstraintSense::UPPER : ConstraintSense::LOWER, bound, weight);
+    }
+
+    std::unique_ptr<Objective> parse(const JsonField& j, const Simulator& sim)
+    {
+        if (!j.is_object())
+            j.fail("expected an objective object with a \"type\"");
+        const JsonField type_field = j["type"];
+        const std::string type = type_field.string();
+        if (type == "stress_norm")
+            return parse_stress_norm(j, sim);
+        if (type == "elastic_energy" || type == "volume" || type == "kinetic_energy") {
+            j.require_object({ "type", "body", "time", "include_initial" });
+            std::vector<Index> elements = parse_elements(j, sim);
+            if (type == "elastic_energy")
+                return aggregate(std::make_unique<ElasticEnergy>(elements), j);
+            if (type == "volume")
+                return aggregate(std::make_unique<Volume>(elements), j);
+            return aggregate(std::make_unique<KineticEnergy>(elements), j);
+        }
+        if (type == "compliance") {
+            j.require_object({ "type", "time", "include_initial" });
+            return aggregate(std::make_unique<Compliance>(), j);
+        }
+        if (type == "markers")
+            return parse_markers(j, sim);
+        if (type == "center_of_mass")
+            return parse_center_of_mass(j, sim);
+        if (type == "boundary_smoothness") {
+            j.require_object({ "type", "body" });
+            return std::make_unique<BoundarySmoothness>(sim.scene(), parse_body(j, sim));
+        }
+        if (type == "sum")
+            return parse_sum(j, sim);
+        if (type == "power")
+            return parse_power(j, sim);
+        if (type == "constraint")
+            return parse_constraint(j, sim);
+        type_field.fail("unknown objective type \"" + type
+            + "\" (expected stress_norm, elastic_energy, compliance, volume, kinetic_energy, markers, "
+              "center_of_mass, boundary_smoothness, sum, power or constraint)");
+    }
+} // namespace
+
+std::unique_ptr<Objective> parse_objective(const nlohmann::json& j, const std::string& field, const Simulator& sim)
+{
+    return parse(JsonField(j, field), sim);
+}
+
+} // namespace diffipc

@@ -1,0 +1,425 @@
+#include "shape_opt/reduced_functional.hpp"
+
+#include "forward/common/error.hpp"
+#include "forward/common/timer.hpp"
+#include "objectives/objective_json.hpp"
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+
+namespace diffipc {
+
+struct ReducedFunctional::LoadCase {
+    Scene scene;
+    nlohmann::json objective;
+    std::string field;
+    double weight = 1;
+    SimulationParameters base; ///< canonical values of the scene (E and nu, not mu and lambda)
+};
+
+namespace {
+
+    using json = nlohmann::json;
+
+    int body_index(const Scene& scene, const json& j, const std::string& field)
+    {
+        if (j.is_number_integer()) {
+            const int b = j.get<int>();
+            if (b < 0 || b >= int(scene.bodies.size()))
+                throw InputError(field, "no body " + std::to_string(b));
+            return b;
+        }
+        if (!j.is_string())
+            throw InputError(field, "expected a body name or index");
+        for (size_t b = 0; b < scene.bodies.size(); ++b)
+            if (scene.bodies[b].name == j.get<std::string>())
+                return int(b);
+        throw InputError(field, "no body named '" + j.get<std::string>() + "'");
+    }
+
+    /// Vertices selected by "vertices": "all" | [indices] | {"body": name}; default all body vertices.
+    std::vector<Index> select_vertices(const Scene& scene, const json& spec, const std::string& field)
+    {
+        std::vector<Index> out;
+        const Mesh& mesh = scene.mesh;
+        if (!spec.contains("vertices") || spec["vertices"] == "all") {
+            for (Index v = 0; v < scene.body_vertices; ++v)
+                out.push_back(v);
+            return out;
+        }
+        const json& v = spec["vertices"];
+        if (v.is_object() && v.contains("body")) {
+            const int b = body_index(scene, v["body"], field + ".vertices.body");
+            for (Index i = 0; i < scene.body_vertices; ++i)
+                if (mesh.vertex_body[i] == b)
+                    out.push_back(i);
+            return out;
+        }
+        if (!v.is_array())
+            throw InputError(field + ".vertices", "expected \"all\", a list of vertex indices or {\"body\": name}");
+        for (size_t k = 0; k < v.size(); ++k) {
+            if (!v[k].is_number_integer() || v[k].get<Index>() < 0 || v[k].get<Index>() >= mesh.num_vertices())
+                throw InputError(field + ".vertices[" + std::to_string(k) + "]",
+                    "expected a vertex index below " + std::to_string(mesh.num_vertices()));
+            out.push_back(v[k].get<Index>());
+        }
+        return out;
+    }
+
+    std::string per(const json& spec, const std::string& field, const std::string& fallback)
+    {
+        const std::string p = spec.value("per", fallback);
+        if (p != "element" && p != "body" && p != "vertex")
+            throw InputError(field + ".per", "expected \"element\", \"body\" or \"vertex\"");
+        return p;
+    }
+
+    ParameterSpec parse_parameter(const Scene& scene, const Simulator& sim, const json& spec, const std::string& field)
+    {
+        if (!spec.is_object() || !spec.contains("type") || !spec["type"].is_string())
+            throw InputError(field + ".type",
+                "expected a parameter type (shape, E, nu, density, initial_velocity, "
+                "initial_displacement, prescribed, friction)");
+        const std::string type = spec["type"];
+        ParameterSpec p;
+        p.name = type;
+        p.field = field;
+        const int d = scene.dim;
+        const Mesh& mesh = scene.mesh;
+        if (type == "shape") {
+            p.kind = ParameterSpec::Kind::SHAPE;
+            std::vector<int> components;
+            if (spec.contains("components")) {
+                for (const auto& c : spec["components"]) {
+                    if (!c.is_number_integer() || c.get<int>() < 0 || c.get<int>() >= d)
+                        throw InputError(field + ".components", "expected component indices below the dimension");
+                    components.push_back(c.get<int>());
+                }
+            } else
+                for (int c = 0; c < d; ++c)
+                    components.push_back(c);
+            for (Index v : select_vertices(scene, spec, field))
+                for (int c : components)
+                    p.targets.push_back({ v * d + c });
+        } else if (type == "E" || type == "nu" || type == "density") {
+            p.kind = type == "E" ? ParameterSpec::Kind::YOUNGS_MODULUS
+                : type == "nu"   ? ParameterSpec::Kind::POISSON_RATIO
+                                 : ParameterSpec::Kind::DENSITY;
+            const std::string mode = per(spec, field, "body");
+            std::vector<int> bodies;
+            if (spec.contains("body"))
+                bodies.push_back(body_index(scene, spec["body"], field + ".body"));
+            else
+                for (int b = 0; b < int(scene.bodies.size()); ++b)
+                    bodies.push_back(b);
+            for (int b : bodies) {
+                std::vector<Index> elements;
+                for (Index e = 0; e < mesh.num_elements(); ++e)
+                    if (mesh.element_body[e] == b)
+                        elements.push_back(e);
+                if (mode == "body")
+                    p.targets.push_back(elements);
+                else if (mode == "element")
+                    for (Index e : elements)
+                        p.targets.push_back({ e });
+                else
+                    throw InputError(field + ".per", "material parameters are per \"element\" or per \"body\"");
+            }
+        } else if (type == "initial_velocity" || type == "initial_displacement") {
+            p.kind = type == "initial_velocity" ? ParameterSpec::Kind::INITIAL_VELOCITY
+                                                : ParameterSpec::Kind::INITIAL_DISPLACEMENT;
+            if (!sim.dynamic() && type == "initial_velocity")
+                throw InputError(field, "a static scene has no initial velocity");
+            const std::string mode = per(spec, field, "body");
+            std::vector<Index> vertices;
+            if (spec.contains("body")) {
+                const int b = body_index(scene, spec["body"], field + ".body");
+                for (Index v = 0; v < scene.body_vertices; ++v)
+                    if (mesh.vertex_body[v] == b)
+                        vertices.push_back(v);
+            } else
+                vertices = select_vertices(scene, spec, field);
+            if (mode == "body") {
+                for (int c = 0; c < d; ++c) {
+                    std::vector<Index> t;
+                    for (Index v : vertices)
+                        t.push_back(v * d + c);
+                    p.targets.push_back(t);
+                }
+            } else if (mode == "vertex") {
+                for (Index v : vertices)
+                    for (int c = 0; c < d; ++c)
+                        p.targets.push_back({ v * d + c });
+            } else
+                throw InputError(field + ".per", "initial states are per \"body\" or per \"vertex\"");
+        } else if (type == "prescribed") {
+            p.kind = ParameterSpec::Kind::PRESCRIBED;
+            const Index nd = Index(sim.prescribed_dofs().size());
+            if (nd == 0)
+                throw InputError(field, "the scene has no prescribed dofs (Dirichlet or obstacles)");
+            for (Index k = 0; k < Index(scene.time.steps) * nd; ++k)
+                p.targets.push_back({ k });
+        } else if (type == "friction") {
+            p.kind = ParameterSpec::Kind::FRICTION;
+            if (!sim.friction())
+                throw InputError(field, "the scene has no friction (no contact, or every coefficient is 0)");
+            for (Index g = 0; g < sim.num_groups(); ++g)
+                p.targets.push_back({ g });
+        } else
+            throw InputError(field + ".type", "unknown parameter type '" + type + "'");
+        if (p.targets.empty())
+            throw InputError(field, "selects nothing");
+        return p;
+    }
+
+    VectorXd* canonical_block(SimulationParameters& sp, ParameterSpec::Kind kind)
+    {
+        switch (kind) {
+        case ParameterSpec::Kind::SHAPE:
+            return &sp.rest_positions;
+        case ParameterSpec::Kind::YOUNGS_MODULUS:
+            return &sp.youngs_modulus;
+        case ParameterSpec::Kind::POISSON_RATIO:
+            return &sp.poisson_ratio;
+        case ParameterSpec::Kind::DENSITY:
+            return &sp.density;
+        case ParameterSpec::Kind::INITIAL_VELOCITY:
+            return &sp.initial_velocity;
+        case ParameterSpec::Kind::INITIAL_DISPLACEMENT:
+            return &sp.initial_displacement;
+        case ParameterSpec::Kind::FRICTION:
+            return &sp.friction;
+        case ParameterSpec::Kind::PRESCRIBED:
+            return nullptr;
+        }
+        return nullptr;
+    }
+
+    double& canonical_entry(SimulationParameters& sp, ParameterSpec::Kind kind, Index i)
+    {
+        if (kind == ParameterSpec::Kind::PRESCRIBED) {
+            const Index nd = sp.prescribed.cols();
+            return sp.prescribed(i / nd, i % nd);
+        }
+        return (*canonical_block(sp, kind))[i];
+    }
+
+} // namespace
+
+ReducedFunctional::~ReducedFunctional() = default;
+ReducedFunctional::ReducedFunctional(ReducedFunctional&&) noexcept = default;
+
+ReducedFunctional ReducedFunctional::load(const std::string& path)
+{
+    std::ifstream in(path);
+    if (!in)
+        throw InputError(path, "cannot open the problem file");
+    json doc;
+    try {
+        doc = json::parse(in);
+    } catch (const json::parse_error& e) {
+        throw InputError(path, std::string("invalid JSON: ") + e.what());
+    }
+    return ReducedFunctional(doc, std::filesystem::path(path).parent_path().string(), path);
+}
+
+ReducedFunctional::ReducedFunctional(const json& doc, const std::string& base_directory, const std::string& source)
+{
+    if (!doc.is_object())
+        throw InputError(source, "a problem file is a JSON object");
+    json cases = doc.contains("scenes") ? doc["scenes"] : json::array({ doc });
+    if (!cases.is_array() || cases.empty())
+        throw InputError("scenes", "expected a non-empty list of {\"scene\", \"objective\", \"weight\"}");
+    for (size_t c = 0; c < cases.size(); ++c) {
+        const std::string field = doc.contains("scenes") ? "scenes[" + std::to_string(c) + "]" : std::string();
+        const auto key = [&](const std::string& k) { return field.empty() ? k : field + "." + k; };
+        const json& jc = cases[c];
+        if (!jc.contains("scene"))
+            throw InputError(key("scene"), "missing (a scene file path or an inline scene object)");
+        auto lc = std::make_unique<LoadCase>();
+        if (jc["scene"].is_string()) {
+            const std::filesystem::path p = std::filesystem::path(base_directory) / jc["scene"].get<std::string>();
+            lc->scene = load_scene(p.string());
+        } else
+            lc->scene = parse_scene(jc["scene"], base_directory, source);
+        if (!jc.contains("objective"))
+            throw InputError(key("objective"), "missing");
+        lc->objective = jc["objective"];
+        lc->field = key("objective");
+        lc->weight = jc.value("weight", 1.0);
+        if (!std::isfinite(lc->weight))
+            throw InputError(key("weight"), "must be finite");
+        // The barrier stiffness is fixed during a differentiated run: an adaptive one is
+        // chosen by a nominal run first (its largest value, kappa never decreases).
+        SimulationParameters nominal;
+        if (lc->scene.contact.enabled && lc->scene.contact.adaptive_kappa) {
+            Simulator probe(lc->scene);
+            probe.run();
+            nominal.kappa = probe.contact()->kappa();
+        }
+        Simulator sim(lc->scene, nominal);
+        parse_objective(lc->objective, lc->field, sim); // validates against the scene
+        lc->base = sim.parameters();
+        lc->base.mu.resize(0); // E and nu drive the Lame parameters
+        lc->base.lambda.resize(0);
+        lc->base.kappa = nominal.kappa > 0 ? nominal.kappa : lc->base.kappa;
+        if (c > 0
+            && (lc->base.rest_positions.size() != m_cases[0]->base.rest_positions.size()
+                || lc->base.density.size() != m_cases[0]->base.density.size()))
+            throw InputError(key("scene"), "every load case must use the same mesh");
+        m_cases.push_back(std::move(lc));
+    }
+
+    const json params = doc.value("parameters", json::array());
+    if (!params.is_array() || params.empty())
+        throw InputError("parameters", "expected a non-empty list");
+    {
+        SimulationParameters fixed;
+        fixed.kappa = m_cases[0]->base.kappa;
+        Simulator sim(m_cases[0]->scene, fixed);
+        for (size_t k = 0; k < params.size(); ++k)
+            m_parameters.push_back(
+                parse_parameter(m_cases[0]->scene, sim, params[k], "parameters[" + std::to_string(k) + "]"));
+    }
+    for (const auto& p : m_parameters) {
+        m_offsets.push_back(m_size);
+        m_size += Index(p.targets.size());
+    }
+    m_initial.resize(m_size);
+    m_scales.resize(m_size);
+    SimulationParameters base = m_cases[0]->base;
+    const double length = [&] {
+        const Positions& X = m_cases[0]->scene.mesh.rest_positions;
+        return (X.colwise().maxCoeff() - X.colwise().minCoeff()).norm();
+    }();
+    for (size_t k = 0; k < m_parameters.size(); ++k)
+        for (size_t i = 0; i < m_parameters[k].targets.size(); ++i) {
+            const Index j = m_offsets[k] + Index(i);
+            const double v = canonical_entry(base, m_parameters[k].kind, m_parameters[k].targets[i][0]);
+            m_initial[j] = v;
+            switch (m_parameters[k].kind) {
+            case ParameterSpec::Kind::SHAPE:
+            case ParameterSpec::Kind::INITIAL_DISPLACEMENT:
+            case ParameterSpec::Kind::PRESCRIBED:
+                m_scales[j] = 1e-3 * length;
+                break;
+            case ParameterSpec::Kind::INITIAL_VELOCITY:
+                m_scales[j] = std::max(0.1 * std::abs(v), 1e-2);
+                break;
+            case ParameterSpec::Kind::POISSON_RATIO:
+                m_scales[j] = 0.01;
+                break;
+            default:
+                m_scales[j] = 0.1 * std::abs(v);
+            }
+        }
+    if (doc.contains("gradcheck")) {
+        const json& g = doc["gradcheck"];
+        m_check.directions = g.value("directions", m_check.directions);
+        m_check.seed = g.value("seed", m_check.seed);
+        m_check.step = g.value("step", m_check.step);
+        m_check.halvings = g.value("halvings", m_check.halvings);
+        if (m_check.directions < 1 || !(m_check.step > 0) || m_check.halvings < 2)
+            throw InputError("gradcheck", "directions >= 1, step > 0 and halvings >= 2 are required");
+    }
+}
+
+std::vector<std::pair<std::string, Index>> ReducedFunctional::layout() const
+{
+    std::vector<std::pair<std::string, Index>> out;
+    for (const auto& p : m_parameters)
+        out.emplace_back(p.name, Index(p.targets.size()));
+    return out;
+}
+
+Evaluation ReducedFunctional::evaluate(const VectorXd& p, bool gradient) const
+{
+    if (p.size() != m_size)
+        throw InputError(
+            "parameters", "expected " + std::to_string(m_size) + " values, got " + std::to_string(p.size()));
+    for (Index i = 0; i < m_size; ++i)
+        if (!std::isfinite(p[i]))
+            throw InputError("parameters[" + std::to_string(i) + "]", "non-finite value");
+    Evaluation out;
+    if (gradient)
+        out.gradient = VectorXd::Zero(m_size);
+    ParameterRequest request;
+    for (const auto& s : m_parameters) {
+        request.rest_positions |= s.kind == ParameterSpec::Kind::SHAPE;
+        request.lame |= s.kind == ParameterSpec::Kind::YOUNGS_MODULUS || s.kind == ParameterSpec::Kind::POISSON_RATIO;
+        request.density |= s.kind == ParameterSpec::Kind::DENSITY;
+        request.initial_velocity |= s.kind == ParameterSpec::Kind::INITIAL_VELOCITY;
+        request.initial_displacement |= s.kind == ParameterSpec::Kind::INITIAL_DISPLACEMENT;
+        request.prescribed |= s.kind == ParameterSpec::Kind::PRESCRIBED;
+        request.friction |= s.kind == ParameterSpec::Kind::FRICTION;
+    }
+    for (const auto& lc : m_cases) {
+        SimulationParameters sp = lc->base;
+        for (size_t k = 0; k < m_parameters.size(); ++k)
+            for (size_t i = 0; i < m_parameters[k].targets.size(); ++i)
+                for (Index t : m_parameters[k].targets[i])
+                    canonical_entry(sp, m_parameters[k].kind, t) = p[m_offsets[k] + Index(i)];
+        Timer tf;
+        Simulator sim(lc->scene, sp);
+        sim.run();
+        out.forward_time += tf.seconds();
+        const Trajectory& tr = sim.trajectory();
+        if (tr.final_status != StepStatus::CONVERGED)
+            throw AdjointError("no value and no gradient: " + tr.failure_message);
+        const auto objective = parse_objective(lc->objective, lc->field, sim);
+        out.value += lc->weight * objective->value(sim, tr);
+        if (!gradient)
+            continue;
+        Timer ta;
+        StateSeed seed;
+        seed.resize(int(tr.steps.size()));
+        objective->add_gradient(sim, tr, request, lc->weight, seed);
+        ParameterGradient g = adjoint_gradient(sim, seed, request);
+        // dJ/dE and dJ/dnu per element from the Lame derivatives.
+        VectorXd dE, dnu;
+        if (request.lame)
+            lame_to_young_poisson(sp.youngs_modulus, sp.poisson_ratio, g.mu, g.lambda, dE, dnu);
+        for (size_t k = 0; k < m_parameters.size(); ++k) {
+            const ParameterSpec& s = m_parameters[k];
+            for (size_t i = 0; i < s.targets.size(); ++i) {
+                double sum = 0;
+                for (Index t : s.targets[i]) {
+                    switch (s.kind) {
+                    case ParameterSpec::Kind::SHAPE:
+                        sum += g.rest_positions[t];
+                        break;
+                    case ParameterSpec::Kind::YOUNGS_MODULUS:
+                        sum += dE[t];
+                        break;
+                    case ParameterSpec::Kind::POISSON_RATIO:
+                        sum += dnu[t];
+                        break;
+                    case ParameterSpec::Kind::DENSITY:
+                        sum += g.density[t];
+                        break;
+                    case ParameterSpec::Kind::INITIAL_VELOCITY:
+                        sum += g.initial_velocity[t];
+                        break;
+                    case ParameterSpec::Kind::INITIAL_DISPLACEMENT:
+                        sum += g.initial_displacement[t];
+                        break;
+                    case ParameterSpec::Kind::FRICTION:
+                        sum += g.friction[t];
+                        break;
+                    case ParameterSpec::Kind::PRESCRIBED:
+                        sum += g.prescribed(t / g.prescribed.cols(), t % g.prescribed.cols());
+                        break;
+                    }
+                }
+                out.gradient[m_offsets[k] + Index(i)] += sum;
+            }
+        }
+        out.adjoint_time += ta.seconds();
+    }
+    if (gradient && !out.gradient.allFinite())
+        throw AdjointError("no gradient: a non-finite derivative (check the objective's parameters)");
+    return out;
+}
+
+} // namespace diffipc

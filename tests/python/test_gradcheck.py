@@ -1,0 +1,66 @@
+"""`diffipc gradcheck` on every example problem in the repo, and its errors on bad input."""
+import json
+import subprocess
+
+import pytest
+
+from conftest import ROOT, box_scene
+
+
+def run(cli, *args):
+    return subprocess.run([cli, *map(str, args)], capture_output=True, text=True, timeout=600)
+
+
+EXAMPLES = sorted(ROOT.glob("studies/*/problem.json"))
+
+
+def test_there_are_example_problems():
+    assert len(EXAMPLES) >= 2
+
+
+@pytest.mark.parametrize("problem", EXAMPLES, ids=lambda p: p.parent.name)
+def test_every_example_problem_passes_gradcheck(cli, problem):
+    r = run(cli, "gradcheck", problem)
+    assert r.returncode == 0, r.stdout + r.stderr
+    assert "gradcheck passed" in r.stdout
+    # A table per direction with the second-order rates.
+    assert r.stdout.count("PASS") >= 2
+    assert "|J(h)-J(0)-h g.dp|" in r.stdout
+
+
+def write_problem(tmp_path, scene, objective, parameters):
+    p = tmp_path / "problem.json"
+    p.write_text(json.dumps({"scene": scene, "objective": objective, "parameters": parameters}))
+    return p
+
+
+def test_parameter_the_scene_does_not_have_is_an_error(cli, tmp_path):
+    p = write_problem(tmp_path, box_scene(), {"type": "elastic_energy"}, [{"type": "friction"}])
+    r = run(cli, "gradcheck", p)
+    assert r.returncode == 1
+    assert "parameters[0]" in r.stderr and "no friction" in r.stderr
+    p = write_problem(tmp_path, box_scene(), {"type": "elastic_energy"}, [{"type": "prescribed"}])
+    r = run(cli, "gradcheck", p)
+    assert r.returncode == 1 and "no prescribed dofs" in r.stderr
+    p = write_problem(tmp_path, box_scene(), {"type": "elastic_energy"}, [{"type": "E", "body": "nope"}])
+    r = run(cli, "gradcheck", p)
+    assert r.returncode == 1 and "parameters[0].body" in r.stderr
+
+
+def test_failed_forward_step_returns_no_gradient(cli, tmp_path):
+    s = box_scene()
+    # A clamped beam under a large tip load with one Newton iteration allowed: step 1 fails.
+    s["dirichlet"] = [{"body": "b", "region": {"min": [-1, -1], "max": [1e-6, 1]}, "displacement": [0, 0]}]
+    s["neumann"] = [{"body": "b", "region": {"min": [0.499, -1], "max": [1, 1]}, "traction": [0, "-5e5*t"]}]
+    s["solver"]["max_iterations"] = 1
+    p = write_problem(tmp_path, s, {"type": "elastic_energy"}, [{"type": "E"}])
+    r = run(cli, "gradcheck", p)
+    assert r.returncode == 2, r.stdout + r.stderr
+    assert "no value and no gradient" in r.stderr
+    assert "J =" not in r.stdout
+
+
+def test_bad_objective_names_the_field(cli, tmp_path):
+    p = write_problem(tmp_path, box_scene(), {"type": "stress_norm", "p": -1}, [{"type": "E"}])
+    r = run(cli, "gradcheck", p)
+    assert r.returncode == 1 and "objective.p" in r.stderr
