@@ -140,8 +140,6 @@ ParameterGradient adjoint_gradient(
                 rhs[i] = 0;
         const StepRecord& record = tr.steps[size_t(k - 1)];
         const VectorXd& x = record.positions;
-        // The friction potential at this step depends on x_{k-1} (start of step and lagged data).
-        const bool friction_history = sim.friction() && !sim.friction()->lagged().empty();
         if (!rhs.isZero(0.0)) {
             Timer ta;
             const Problem& problem = sim.step_problem(k);
@@ -194,8 +192,9 @@ ParameterGradient adjoint_gradient(
             // g_k contains -w f_ext(t_k).
             if (d_rest || d_density)
                 sim.external_force_derivatives(record.time, w * lambda, d_rest, d_density);
-            if (friction_history) {
-                FrictionAdjointTerms terms { &xbar[size_t(k - 1)], grad.friction.size() ? &grad.friction : nullptr };
+            // The friction potential of step k depends on x_{k-1} (start of step and lagged data).
+            if (sim.friction() && !sim.friction()->lagged().empty()) {
+                FrictionAdjointTerms terms { &xbar[size_t(k - 1)], grad.friction.size() ? &grad.friction : nullptr, d_rest };
                 friction_step_adjoint(sim, k, lambda, w, terms);
             }
             tp.add_to(st.assembly_time);

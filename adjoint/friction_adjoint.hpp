@@ -10,10 +10,16 @@ namespace diffipc {
 struct FrictionAdjointTerms {
     VectorXd* previous_positions = nullptr; ///< dJ/dx_{k-1} (#V*dim), accumulated
     VectorXd* coefficients = nullptr; ///< dJ/dmu per contact group, accumulated (null: not requested)
+    VectorXd* rest_positions = nullptr; ///< dJ/dX (#V*dim), accumulated (null: not requested)
 };
 
-/// @brief Adds -lambda^T d(w grad D_k)/d(x_{k-1}, mu) to `terms`.
-/// @throws AdjointError while the lagged data's own dependence is not differentiated.
+/// @brief Adds -lambda^T d(w grad D_k)/d(x_{k-1}, mu, X) to `terms`: through the
+/// start-of-step positions, the normal forces, normals and closest-point weights
+/// lagged at x_{k-1} (docs/math.md "Friction adjoint"), the pair coefficients, and
+/// the edge-edge mollifier thresholds in the normal forces.
+/// @param lambda  the step's adjoint (#V*dim, zero on constrained dofs)
+/// @param weight  the integrator's weight w of the potentials in g_k
+/// @throws AdjointError if coefficients are requested and a group's coefficient is 0.
 void friction_step_adjoint(
     const Simulator& sim, int k, const VectorXd& lambda, double weight, const FrictionAdjointTerms& terms);
 

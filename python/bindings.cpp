@@ -1,12 +1,16 @@
 // pybind11 bindings: scenes from files or dicts, simulation with numpy
-// trajectories, and element-level energy/gradient/Hessian for testing.
-// InputError becomes ValueError with the message naming the field.
+// trajectories, element-level energy/gradient/Hessian for testing, and the
+// reduced functional of a problem file (value and adjoint gradient).
+// InputError becomes ValueError with the message naming the field;
+// AdjointError (no gradient can be computed) becomes diffipc.AdjointError, a RuntimeError.
 
+#include "adjoint/adjoint.hpp"
 #include "forward/common/error.hpp"
 #include "forward/io/output.hpp"
 #include "forward/potentials/elastic_potential.hpp"
 #include "forward/scene/scene.hpp"
 #include "forward/simulation/simulator.hpp"
+#include "shape_opt/reduced_functional.hpp"
 
 #include <nlohmann/json.hpp>
 #include <pybind11/eigen.h>
@@ -14,6 +18,9 @@
 #include <pybind11/numpy.h>
 #include <pybind11/pybind11.h>
 #include <pybind11/stl.h>
+#include <pybind11/stl/filesystem.h>
+
+#include <filesystem>
 
 namespace py = pybind11;
 using namespace diffipc;
@@ -82,12 +89,48 @@ Scene scene_from_json_text(const std::string& text, const std::string& base_dire
     return parse_scene_text(text, base_directory, "<dict>");
 }
 
+/// A problem given as a Python dict: through Python's json (no NaN, only JSON types).
+ReducedFunctional reduced_functional_from_dict(const py::dict& document, const py::object& base_directory)
+{
+    std::string text;
+    try {
+        text = py::module_::import("json").attr("dumps")(document, py::arg("allow_nan") = false).cast<std::string>();
+    } catch (py::error_already_set& e) {
+        if (!e.matches(PyExc_ValueError) && !e.matches(PyExc_TypeError))
+            throw;
+        throw InputError("<dict>",
+            std::string("the problem is not plain JSON (no NaN, infinity or other types): ")
+                + py::str(e.value()).cast<std::string>());
+    }
+    const std::string base = base_directory.is_none()
+        ? std::filesystem::current_path().string()
+        : py::str(py::module_::import("os").attr("fspath")(base_directory)).cast<std::string>();
+    return ReducedFunctional(nlohmann::json::parse(text), base, "<dict>");
+}
+
+/// p as a copied vector; a wrong shape is an InputError like a wrong size.
+VectorXd parameter_vector(const py::array_t<double, py::array::c_style | py::array::forcecast>& p, Index size)
+{
+    if (p.ndim() != 1)
+        throw InputError("parameters",
+            "expected a 1D array of " + std::to_string(size) + " values, got " + std::to_string(p.ndim())
+                + " dimensions");
+    return Eigen::Map<const VectorXd>(p.data(), p.shape(0));
+}
+
+Evaluation evaluate_without_gil(const ReducedFunctional& rf, const VectorXd& p, bool gradient)
+{
+    py::gil_scoped_release release;
+    return rf.evaluate(p, gradient);
+}
+
 } // namespace
 
 PYBIND11_MODULE(_diffipc, m)
 {
     m.doc() = "diffipc: differentiable IPC elastodynamics (forward solver)";
     py::register_exception<InputError>(m, "InputError", PyExc_ValueError);
+    py::register_exception<AdjointError>(m, "AdjointError", PyExc_RuntimeError);
 
     py::class_<Scene>(m, "Scene", "A validated scene (see docs/scene_format.md)")
         .def_readonly("dimension", &Scene::dim)
@@ -182,4 +225,62 @@ PYBIND11_MODULE(_diffipc, m)
         py::arg("model"), py::arg("rest"), py::arg("deformed"), py::arg("mu"), py::arg("lam"),
         py::arg("project_to_psd") = false,
         "Hessian w.r.t. deformed positions flattened vertex-major (optionally PSD-projected).");
+
+    py::class_<Evaluation>(m, "Evaluation", "One evaluation of a reduced functional.")
+        .def_readonly("value", &Evaluation::value, "J")
+        .def_property_readonly(
+            "gradient",
+            [](const Evaluation& e) -> py::object {
+                if (e.gradient.size() == 0)
+                    return py::none();
+                return py::cast(e.gradient);
+            },
+            "dJ/dp (numpy), or None if not requested")
+        .def_readonly("forward_time", &Evaluation::forward_time, "s, summed over load cases")
+        .def_readonly("adjoint_time", &Evaluation::adjoint_time, "s, summed over load cases");
+
+    py::class_<ReducedFunctional>(
+        m, "ReducedFunctional", "p -> J(p) and its adjoint gradient dJ/dp for a problem file (docs/problem_format.md).")
+        .def(py::init([](const std::filesystem::path& path) { return ReducedFunctional::load(path.string()); }),
+            py::arg("path"), "Load and validate a problem file; scene paths are relative to it.")
+        .def(py::init(&reduced_functional_from_dict), py::arg("problem"), py::arg("base_directory") = py::none(),
+            "A problem as a dict; scene and mesh paths are relative to base_directory (default: the current "
+            "directory).")
+        .def_property_readonly("size", &ReducedFunctional::size, "Number of optimization variables.")
+        .def_property_readonly(
+            "initial", [](const ReducedFunctional& rf) { return VectorXd(rf.initial()); },
+            "The scenes' own parameter values (the starting point).")
+        .def_property_readonly(
+            "scales", [](const ReducedFunctional& rf) { return VectorXd(rf.scales()); },
+            "A typical magnitude per variable (gradcheck's direction scale).")
+        .def_property_readonly(
+            "layout", &ReducedFunctional::layout, "[(type, size)] per entry of the problem's parameter list.")
+        .def_property_readonly(
+            "check_settings",
+            [](const ReducedFunctional& rf) {
+                const auto& c = rf.check_settings();
+                py::dict d;
+                d["directions"] = c.directions;
+                d["seed"] = c.seed;
+                d["step"] = c.step;
+                d["halvings"] = c.halvings;
+                return d;
+            },
+            "The problem file's \"gradcheck\" settings (defaults where absent).")
+        .def(
+            "evaluation",
+            [](const ReducedFunctional& rf, const py::array_t<double, py::array::c_style | py::array::forcecast>& p,
+                bool gradient) { return evaluate_without_gil(rf, parameter_vector(p, rf.size()), gradient); },
+            py::arg("p"), py::arg("gradient") = true,
+            "An Evaluation (value, gradient, forward and adjoint seconds). Raises ValueError for a p of the wrong "
+            "size or with a non-finite entry, AdjointError if a forward step fails or no gradient can be computed.")
+        .def(
+            "evaluate",
+            [](const ReducedFunctional& rf, const py::array_t<double, py::array::c_style | py::array::forcecast>& p,
+                bool gradient) {
+                const Evaluation e = evaluate_without_gil(rf, parameter_vector(p, rf.size()), gradient);
+                return py::make_tuple(e.value, gradient ? py::cast(e.gradient) : py::none());
+            },
+            py::arg("p"), py::arg("gradient") = true,
+            "(J, dJ/dp) with dJ/dp a numpy array, or None if gradient=False; raises like evaluation().");
 }

@@ -4,9 +4,11 @@
 #include "forward/common/timer.hpp"
 #include "objectives/objective_json.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <stdexcept>
 
 namespace diffipc {
 
@@ -15,7 +17,8 @@ struct ReducedFunctional::LoadCase {
     nlohmann::json objective;
     std::string field;
     double weight = 1;
-    SimulationParameters base; ///< canonical values of the scene (E and nu, not mu and lambda)
+    /// Canonical values of the scene; mu and lambda only if they are parameters (else E and nu drive them).
+    SimulationParameters base;
 };
 
 namespace {
@@ -75,20 +78,137 @@ namespace {
         return p;
     }
 
+    using Kind = ParameterSpec::Kind;
+
+    /// How a parameter's entries are selected in the file.
+    enum class Selection {
+        COMPONENTS, ///< rest-position components of vertices
+        ELEMENTS, ///< per element or per body
+        STATE, ///< dim-vectors per vertex or per body
+        PRESCRIBED, ///< every prescribed dof at every step
+        GROUPS ///< one per contact group
+    };
+    /// gradcheck's direction scale per variable (docs/problem_format.md "gradcheck").
+    enum class Scale {
+        LENGTH, ///< 1e-3 of the bounding-box diagonal
+        RELATIVE, ///< 10% of the value
+        BULK, ///< 10% of max(|lambda|, mu): lambda may be 0
+        POISSON, ///< 0.01
+        VELOCITY ///< 10% of the value, at least 0.01 m/s
+    };
+    /// E and nu, or mu and lambda: a problem parametrizes the elastic moduli one way.
+    enum class Moduli { NONE, YOUNG_POISSON, LAME };
+
+    /// Everything that differs between parameter kinds, in one place.
+    struct KindTraits {
+        Kind kind;
+        const char* name; ///< "type" in the file
+        Selection selection;
+        /// The canonical block in SimulationParameters (values) and in the gradient of the same
+        /// layout (canonical_gradient); nullptr for the prescribed matrix.
+        VectorXd SimulationParameters::*block;
+        bool ParameterRequest::*request;
+        Scale scale;
+        Moduli moduli;
+    };
+
+    using SP = SimulationParameters;
+    using PR = ParameterRequest;
+    const KindTraits KINDS[] = {
+        { Kind::SHAPE, "shape", Selection::COMPONENTS, &SP::rest_positions, &PR::rest_positions, Scale::LENGTH,
+            Moduli::NONE },
+        { Kind::YOUNGS_MODULUS, "E", Selection::ELEMENTS, &SP::youngs_modulus, &PR::lame, Scale::RELATIVE,
+            Moduli::YOUNG_POISSON },
+        { Kind::POISSON_RATIO, "nu", Selection::ELEMENTS, &SP::poisson_ratio, &PR::lame, Scale::POISSON,
+            Moduli::YOUNG_POISSON },
+        { Kind::LAME_MU, "mu", Selection::ELEMENTS, &SP::mu, &PR::lame, Scale::RELATIVE, Moduli::LAME },
+        { Kind::LAME_LAMBDA, "lambda", Selection::ELEMENTS, &SP::lambda, &PR::lame, Scale::BULK, Moduli::LAME },
+        { Kind::DENSITY, "density", Selection::ELEMENTS, &SP::density, &PR::density, Scale::RELATIVE, Moduli::NONE },
+        { Kind::INITIAL_VELOCITY, "initial_velocity", Selection::STATE, &SP::initial_velocity, &PR::initial_velocity,
+            Scale::VELOCITY, Moduli::NONE },
+        { Kind::INITIAL_DISPLACEMENT, "initial_displacement", Selection::STATE, &SP::initial_displacement,
+            &PR::initial_displacement, Scale::LENGTH, Moduli::NONE },
+        { Kind::PRESCRIBED, "prescribed", Selection::PRESCRIBED, nullptr, &PR::prescribed, Scale::LENGTH,
+            Moduli::NONE },
+        { Kind::FRICTION, "friction", Selection::GROUPS, &SP::friction, &PR::friction, Scale::RELATIVE, Moduli::NONE },
+    };
+
+    const KindTraits& traits(Kind kind)
+    {
+        for (const KindTraits& t : KINDS)
+            if (t.kind == kind)
+                return t;
+        throw std::logic_error("reduced_functional: a parameter kind without traits");
+    }
+
+    std::string kind_names()
+    {
+        std::string out;
+        for (const KindTraits& t : KINDS)
+            out += (out.empty() ? "" : ", ") + std::string(t.name);
+        return out;
+    }
+
+    /// Entry i of a kind's canonical block (the prescribed matrix row-major).
+    double& canonical_entry(SimulationParameters& sp, const KindTraits& t, Index i)
+    {
+        if (!t.block) {
+            const Index nd = sp.prescribed.cols();
+            return sp.prescribed(i / nd, i % nd);
+        }
+        return (sp.*t.block)[i];
+    }
+
+    /// The same entry of a gradient; an empty block (no contribution) reads as 0.
+    double gradient_entry(const SimulationParameters& dp, const KindTraits& t, Index i)
+    {
+        if (!t.block) {
+            const Index nd = dp.prescribed.cols();
+            return dp.prescribed.size() ? dp.prescribed(i / nd, i % nd) : 0.0;
+        }
+        const VectorXd& b = dp.*t.block;
+        return b.size() ? b[i] : 0.0;
+    }
+
+    /// dJ/dp in the layout of SimulationParameters, so that one table serves values and
+    /// derivatives; dJ/dE and dJ/dnu (at `at`) by the chain rule if `young_poisson`.
+    SimulationParameters canonical_gradient(
+        const ParameterGradient& g, const SimulationParameters& at, bool young_poisson)
+    {
+        SimulationParameters d;
+        d.rest_positions = g.rest_positions;
+        d.mu = g.mu;
+        d.lambda = g.lambda;
+        d.density = g.density;
+        d.friction = g.friction;
+        d.initial_displacement = g.initial_displacement;
+        d.initial_velocity = g.initial_velocity;
+        d.prescribed = g.prescribed;
+        if (young_poisson)
+            lame_to_young_poisson(
+                at.youngs_modulus, at.poisson_ratio, g.mu, g.lambda, d.youngs_modulus, d.poisson_ratio);
+        return d;
+    }
+
     ParameterSpec parse_parameter(const Scene& scene, const Simulator& sim, const json& spec, const std::string& field)
     {
         if (!spec.is_object() || !spec.contains("type") || !spec["type"].is_string())
-            throw InputError(field + ".type",
-                "expected a parameter type (shape, E, nu, density, initial_velocity, "
-                "initial_displacement, prescribed, friction)");
+            throw InputError(field + ".type", "expected a parameter type (" + kind_names() + ")");
         const std::string type = spec["type"];
+        const KindTraits* t = nullptr;
+        for (const KindTraits& k : KINDS)
+            if (type == k.name)
+                t = &k;
+        if (!t)
+            throw InputError(field + ".type", "unknown parameter type '" + type + "' (expected " + kind_names() + ")");
         ParameterSpec p;
+        p.kind = t->kind;
         p.name = type;
         p.field = field;
         const int d = scene.dim;
         const Mesh& mesh = scene.mesh;
-        if (type == "shape") {
-            p.kind = ParameterSpec::Kind::SHAPE;
+        switch (t->selection) {
+        case Selection::COMPONENTS: {
             std::vector<int> components;
             if (spec.contains("components")) {
                 for (const auto& c : spec["components"]) {
@@ -102,11 +222,12 @@ namespace {
             for (Index v : select_vertices(scene, spec, field))
                 for (int c : components)
                     p.targets.push_back({ v * d + c });
-        } else if (type == "E" || type == "nu" || type == "density") {
-            p.kind = type == "E" ? ParameterSpec::Kind::YOUNGS_MODULUS
-                : type == "nu"   ? ParameterSpec::Kind::POISSON_RATIO
-                                 : ParameterSpec::Kind::DENSITY;
+            break;
+        }
+        case Selection::ELEMENTS: {
             const std::string mode = per(spec, field, "body");
+            if (mode == "vertex")
+                throw InputError(field + ".per", "material parameters are per \"element\" or per \"body\"");
             std::vector<int> bodies;
             if (spec.contains("body"))
                 bodies.push_back(body_index(scene, spec["body"], field + ".body"));
@@ -120,18 +241,18 @@ namespace {
                         elements.push_back(e);
                 if (mode == "body")
                     p.targets.push_back(elements);
-                else if (mode == "element")
+                else
                     for (Index e : elements)
                         p.targets.push_back({ e });
-                else
-                    throw InputError(field + ".per", "material parameters are per \"element\" or per \"body\"");
             }
-        } else if (type == "initial_velocity" || type == "initial_displacement") {
-            p.kind = type == "initial_velocity" ? ParameterSpec::Kind::INITIAL_VELOCITY
-                                                : ParameterSpec::Kind::INITIAL_DISPLACEMENT;
-            if (!sim.dynamic() && type == "initial_velocity")
+            break;
+        }
+        case Selection::STATE: {
+            if (!sim.dynamic() && t->kind == Kind::INITIAL_VELOCITY)
                 throw InputError(field, "a static scene has no initial velocity");
             const std::string mode = per(spec, field, "body");
+            if (mode == "element")
+                throw InputError(field + ".per", "initial states are per \"body\" or per \"vertex\"");
             std::vector<Index> vertices;
             if (spec.contains("body")) {
                 const int b = body_index(scene, spec["body"], field + ".body");
@@ -142,67 +263,35 @@ namespace {
                 vertices = select_vertices(scene, spec, field);
             if (mode == "body") {
                 for (int c = 0; c < d; ++c) {
-                    std::vector<Index> t;
+                    std::vector<Index> dofs;
                     for (Index v : vertices)
-                        t.push_back(v * d + c);
-                    p.targets.push_back(t);
+                        dofs.push_back(v * d + c);
+                    p.targets.push_back(dofs);
                 }
-            } else if (mode == "vertex") {
+            } else
                 for (Index v : vertices)
                     for (int c = 0; c < d; ++c)
                         p.targets.push_back({ v * d + c });
-            } else
-                throw InputError(field + ".per", "initial states are per \"body\" or per \"vertex\"");
-        } else if (type == "prescribed") {
-            p.kind = ParameterSpec::Kind::PRESCRIBED;
+            break;
+        }
+        case Selection::PRESCRIBED: {
             const Index nd = Index(sim.prescribed_dofs().size());
             if (nd == 0)
                 throw InputError(field, "the scene has no prescribed dofs (Dirichlet or obstacles)");
             for (Index k = 0; k < Index(scene.time.steps) * nd; ++k)
                 p.targets.push_back({ k });
-        } else if (type == "friction") {
-            p.kind = ParameterSpec::Kind::FRICTION;
+            break;
+        }
+        case Selection::GROUPS:
             if (!sim.friction())
                 throw InputError(field, "the scene has no friction (no contact, or every coefficient is 0)");
             for (Index g = 0; g < sim.num_groups(); ++g)
                 p.targets.push_back({ g });
-        } else
-            throw InputError(field + ".type", "unknown parameter type '" + type + "'");
+            break;
+        }
         if (p.targets.empty())
             throw InputError(field, "selects nothing");
         return p;
-    }
-
-    VectorXd* canonical_block(SimulationParameters& sp, ParameterSpec::Kind kind)
-    {
-        switch (kind) {
-        case ParameterSpec::Kind::SHAPE:
-            return &sp.rest_positions;
-        case ParameterSpec::Kind::YOUNGS_MODULUS:
-            return &sp.youngs_modulus;
-        case ParameterSpec::Kind::POISSON_RATIO:
-            return &sp.poisson_ratio;
-        case ParameterSpec::Kind::DENSITY:
-            return &sp.density;
-        case ParameterSpec::Kind::INITIAL_VELOCITY:
-            return &sp.initial_velocity;
-        case ParameterSpec::Kind::INITIAL_DISPLACEMENT:
-            return &sp.initial_displacement;
-        case ParameterSpec::Kind::FRICTION:
-            return &sp.friction;
-        case ParameterSpec::Kind::PRESCRIBED:
-            return nullptr;
-        }
-        return nullptr;
-    }
-
-    double& canonical_entry(SimulationParameters& sp, ParameterSpec::Kind kind, Index i)
-    {
-        if (kind == ParameterSpec::Kind::PRESCRIBED) {
-            const Index nd = sp.prescribed.cols();
-            return sp.prescribed(i / nd, i % nd);
-        }
-        return (*canonical_block(sp, kind))[i];
     }
 
 } // namespace
@@ -261,8 +350,6 @@ ReducedFunctional::ReducedFunctional(const json& doc, const std::string& base_di
         Simulator sim(lc->scene, nominal);
         parse_objective(lc->objective, lc->field, sim); // validates against the scene
         lc->base = sim.parameters();
-        lc->base.mu.resize(0); // E and nu drive the Lame parameters
-        lc->base.lambda.resize(0);
         lc->base.kappa = nominal.kappa > 0 ? nominal.kappa : lc->base.kappa;
         if (c > 0
             && (lc->base.rest_positions.size() != m_cases[0]->base.rest_positions.size()
@@ -282,10 +369,24 @@ ReducedFunctional::ReducedFunctional(const json& doc, const std::string& base_di
             m_parameters.push_back(
                 parse_parameter(m_cases[0]->scene, sim, params[k], "parameters[" + std::to_string(k) + "]"));
     }
+    // E and nu, or mu and lambda: SimulationParameters' mu and lambda override E and nu.
+    Moduli moduli = Moduli::NONE;
+    std::string moduli_field;
     for (const auto& p : m_parameters) {
+        const KindTraits& t = traits(p.kind);
+        if (t.moduli != Moduli::NONE) {
+            if (moduli != Moduli::NONE && moduli != t.moduli)
+                throw InputError(p.field + ".type",
+                    "'" + p.name + "' cannot be combined with " + moduli_field
+                        + ": parametrize the elastic moduli by E and nu or by the Lame parameters mu and lambda");
+            if (moduli == Moduli::NONE)
+                moduli_field = "'" + p.name + "' (" + p.field + ")";
+            moduli = t.moduli;
+        }
         m_offsets.push_back(m_size);
         m_size += Index(p.targets.size());
     }
+    m_lame = moduli == Moduli::LAME;
     m_initial.resize(m_size);
     m_scales.resize(m_size);
     SimulationParameters base = m_cases[0]->base;
@@ -293,26 +394,35 @@ ReducedFunctional::ReducedFunctional(const json& doc, const std::string& base_di
         const Positions& X = m_cases[0]->scene.mesh.rest_positions;
         return (X.colwise().maxCoeff() - X.colwise().minCoeff()).norm();
     }();
-    for (size_t k = 0; k < m_parameters.size(); ++k)
+    for (size_t k = 0; k < m_parameters.size(); ++k) {
+        const KindTraits& t = traits(m_parameters[k].kind);
         for (size_t i = 0; i < m_parameters[k].targets.size(); ++i) {
-            const Index j = m_offsets[k] + Index(i);
-            const double v = canonical_entry(base, m_parameters[k].kind, m_parameters[k].targets[i][0]);
+            const Index j = m_offsets[k] + Index(i), first = m_parameters[k].targets[i][0];
+            const double v = canonical_entry(base, t, first);
             m_initial[j] = v;
-            switch (m_parameters[k].kind) {
-            case ParameterSpec::Kind::SHAPE:
-            case ParameterSpec::Kind::INITIAL_DISPLACEMENT:
-            case ParameterSpec::Kind::PRESCRIBED:
+            switch (t.scale) {
+            case Scale::LENGTH:
                 m_scales[j] = 1e-3 * length;
                 break;
-            case ParameterSpec::Kind::INITIAL_VELOCITY:
-                m_scales[j] = std::max(0.1 * std::abs(v), 1e-2);
+            case Scale::RELATIVE:
+                m_scales[j] = 0.1 * std::abs(v);
                 break;
-            case ParameterSpec::Kind::POISSON_RATIO:
+            case Scale::BULK:
+                m_scales[j] = 0.1 * std::max(std::abs(v), base.mu[first]);
+                break;
+            case Scale::POISSON:
                 m_scales[j] = 0.01;
                 break;
-            default:
-                m_scales[j] = 0.1 * std::abs(v);
+            case Scale::VELOCITY:
+                m_scales[j] = std::max(0.1 * std::abs(v), 1e-2);
+                break;
             }
+        }
+    }
+    if (!m_lame)
+        for (auto& lc : m_cases) {
+            lc->base.mu.resize(0);
+            lc->base.lambda.resize(0);
         }
     if (doc.contains("gradcheck")) {
         const json& g = doc["gradcheck"];
@@ -345,21 +455,14 @@ Evaluation ReducedFunctional::evaluate(const VectorXd& p, bool gradient) const
     if (gradient)
         out.gradient = VectorXd::Zero(m_size);
     ParameterRequest request;
-    for (const auto& s : m_parameters) {
-        request.rest_positions |= s.kind == ParameterSpec::Kind::SHAPE;
-        request.lame |= s.kind == ParameterSpec::Kind::YOUNGS_MODULUS || s.kind == ParameterSpec::Kind::POISSON_RATIO;
-        request.density |= s.kind == ParameterSpec::Kind::DENSITY;
-        request.initial_velocity |= s.kind == ParameterSpec::Kind::INITIAL_VELOCITY;
-        request.initial_displacement |= s.kind == ParameterSpec::Kind::INITIAL_DISPLACEMENT;
-        request.prescribed |= s.kind == ParameterSpec::Kind::PRESCRIBED;
-        request.friction |= s.kind == ParameterSpec::Kind::FRICTION;
-    }
+    for (const auto& s : m_parameters)
+        request.*traits(s.kind).request = true;
     for (const auto& lc : m_cases) {
         SimulationParameters sp = lc->base;
         for (size_t k = 0; k < m_parameters.size(); ++k)
             for (size_t i = 0; i < m_parameters[k].targets.size(); ++i)
                 for (Index t : m_parameters[k].targets[i])
-                    canonical_entry(sp, m_parameters[k].kind, t) = p[m_offsets[k] + Index(i)];
+                    canonical_entry(sp, traits(m_parameters[k].kind), t) = p[m_offsets[k] + Index(i)];
         Timer tf;
         Simulator sim(lc->scene, sp);
         sim.run();
@@ -376,44 +479,12 @@ Evaluation ReducedFunctional::evaluate(const VectorXd& p, bool gradient) const
         seed.resize(int(tr.steps.size()));
         objective->add_gradient(sim, tr, request, lc->weight, seed);
         ParameterGradient g = adjoint_gradient(sim, seed, request);
-        // dJ/dE and dJ/dnu per element from the Lame derivatives.
-        VectorXd dE, dnu;
-        if (request.lame)
-            lame_to_young_poisson(sp.youngs_modulus, sp.poisson_ratio, g.mu, g.lambda, dE, dnu);
+        const SimulationParameters dJ = canonical_gradient(g, sp, request.lame && !m_lame);
         for (size_t k = 0; k < m_parameters.size(); ++k) {
-            const ParameterSpec& s = m_parameters[k];
-            for (size_t i = 0; i < s.targets.size(); ++i) {
-                double sum = 0;
-                for (Index t : s.targets[i]) {
-                    switch (s.kind) {
-                    case ParameterSpec::Kind::SHAPE:
-                        sum += g.rest_positions[t];
-                        break;
-                    case ParameterSpec::Kind::YOUNGS_MODULUS:
-                        sum += dE[t];
-                        break;
-                    case ParameterSpec::Kind::POISSON_RATIO:
-                        sum += dnu[t];
-                        break;
-                    case ParameterSpec::Kind::DENSITY:
-                        sum += g.density[t];
-                        break;
-                    case ParameterSpec::Kind::INITIAL_VELOCITY:
-                        sum += g.initial_velocity[t];
-                        break;
-                    case ParameterSpec::Kind::INITIAL_DISPLACEMENT:
-                        sum += g.initial_displacement[t];
-                        break;
-                    case ParameterSpec::Kind::FRICTION:
-                        sum += g.friction[t];
-                        break;
-                    case ParameterSpec::Kind::PRESCRIBED:
-                        sum += g.prescribed(t / g.prescribed.cols(), t % g.prescribed.cols());
-                        break;
-                    }
-                }
-                out.gradient[m_offsets[k] + Index(i)] += sum;
-            }
+            const KindTraits& t = traits(m_parameters[k].kind);
+            for (size_t i = 0; i < m_parameters[k].targets.size(); ++i)
+                for (Index target : m_parameters[k].targets[i])
+                    out.gradient[m_offsets[k] + Index(i)] += gradient_entry(dJ, t, target);
         }
         out.adjoint_time += ta.seconds();
     }

@@ -6,9 +6,10 @@
 ///
 /// The optimization vector p concatenates the listed parameters in order; each
 /// maps linearly onto canonical simulation parameters (forward/simulation/parameters.hpp):
-/// a selection of rest-position components (shape), Young's modulus, Poisson's
-/// ratio or density per element or per body, an initial velocity or displacement
-/// per body or per vertex, or every prescribed displacement of every step.
+/// a selection of rest-position components (shape), Young's modulus and Poisson's
+/// ratio or the Lame parameters mu and lambda (one pair or the other) or density
+/// per element or per body, an initial velocity or displacement per body or per
+/// vertex, the friction coefficients, or every prescribed displacement of every step.
 
 #include "adjoint/adjoint.hpp"
 #include "objectives/objective.hpp"
@@ -27,6 +28,8 @@ struct ParameterSpec {
         SHAPE,
         YOUNGS_MODULUS,
         POISSON_RATIO,
+        LAME_MU,
+        LAME_LAMBDA,
         DENSITY,
         INITIAL_VELOCITY,
         INITIAL_DISPLACEMENT,
@@ -34,7 +37,7 @@ struct ParameterSpec {
         FRICTION
     };
     Kind kind = Kind::SHAPE;
-    std::string name; ///< as in the file ("shape", "E", ...)
+    std::string name; ///< as in the file ("shape", "E", "mu", ...)
     std::string field; ///< JSON path for messages
     /// Canonical indices this parameter's entries drive: entry i of the slice drives
     /// targets[i] (a list of canonical indices in the block).
@@ -89,6 +92,8 @@ private:
     Index m_size = 0;
     VectorXd m_initial, m_scales;
     CheckSettings m_check;
+    /// The elastic moduli are parametrized by mu and lambda (else by E and nu, or not at all).
+    bool m_lame = false;
 };
 
 } // namespace diffipc

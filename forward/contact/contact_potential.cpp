@@ -187,24 +187,22 @@ namespace {
     }
 } // namespace
 
-double ContactPotential::local_barrier(
-    const Contact& c, const VectorXd& x, Eigen::VectorXd* grad, Eigen::MatrixXd* hess) const
+ContactPotential::LocalDistance ContactPotential::local_distance(
+    const Contact& c, const VectorXd& x, bool derivatives) const
 {
     const int dim = m_mesh.dim;
-    const double dmin2 = m_settings.min_distance * m_settings.min_distance;
-    const double shat = barrier_activation(m_settings.dhat, m_settings.min_distance);
-    const bool derivatives = grad || hess;
-
-    double s = 0, m = 1;
-    Eigen::VectorXd gs, gm;
-    Eigen::MatrixXd Hs, Hm;
+    LocalDistance out;
+    double& s = out.s;
+    double& m = out.m;
+    Eigen::VectorXd &gs = out.gs, &gm = out.gm;
+    Eigen::MatrixXd &Hs = out.Hs, &Hm = out.Hm;
     const auto& v = c.vertices;
     switch (c.kind) {
     case ContactKind::VERTEX_PLANE: {
         const Eigen::Vector3d n = m_planes[size_t(c.plane)].normal;
         const double h = (point(x, v[0], dim) - point(x, v[1], dim)).dot(n);
         if (!(h > 0))
-            return infinite(c, dim, grad, hess);
+            return out; // s = 0: intersecting (the caller sees s - dmin^2 <= 0)
         s = h * h;
         if (derivatives) {
             const Eigen::VectorXd nd = n.head(dim);
@@ -258,6 +256,20 @@ double ContactPotential::local_barrier(
         break;
     }
     }
+    return out;
+}
+
+double ContactPotential::local_barrier(
+    const Contact& c, const VectorXd& x, Eigen::VectorXd* grad, Eigen::MatrixXd* hess) const
+{
+    const int dim = m_mesh.dim;
+    const double dmin2 = m_settings.min_distance * m_settings.min_distance;
+    const double shat = barrier_activation(m_settings.dhat, m_settings.min_distance);
+    const bool derivatives = grad || hess;
+    const LocalDistance ld = local_distance(c, x, derivatives);
+    const double s = ld.s, m = ld.m;
+    const Eigen::VectorXd &gs = ld.gs, &gm = ld.gm;
+    const Eigen::MatrixXd &Hs = ld.Hs, &Hm = ld.Hm;
     const double z = s - dmin2;
     if (!(z > 0))
         return infinite(c, dim, grad, hess);
@@ -481,6 +493,13 @@ bool ContactPotential::end_iteration(const VectorXd& x)
     return true;
 }
 
+Eigen::Matrix<double, 12, 1> ContactPotential::mollifier_threshold_gradient(const Contact& c) const
+{
+    const auto& v = c.vertices;
+    return edge_edge_mollifier_threshold_gradient(
+        rest_point(m_rest, v[0]), rest_point(m_rest, v[1]), rest_point(m_rest, v[2]), rest_point(m_rest, v[3]));
+}
+
 void ContactPotential::add_shape_derivative(
     const VectorXd& x, const VectorXd& direction, double weight, VectorXd& d_rest_positions) const
 {
@@ -510,8 +529,7 @@ void ContactPotential::add_shape_derivative(
         // d/d eps_x of grad(m b) = dm/deps b'(z) grad s + b(z) d(grad m)/deps
         const double sens
             = scale * (dm * barrier_first_derivative(z, shat) * local.dot(gs) + barrier(z, shat) * local.dot(dgm));
-        const Eigen::Matrix<double, 12, 1> deps = edge_edge_mollifier_threshold_gradient(
-            rest_point(m_rest, v[0]), rest_point(m_rest, v[1]), rest_point(m_rest, v[2]), rest_point(m_rest, v[3]));
+        const Eigen::Matrix<double, 12, 1> deps = mollifier_threshold_gradient(c);
         for (int k = 0; k < 4; ++k)
             d_rest_positions.segment(v[size_t(k)] * dim, dim) += sens * deps.segment<3>(3 * k);
     }

@@ -67,6 +67,18 @@ public:
     /// Gradient of the barrier without kappa (#V*dim).
     VectorXd barrier_gradient(const VectorXd& x) const;
 
+    /// The squared distance s of a contact at x for its classified type (0 for a
+    /// vertex on the wrong side of a plane), the mollifier m (1 unless edge-edge),
+    /// and, if asked, their local gradients and Hessians (vertex-major, dim per vertex).
+    struct LocalDistance {
+        double s = 0, m = 1;
+        Eigen::VectorXd gs, gm; ///< gm empty unless edge-edge
+        Eigen::MatrixXd Hs, Hm;
+    };
+    LocalDistance local_distance(const Contact& c, const VectorXd& x, bool derivatives) const;
+    /// d eps_x / d(rest positions) of an edge-edge contact: 12 (xyz per vertex; z unused in 2D).
+    Eigen::Matrix<double, 12, 1> mollifier_threshold_gradient(const Contact& c) const;
+
     const ContactSettings& settings() const { return m_settings; }
     void set_kappa(double kappa) { m_settings.kappa = kappa; }
     double kappa() const { return m_settings.kappa; }

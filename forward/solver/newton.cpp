@@ -122,12 +122,35 @@ NewtonResult NewtonSolver::solve(VectorXd& x, const VectorXd& target, const std:
             return result;
         }
         if (!lifting && p.lpNorm<Eigen::Infinity>() <= ROUNDOFF_STEP * x.lpNorm<Eigen::Infinity>()) {
-            // The remaining correction is within a few hundred ulps of the positions:
-            // the residual is at its round-off floor (a tiny dt makes M (x - x~) / h^2
-            // dominate it), and further iterations cannot improve x.
-            result.status = StepStatus::CONVERGED;
-            result.roundoff_limited = true;
-            return result;
+            // The remaining correction is within a few hundred ulps of the largest
+            // position, below what the energy resolves. It is still taken while it
+            // halves the residual (the positions near the origin resolve it, and the
+            // adjoint needs the residual as small as it gets); once it does not, the
+            // residual is at its round-off floor (a tiny dt makes M (x - x~) / h^2
+            // dominate it) and further iterations cannot improve x.
+            trial = x + p;
+            const double trial_energy = m_problem.energy(trial);
+            bool improves = std::isfinite(trial_energy);
+            if (improves) {
+                m_problem.gradient(trial, g_trial);
+                double trial_max = 0;
+                for (Index i = 0; i < n; ++i)
+                    if (!constrained[size_t(i)])
+                        trial_max = std::max(trial_max, std::abs(g_trial[i]));
+                improves = g_trial.allFinite() && trial_max < 0.5 * gmax;
+            }
+            if (!improves) {
+                result.status = StepStatus::CONVERGED;
+                result.roundoff_limited = true;
+                return result;
+            }
+            x = trial;
+            energy = trial_energy;
+            result.newton_step = p.lpNorm<Eigen::Infinity>() / step_scale;
+            if (m_problem.end_iteration(x))
+                energy = m_problem.energy(x);
+            result.iterations = it + 1;
+            continue;
         }
         double slope = g.dot(p);
         if (!lifting && !(slope < 0)) {

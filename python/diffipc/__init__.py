@@ -1,13 +1,18 @@
 """diffipc: differentiable Incremental Potential Contact elastodynamics.
 
-Forward solver for now: load a scene (file path or dict), run it, get the
-trajectory as numpy arrays. Bad input raises ValueError naming the field.
+Load a scene (file path or dict), run it, get the trajectory as numpy arrays;
+load a problem (docs/problem_format.md) as a ReducedFunctional for J(p) and its
+adjoint gradient dJ/dp, checked by taylor_test and finite_difference_check.
+Bad input raises ValueError naming the field; a gradient that cannot be
+computed raises AdjointError (a RuntimeError). See docs/python.md.
 """
 
 import json
 import os
 
 from ._diffipc import (  # noqa: F401
+    AdjointError,
+    Evaluation,
     InputError,
     Scene,
     Simulator,
@@ -18,6 +23,7 @@ from ._diffipc import (  # noqa: F401
     load_scene,
     _scene_from_json_text,
 )
+from .reduced import ReducedFunctional, finite_difference_check, taylor_test  # noqa: F401
 
 
 def scene(source, base_directory=None):

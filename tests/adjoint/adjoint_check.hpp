@@ -15,7 +15,7 @@
 
 namespace diffipc::test {
 
-enum class Block { REST_POSITIONS, MU, LAMBDA, DENSITY, INITIAL_DISPLACEMENT, INITIAL_VELOCITY, PRESCRIBED };
+enum class Block { REST_POSITIONS, MU, LAMBDA, DENSITY, INITIAL_DISPLACEMENT, INITIAL_VELOCITY, PRESCRIBED, FRICTION };
 
 inline const char* block_name(Block b)
 {
@@ -34,6 +34,8 @@ inline const char* block_name(Block b)
         return "initial_velocity";
     case Block::PRESCRIBED:
         return "prescribed";
+    case Block::FRICTION:
+        return "friction";
     }
     return "";
 }
@@ -119,6 +121,8 @@ inline double block_dot(const ParameterGradient& g, Block b, const VectorXd& dir
         return g.initial_velocity.dot(dir);
     case Block::PRESCRIBED:
         return (g.prescribed.array() * dir_matrix.array()).sum();
+    case Block::FRICTION:
+        return g.friction.dot(dir);
     }
     return 0;
 }
@@ -148,6 +152,9 @@ inline SimulationParameters perturbed(
         break;
     case Block::PRESCRIBED:
         p.prescribed += h * dir_matrix;
+        break;
+    case Block::FRICTION:
+        p.friction += h * dir;
         break;
     }
     return p;
@@ -179,6 +186,7 @@ inline void check_adjoint(const nlohmann::json& scene_json, const std::vector<Bl
         request.initial_displacement |= b == Block::INITIAL_DISPLACEMENT;
         request.initial_velocity |= b == Block::INITIAL_VELOCITY;
         request.prescribed |= b == Block::PRESCRIBED;
+        request.friction |= b == Block::FRICTION;
     }
     const ParameterGradient grad = adjoint_gradient(sim, objective.seed(sim), request);
     const double J0 = objective.value(sim);
@@ -213,6 +221,9 @@ inline void check_adjoint(const nlohmann::json& scene_json, const std::vector<Bl
             break;
         case Block::DENSITY:
             dir = random_vector(base.density.size(), ++seed).cwiseProduct(base.density);
+            break;
+        case Block::FRICTION:
+            dir = random_vector(base.friction.size(), ++seed).cwiseProduct(base.friction);
             break;
         case Block::PRESCRIBED:
             ASSERT_GT(base.prescribed.size(), 0) << "the scene has no prescribed dofs";

@@ -201,8 +201,8 @@ void FrictionPotential::lag(const ContactPotential& contact, const VectorXd& x_l
     const double dmin2 = s.min_distance * s.min_distance;
     for (const Contact& c : contact.contacts(x_lagged)) {
         const int other = c.kind == ContactKind::EDGE_EDGE ? 2 : 1;
-        const double mu = std::sqrt(m_group_coefficient[size_t(m_vertex_group[c.vertices[0]])]
-            * m_group_coefficient[size_t(m_vertex_group[c.vertices[size_t(other)]])]);
+        const int ga = m_vertex_group[c.vertices[0]], gb = m_vertex_group[c.vertices[size_t(other)]];
+        const double mu = std::sqrt(m_group_coefficient[size_t(ga)] * m_group_coefficient[size_t(gb)]);
         if (!(mu > 0) || !(c.distance_squared > dmin2))
             continue;
         FrictionContact f;
@@ -229,6 +229,8 @@ void FrictionPotential::lag(const ContactPotential& contact, const VectorXd& x_l
         f.normal_force
             = contact.kappa() * m * std::abs(barrier_first_derivative(c.distance_squared - dmin2, shat)) * 2 * d;
         f.coefficient = mu;
+        f.groups = { ga, gb };
+        f.source = c;
         if (f.normal_force > 0)
             m_contacts.push_back(f);
     }

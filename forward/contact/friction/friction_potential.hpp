@@ -30,6 +30,8 @@ struct FrictionContact {
         = Eigen::Matrix<double, 3, 2>::Zero(); ///< T: orthonormal columns (2D: one column)
     double normal_force = 0; ///< lambda (N): kappa m |d(b)/d(d)| at the lagged state
     double coefficient = 0; ///< mu of the pair
+    std::array<int, 2> groups { -1, -1 }; ///< contact groups of the two sides (mu = sqrt(mu_a mu_b))
+    Contact source; ///< the barrier contact it was lagged from (type, plane, mollifier threshold)
 };
 
 /// @brief Weights gamma with p - q = sum_i gamma_i x_i, where p, q are the closest
