@@ -2,10 +2,12 @@
 
 #include "cli/bench.hpp"
 
+#include "adjoint/adjoint.hpp"
 #include "forward/common/timer.hpp"
 #include "forward/contact/intersection.hpp"
 #include "forward/scene/scene.hpp"
 #include "forward/simulation/simulator.hpp"
+#include "objectives/objective_json.hpp"
 
 #include <nlohmann/json.hpp>
 
@@ -134,6 +136,63 @@ namespace {
         return tr.final_status == StepStatus::CONVERGED ? 0 : 2;
     }
 
+    /// Adjoint cost against the forward run on the contact scene: a nominal step picks
+    /// the adaptive kappa, then a run with that kappa fixed (the differentiated run) is
+    /// timed, then shape and material gradients of a stress p-norm of the final state.
+    int run_adjoint_bench(const BenchOptions& options)
+    {
+        const bool full = options.size == "full";
+        const Scene scene = parse_scene(contact_slabs(full, options.steps, options.friction), ".", "contact-slabs");
+        SimulationParameters fixed;
+        {
+            Simulator nominal(scene);
+            if (nominal.step() != StepStatus::CONVERGED) {
+                std::printf("  nominal step failed: %s\n", nominal.trajectory().failure_message.c_str());
+                return 1;
+            }
+            fixed.kappa = nominal.trajectory().steps.back().kappa;
+        }
+        Simulator sim(scene, fixed);
+        std::printf("contact-slabs adjoint (%s, friction %g): %ld elements, %ld dofs, %d steps, kappa %.4g fixed\n",
+            options.size.c_str(), options.friction, long(sim.mesh().num_elements()), long(sim.mesh().num_dofs()),
+            options.steps, fixed.kappa);
+        Timer forward_timer;
+        const Trajectory& tr = sim.run();
+        const double forward = forward_timer.seconds();
+        if (tr.final_status != StepStatus::CONVERGED) {
+            std::printf("  forward failed at step %d: %s\n", tr.failed_step, tr.failure_message.c_str());
+            return 1;
+        }
+        size_t friction_contacts = 0;
+        for (const StepRecord& r : tr.steps)
+            friction_contacts += r.friction.size();
+        std::printf("  forward: %.3f s (%d Newton iterations, %zu lagged friction contacts over the run)\n", forward,
+            tr.newton_iterations, friction_contacts);
+        const nlohmann::json spec = { { "type", "stress_norm" }, { "p", 8 }, { "time", "final" } };
+        const auto objective = parse_objective(spec, "objective", sim);
+        struct Case {
+            const char* name;
+            ParameterRequest request;
+        };
+        ParameterRequest shape, material;
+        shape.rest_positions = true;
+        material.lame = true;
+        for (const Case& c : { Case { "shape (rest positions)", shape }, Case { "material (mu, lambda)", material } }) {
+            Timer t;
+            StateSeed seed;
+            seed.resize(int(tr.steps.size()));
+            objective->add_gradient(sim, tr, c.request, 1.0, seed);
+            AdjointStatistics st;
+            const ParameterGradient g = adjoint_gradient(sim, seed, c.request, &st);
+            const double total = t.seconds();
+            const double norm = g.rest_positions.norm() + g.mu.norm() + g.lambda.norm();
+            std::printf("  %-24s %.3f s = %5.1f%% of the forward (assembly %.3f, factorization %.3f, solve %.3f s; "
+                        "|dJ/dp| %.3e)\n",
+                c.name, total, 100 * total / forward, st.assembly_time, st.factorization_time, st.solve_time, norm);
+        }
+        return 0;
+    }
+
     int run_scene_bench(const BenchOptions& options)
     {
         namespace fs = std::filesystem;
@@ -172,6 +231,8 @@ int run_bench(const BenchOptions& options)
 {
     if (options.suite == "contact")
         return run_contact_bench(options);
+    if (options.suite == "adjoint")
+        return run_adjoint_bench(options);
     if (options.suite == "scenes")
         return run_scene_bench(options);
     const bool full = options.size == "full";

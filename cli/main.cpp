@@ -115,8 +115,8 @@ int main(int argc, char** argv)
     auto* bench_cmd = app.add_subcommand("bench", "Run the fixed benchmark scenes and print per-phase timings");
     bench_cmd->add_option("--size", bench_options.size, "small | full")->check(CLI::IsMember({ "small", "full" }));
     bench_cmd->add_option("--steps", bench_options.steps, "time steps per scene (the first is a warm-up)");
-    bench_cmd->add_option("--suite", bench_options.suite, "forward | contact | scenes")
-        ->check(CLI::IsMember({ "forward", "contact", "scenes" }));
+    bench_cmd->add_option("--suite", bench_options.suite, "forward | contact | scenes | adjoint")
+        ->check(CLI::IsMember({ "forward", "contact", "scenes", "adjoint" }));
     bench_cmd->add_option("--source-dir", bench_options.source_dir, "repository root, where studies/ lives");
     bench_cmd->add_option("--friction", bench_options.friction, "contact suite: friction coefficient (0: none)")
         ->check(CLI::NonNegativeNumber);

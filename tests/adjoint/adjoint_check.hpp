@@ -4,6 +4,7 @@
 // every forward run built from SimulationParameters.
 
 #include "adjoint/adjoint.hpp"
+#include "adjoint/parameter_blocks.hpp"
 #include "forward/test_utils.hpp"
 
 #include <gtest/gtest.h>
@@ -14,31 +15,6 @@
 #include <vector>
 
 namespace diffipc::test {
-
-enum class Block { REST_POSITIONS, MU, LAMBDA, DENSITY, INITIAL_DISPLACEMENT, INITIAL_VELOCITY, PRESCRIBED, FRICTION };
-
-inline const char* block_name(Block b)
-{
-    switch (b) {
-    case Block::REST_POSITIONS:
-        return "rest_positions";
-    case Block::MU:
-        return "mu";
-    case Block::LAMBDA:
-        return "lambda";
-    case Block::DENSITY:
-        return "density";
-    case Block::INITIAL_DISPLACEMENT:
-        return "initial_displacement";
-    case Block::INITIAL_VELOCITY:
-        return "initial_velocity";
-    case Block::PRESCRIBED:
-        return "prescribed";
-    case Block::FRICTION:
-        return "friction";
-    }
-    return "";
-}
 
 /// J = sum_k a_k . (x_k - X) + b_k . v_k + c/2 |x_T - X|^2 with fixed random a_k, b_k: every
 /// state of the run is seeded, so every backward path of the adjoint is exercised.
@@ -103,62 +79,6 @@ struct CheckSettings {
     /// First Taylor step; halved six times.
     double taylor_step = 0.1;
 };
-
-inline double block_dot(const ParameterGradient& g, Block b, const VectorXd& dir, const MatrixXd& dir_matrix)
-{
-    switch (b) {
-    case Block::REST_POSITIONS:
-        return g.rest_positions.dot(dir);
-    case Block::MU:
-        return g.mu.dot(dir);
-    case Block::LAMBDA:
-        return g.lambda.dot(dir);
-    case Block::DENSITY:
-        return g.density.dot(dir);
-    case Block::INITIAL_DISPLACEMENT:
-        return g.initial_displacement.dot(dir);
-    case Block::INITIAL_VELOCITY:
-        return g.initial_velocity.dot(dir);
-    case Block::PRESCRIBED:
-        return (g.prescribed.array() * dir_matrix.array()).sum();
-    case Block::FRICTION:
-        return g.friction.dot(dir);
-    }
-    return 0;
-}
-
-inline SimulationParameters perturbed(
-    const SimulationParameters& base, Block b, const VectorXd& dir, const MatrixXd& dir_matrix, double h)
-{
-    SimulationParameters p = base;
-    switch (b) {
-    case Block::REST_POSITIONS:
-        p.rest_positions += h * dir;
-        break;
-    case Block::MU:
-        p.mu += h * dir;
-        break;
-    case Block::LAMBDA:
-        p.lambda += h * dir;
-        break;
-    case Block::DENSITY:
-        p.density += h * dir;
-        break;
-    case Block::INITIAL_DISPLACEMENT:
-        p.initial_displacement += h * dir;
-        break;
-    case Block::INITIAL_VELOCITY:
-        p.initial_velocity += h * dir;
-        break;
-    case Block::PRESCRIBED:
-        p.prescribed += h * dir_matrix;
-        break;
-    case Block::FRICTION:
-        p.friction += h * dir;
-        break;
-    }
-    return p;
-}
 
 /// @brief Runs the scene, the adjoint for `blocks`, and checks each block in a
 /// random direction against central differences and by a Taylor test.
@@ -238,7 +158,7 @@ inline void check_adjoint(const nlohmann::json& scene_json, const std::vector<Bl
         // Fourth-order central difference: truncation O(eps^4) lets eps stay large
         // enough that the forward solves' round-off does not show.
         const auto Jh = [&](double h) { return J(perturbed(base, b, dir, dir_matrix, h)); };
-        const double fd = (8 * (Jh(eps) - Jh(-eps)) - (Jh(2 * eps) - Jh(-2 * eps))) / (12 * eps);
+        const double fd = central_difference(Jh, eps);
         EXPECT_NEAR(exact, fd, settings.tolerance * std::abs(fd))
             << "adjoint " << exact << " central difference " << fd << " relative error "
             << std::abs(exact - fd) / std::abs(fd);

@@ -5,8 +5,6 @@
 
 #include "adjoint/adjoint_check.hpp"
 
-#include <algorithm>
-
 using namespace diffipc;
 using namespace diffipc::test;
 using json = nlohmann::json;
@@ -110,6 +108,30 @@ json stacked_boxes(const std::string& integrator)
     return s;
 }
 
+/// The blocks the box-on-plane scenes check (with or without friction).
+std::vector<Block> box_on_plane_blocks(int dim, const std::string& integrator)
+{
+    if (integrator != "static")
+        return ALL_BLOCKS;
+    // No inertia: density enters only through gravity, velocities not at all.
+    // Written reason: in the 3D static scene every vertex is either clamped (top layer) or
+    // held by the barrier (bottom layer, one cell high), so gravity, the density's only
+    // effect without inertia, moves J by 1e-10 and no difference quotient resolves it.
+    // Density in static solves is checked by the 2D contact case and both no-contact cases.
+    if (dim == 3)
+        return { Block::REST_POSITIONS, Block::MU, Block::LAMBDA, Block::PRESCRIBED };
+    return { Block::REST_POSITIONS, Block::MU, Block::LAMBDA, Block::DENSITY, Block::PRESCRIBED };
+}
+
+CheckSettings box_on_plane_settings(const std::string& integrator)
+{
+    CheckSettings settings;
+    settings.tolerance = 1e-5;
+    settings.fd_step = 1e-3;
+    settings.taylor_step = integrator == "static" ? 0.1 : 1e-2;
+    return settings;
+}
+
 } // namespace
 
 class AdjointContact : public ::testing::TestWithParam<std::tuple<int, std::string>> { };
@@ -124,20 +146,7 @@ TEST_P(AdjointContact, EveryBlockMatchesFiniteDifferences)
     ASSERT_EQ(sim.trajectory().final_status, StepStatus::CONVERGED);
     for (const StepRecord& r : sim.trajectory().steps)
         ASSERT_EQ(r.active_contacts, dim == 2 ? 5 : 9) << "step " << r.index;
-    std::vector<Block> blocks = ALL_BLOCKS;
-    if (integrator == "static")
-        blocks = { Block::REST_POSITIONS, Block::MU, Block::LAMBDA, Block::DENSITY, Block::PRESCRIBED };
-    // Written reason: in the 3D static scene every vertex is either clamped (top layer) or
-    // held by the barrier (bottom layer, one cell high), so gravity, the density's only
-    // effect without inertia, moves J by 1e-10 and no difference quotient resolves it.
-    // Density in static solves is checked by the 2D contact case and both no-contact cases.
-    if (integrator == "static" && dim == 3)
-        blocks = { Block::REST_POSITIONS, Block::MU, Block::LAMBDA, Block::PRESCRIBED };
-    CheckSettings settings;
-    settings.tolerance = 1e-5;
-    settings.fd_step = 1e-3;
-    settings.taylor_step = integrator == "static" ? 0.1 : 1e-2;
-    check_adjoint(scene, blocks, settings);
+    check_adjoint(scene, box_on_plane_blocks(dim, integrator), box_on_plane_settings(integrator));
 }
 
 INSTANTIATE_TEST_SUITE_P(Integrators, AdjointContact,
@@ -193,19 +202,9 @@ TEST_P(AdjointFriction, EveryBlockMatchesFiniteDifferences)
         ASSERT_EQ(r.active_contacts, dim == 2 ? 5 : 9) << "step " << r.index;
         ASSERT_EQ(r.friction.size(), size_t(r.active_contacts)) << "step " << r.index;
     }
-    std::vector<Block> blocks = ALL_BLOCKS;
+    std::vector<Block> blocks = box_on_plane_blocks(dim, integrator);
     blocks.push_back(Block::FRICTION);
-    if (integrator == "static")
-        blocks = { Block::REST_POSITIONS, Block::MU, Block::LAMBDA, Block::DENSITY, Block::PRESCRIBED,
-            Block::FRICTION };
-    // Same written reason as AdjointContact: J does not resolve the density in the 3D static scene.
-    if (integrator == "static" && dim == 3)
-        blocks.erase(std::find(blocks.begin(), blocks.end(), Block::DENSITY));
-    CheckSettings settings;
-    settings.tolerance = 1e-5;
-    settings.fd_step = 1e-3;
-    settings.taylor_step = integrator == "static" ? 0.1 : 1e-2;
-    check_adjoint(scene, blocks, settings);
+    check_adjoint(scene, blocks, box_on_plane_settings(integrator));
 }
 
 INSTANTIATE_TEST_SUITE_P(Integrators, AdjointFriction,

@@ -16,6 +16,7 @@
 // quadratic in v); Lame parameters and densities by 1e-6 relative, element by element.
 
 #include "forward/test_utils.hpp"
+#include "adjoint/parameter_blocks.hpp"
 #include "objectives/objective.hpp"
 
 #include <gtest/gtest.h>
@@ -97,12 +98,6 @@ inline ::testing::AssertionResult fd_agrees(double fd, double analytic, double t
                                          << " (relative error " << err / std::max(ref, 1e-300) << ")";
 }
 
-/// Fourth-order central difference of f at 0 with step h.
-inline double central_difference(const std::function<double(double)>& f, double h)
-{
-    return (8 * (f(h) - f(-h)) - (f(2 * h) - f(-2 * h))) / (12 * h);
-}
-
 /// The scale the gradient checks call add_gradient with (not 1, so that scaling is checked too).
 inline constexpr double GRADIENT_SCALE = 1.7;
 
@@ -137,23 +132,6 @@ inline void check_state_gradient(const Objective& J, const Run& run, unsigned se
         }
 }
 
-enum class Block { REST_POSITIONS, MU, LAMBDA, DENSITY };
-
-inline const char* block_name(Block b)
-{
-    switch (b) {
-    case Block::REST_POSITIONS:
-        return "rest_positions";
-    case Block::MU:
-        return "mu";
-    case Block::LAMBDA:
-        return "lambda";
-    case Block::DENSITY:
-        return "density";
-    }
-    return "?";
-}
-
 /// @brief Checks J's explicit partial in one parameter block against central differences of
 /// J on the same (fixed) trajectory, evaluated by a Simulator built with the perturbed
 /// parameters (forward/simulation/parameters.hpp). Also checks that add_gradient fills no
@@ -182,47 +160,17 @@ inline void check_parameter_gradient(
         << J.name() << ": blocks an objective never has";
 
     const Simulator& sim = *run.sim;
-    const Index ne = sim.mesh().num_elements();
-    VectorXd dir, base;
-    const VectorXd* partial = nullptr;
-    switch (block) {
-    case Block::REST_POSITIONS:
-        base = flatten(sim.mesh().rest_positions);
-        dir = random_vector(base.size(), seed);
-        partial = &g.rest_positions;
-        break;
-    case Block::MU:
-    case Block::LAMBDA:
-    case Block::DENSITY:
-        base = block == Block::MU ? sim.elastic().mu()
-                                  : (block == Block::LAMBDA ? sim.elastic().lambda() : sim.inertia().density());
-        dir = random_vector(ne, seed).cwiseProduct(base);
-        partial = block == Block::MU ? &g.mu : (block == Block::LAMBDA ? &g.lambda : &g.density);
-        break;
-    }
-    const double h = 1e-6; // m for rest positions; relative for per-element values
+    const SimulationParameters base = sim.parameters();
+    const VectorXd& values = *block_vector(base, block);
+    // Lengths for rest positions (1e-6 m steps), relative for per-element values.
+    const VectorXd dir = block == Block::REST_POSITIONS ? random_vector(values.size(), seed)
+                                                        : random_vector(values.size(), seed).cwiseProduct(values);
+    const VectorXd* partial = block_vector(g, block);
+    const double h = 1e-6;
     const double fd = central_difference(
         [&](double eps) {
-            SimulationParameters p;
-            const VectorXd perturbed_value = base + eps * dir;
-            switch (block) {
-            case Block::REST_POSITIONS:
-                p.rest_positions = perturbed_value;
-                break;
-            case Block::MU:
-                p.mu = perturbed_value;
-                p.lambda = sim.elastic().lambda();
-                break;
-            case Block::LAMBDA:
-                p.mu = sim.elastic().mu();
-                p.lambda = perturbed_value;
-                break;
-            case Block::DENSITY:
-                p.density = perturbed_value;
-                break;
-            }
-            Simulator perturbed(make_scene(run.scene_json), p);
-            return J.value(perturbed, run.trajectory);
+            Simulator perturbed_sim(make_scene(run.scene_json), perturbed(base, block, dir, MatrixXd(), eps));
+            return J.value(perturbed_sim, run.trajectory);
         },
         h);
     const double analytic = partial->size() ? partial->dot(dir) / GRADIENT_SCALE : 0.0;

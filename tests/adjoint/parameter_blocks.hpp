@@ -1,0 +1,92 @@
+#pragma once
+// The canonical parameter blocks (forward/simulation/parameters.hpp) as the
+// finite-difference checks see them: names, directions applied to a set of
+// parameters, gradient dot products, and the fourth-order central difference.
+// Shared by the adjoint checks (adjoint_check.hpp) and the objectives' partial
+// derivative checks (tests/objectives/objective_fd.hpp).
+
+#include "adjoint/sensitivity.hpp"
+#include "forward/simulation/parameters.hpp"
+
+#include <functional>
+
+namespace diffipc::test {
+
+enum class Block { REST_POSITIONS, MU, LAMBDA, DENSITY, INITIAL_DISPLACEMENT, INITIAL_VELOCITY, PRESCRIBED, FRICTION };
+
+inline const char* block_name(Block b)
+{
+    switch (b) {
+    case Block::REST_POSITIONS:
+        return "rest_positions";
+    case Block::MU:
+        return "mu";
+    case Block::LAMBDA:
+        return "lambda";
+    case Block::DENSITY:
+        return "density";
+    case Block::INITIAL_DISPLACEMENT:
+        return "initial_displacement";
+    case Block::INITIAL_VELOCITY:
+        return "initial_velocity";
+    case Block::PRESCRIBED:
+        return "prescribed";
+    case Block::FRICTION:
+        return "friction";
+    }
+    return "?";
+}
+
+/// The vector a block lives in, of parameters or of a gradient (both are laid out alike);
+/// PRESCRIBED is a matrix and has none (nullptr).
+template <typename Blocks> auto block_vector(Blocks& p, Block b) -> decltype(&p.mu)
+{
+    switch (b) {
+    case Block::REST_POSITIONS:
+        return &p.rest_positions;
+    case Block::MU:
+        return &p.mu;
+    case Block::LAMBDA:
+        return &p.lambda;
+    case Block::DENSITY:
+        return &p.density;
+    case Block::INITIAL_DISPLACEMENT:
+        return &p.initial_displacement;
+    case Block::INITIAL_VELOCITY:
+        return &p.initial_velocity;
+    case Block::FRICTION:
+        return &p.friction;
+    case Block::PRESCRIBED:
+        break;
+    }
+    return nullptr;
+}
+
+/// dJ/dp . direction for one block (dir_matrix for PRESCRIBED); 0 for an empty gradient block.
+inline double block_dot(const ParameterGradient& g, Block b, const VectorXd& dir, const MatrixXd& dir_matrix)
+{
+    if (b == Block::PRESCRIBED)
+        return g.prescribed.size() ? (g.prescribed.array() * dir_matrix.array()).sum() : 0.0;
+    const VectorXd& v = *block_vector(g, b);
+    return v.size() ? v.dot(dir) : 0.0;
+}
+
+/// base + h direction in one block (the other blocks as in base).
+inline SimulationParameters perturbed(
+    const SimulationParameters& base, Block b, const VectorXd& dir, const MatrixXd& dir_matrix, double h)
+{
+    SimulationParameters p = base;
+    if (b == Block::PRESCRIBED)
+        p.prescribed += h * dir_matrix;
+    else
+        *block_vector(p, b) += h * dir;
+    return p;
+}
+
+/// Fourth-order central difference of f at 0 with step h.
+inline double central_difference(const std::function<double(double)>& f, double h)
+{
+    return (8 * (f(h) - f(-h)) - (f(2 * h) - f(-2 * h))) / (12 * h);
+}
+
+} // namespace diffipc::test
