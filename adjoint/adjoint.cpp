@@ -7,7 +7,9 @@
 
 #include <Eigen/SparseCholesky>
 
+#include <algorithm>
 #include <cmath>
+#include <stdexcept>
 
 namespace diffipc {
 
@@ -67,150 +69,258 @@ namespace {
             block += v;
     }
 
+} // namespace
+
+struct AdjointSweep::Impl {
+    Simulator& sim;
+    const ParameterRequest request;
+    const int T;
+    const Index n;
+    const int d;
+    ParameterGradient grad;
+    /// dJ/dx_k, dJ/dv_k, dJ/da_k for k = 0..T; empty reads as zero.
+    std::vector<VectorXd> xbar, vbar, abar;
+    const std::vector<char>& constrained;
+    const std::vector<Index> prescribed;
+    SparseAssembler assembler;
+    LinearSolver linear;
+    AdjointStatistics st;
+    VectorXd* d_rest = nullptr;
+    VectorXd* d_density = nullptr;
+    int next; ///< the step that step() takes next (0: finish())
+    size_t bytes = 0; ///< held by xbar, vbar, abar
+
+    Impl(Simulator& s, const ParameterRequest& r)
+        : sim(s)
+        , request(r)
+        , T(s.steps_done())
+        , n(s.mesh().num_dofs())
+        , d(s.mesh().dim)
+        , grad(allocate(s, r))
+        , xbar(size_t(T) + 1)
+        , vbar(size_t(T) + 1)
+        , abar(size_t(T) + 1)
+        , constrained(s.constrained())
+        , prescribed(s.prescribed_dofs())
+        , linear(s.scene().solver.linear_solver)
+        , next(T)
+    {
+        assembler.build(d, s.mesh().num_vertices(), s.mesh().elements);
+        d_rest = grad.rest_positions.size() ? &grad.rest_positions : nullptr;
+        d_density = grad.density.size() ? &grad.density : nullptr;
+    }
+
     /// Adds s * v to bar (allocating zeros if bar is empty).
     void push(VectorXd& bar, double s, const VectorXd& v)
     {
         if (s == 0)
             return;
-        if (bar.size() == 0)
+        if (bar.size() == 0) {
             bar = VectorXd::Zero(v.size());
+            grew(bar);
+        }
         bar += s * v;
     }
+    void grew(const VectorXd& v)
+    {
+        bytes += sizeof(double) * size_t(v.size());
+        st.peak_adjoint_bytes = std::max(st.peak_adjoint_bytes, bytes);
+    }
+    void release(VectorXd& v)
+    {
+        bytes -= sizeof(double) * size_t(v.size());
+        v = VectorXd();
+    }
 
-} // namespace
+    void step(int k);
+    void finish();
+};
 
-ParameterGradient adjoint_gradient(
-    Simulator& sim, const StateSeed& seed, const ParameterRequest& request, AdjointStatistics* stats)
+AdjointSweep::AdjointSweep(Simulator& sim, const ParameterRequest& request)
 {
     Timer total;
     check_run(sim);
-    const Trajectory& tr = sim.trajectory();
-    const int T = int(tr.steps.size());
-    const Index n = sim.mesh().num_dofs();
-    const int d = sim.mesh().dim;
+    m = std::make_unique<Impl>(sim, request);
+    total.add_to(m->st.total_time);
+}
+
+AdjointSweep::~AdjointSweep() = default;
+
+const AdjointStatistics& AdjointSweep::statistics() const { return m->st; }
+
+void AdjointSweep::add_seed(const StateSeed& seed, int first, int last)
+{
+    Timer total;
+    const int T = m->T;
     if (seed.positions.size() != size_t(T) + 1 || seed.velocities.size() != size_t(T) + 1)
         throw AdjointError("the state seed must have T + 1 = " + std::to_string(T + 1) + " entries");
-
-    ParameterGradient grad = allocate(sim, request);
+    if (first < 0 || last > T)
+        throw std::out_of_range("AdjointSweep::add_seed: states " + std::to_string(first) + ".." + std::to_string(last)
+            + " outside 0.." + std::to_string(T));
+    for (int k = first; k <= last; ++k) {
+        const VectorXd* entries[2] = { &seed.positions[size_t(k)], &seed.velocities[size_t(k)] };
+        VectorXd* bars[2] = { &m->xbar[size_t(k)], &m->vbar[size_t(k)] };
+        for (int which = 0; which < 2; ++which) {
+            if (!nonzero(*entries[which]))
+                continue;
+            if (k > m->next)
+                throw std::logic_error(
+                    "AdjointSweep::add_seed: state " + std::to_string(k) + " is seeded after its step was swept");
+            m->push(*bars[which], 1.0, *entries[which]);
+        }
+    }
     // J's explicit partials, restricted to the requested blocks.
     const ParameterGradient& ex = seed.explicit_partials;
+    ParameterGradient& grad = m->grad;
     add_requested(grad.rest_positions, ex.rest_positions);
     add_requested(grad.mu, ex.mu);
     add_requested(grad.lambda, ex.lambda);
     add_requested(grad.density, ex.density);
     add_requested(grad.friction, ex.friction);
+    total.add_to(m->st.total_time);
+}
 
-    std::vector<VectorXd> xbar(seed.positions), vbar(seed.velocities), abar(size_t(T) + 1);
-    const std::vector<char>& constrained = sim.constrained();
-    const std::vector<Index> prescribed = sim.prescribed_dofs();
+void AdjointSweep::step(int k)
+{
+    if (k != m->next || k < 1)
+        throw std::logic_error("AdjointSweep::step: expected step " + std::to_string(m->next) + ", got "
+            + std::to_string(k) + " (steps are swept from T down to 1)");
+    Timer total;
+    m->step(k);
+    --m->next;
+    total.add_to(m->st.total_time);
+}
 
-    SparseAssembler assembler;
-    assembler.build(d, sim.mesh().num_vertices(), sim.mesh().elements);
-    LinearSolver linear(sim.scene().solver.linear_solver);
-    AdjointStatistics st;
-
-    const ElasticPotential& elastic = sim.elastic();
-    const InertiaPotential& inertia = sim.inertia();
-    VectorXd* d_rest = grad.rest_positions.size() ? &grad.rest_positions : nullptr;
-    VectorXd* d_density = grad.density.size() ? &grad.density : nullptr;
-
-    for (int k = T; k >= 1; --k) {
-        const StepScheme s = sim.step_scheme(k);
-        // v_k and a_k are linear in x_k and the history.
-        for (int which = 0; which < 2; ++which) {
-            VectorXd& bar = which == 0 ? abar[size_t(k)] : vbar[size_t(k)];
-            if (!nonzero(bar))
-                continue;
-            const double* cx = which == 0 ? s.ax : s.vx;
-            const double* cv = which == 0 ? s.av : s.vv;
-            const double* ca = which == 0 ? s.aa : s.va;
-            push(xbar[size_t(k)], cx[0], bar);
-            for (int j = 1; j <= 2 && k - j >= 0; ++j) {
-                push(xbar[size_t(k - j)], cx[j], bar);
-                push(vbar[size_t(k - j)], cv[j], bar);
-                push(abar[size_t(k - j)], ca[j], bar);
-            }
-        }
-        VectorXd& xb = xbar[size_t(k)];
-        if (xb.size() == 0)
-            xb = VectorXd::Zero(n);
-        VectorXd rhs = xb;
-        for (Index i = 0; i < n; ++i)
-            if (constrained[size_t(i)])
-                rhs[i] = 0;
-        const StepRecord& record = tr.steps[size_t(k - 1)];
-        const VectorXd& x = record.positions;
-        if (!rhs.isZero(0.0)) {
-            Timer ta;
-            const Problem& problem = sim.step_problem(k);
-            problem.hessian(x, false, assembler);
-            const SparseMatrixd H = assembler.matrix(); // lower triangle, before the constraints
-            assembler.apply_constraints(constrained);
-            ta.add_to(st.assembly_time);
-            Timer tf;
-            if (!linear.factorize(assembler.matrix(), true))
-                throw AdjointError("no gradient: the adjoint system of step " + std::to_string(k)
-                    + " is singular (true Hessian at the converged state)");
-            tf.add_to(st.factorization_time);
-            Timer ts;
-            VectorXd lambda = linear.solve(rhs);
-            ts.add_to(st.solve_time);
-            if (!lambda.allFinite())
-                throw AdjointError("no gradient: non-finite adjoint at step " + std::to_string(k));
-            for (Index i = 0; i < n; ++i)
-                if (constrained[size_t(i)])
-                    lambda[i] = 0;
-            ++st.steps;
-            Timer tp;
-            // Prescribed entries of x_k enter every free row through H.
-            const VectorXd Hl = H.selfadjointView<Eigen::Lower>() * lambda;
-            for (Index i = 0; i < n; ++i)
-                if (constrained[size_t(i)])
-                    xb[i] -= Hl[i];
-            // History: g_k contains -M x~_k.
-            if (s.inertia) {
-                const VectorXd Ml = inertia.apply_mass(lambda);
-                for (int j = 1; j <= 2 && k - j >= 0; ++j) {
-                    push(xbar[size_t(k - j)], s.tx[j], Ml);
-                    push(vbar[size_t(k - j)], s.tv[j], Ml);
-                    push(abar[size_t(k - j)], s.ta[j], Ml);
-                }
-            }
-            // Parameters: dJ/dp -= lambda^T dg_k/dp.
-            const double w = s.weight;
-            if (d_rest) {
-                elastic.add_shape_derivative(x, lambda, -w, *d_rest);
-                if (s.inertia)
-                    inertia.add_shape_derivative(x, lambda, -1.0, *d_rest);
-                if (sim.contact())
-                    sim.contact()->add_shape_derivative(x, lambda, -w, *d_rest);
-            }
-            if (request.lame)
-                elastic.add_lame_derivative(x, lambda, -w, grad.mu, grad.lambda);
-            if (d_density && s.inertia)
-                inertia.add_density_derivative(x, lambda, -1.0, *d_density);
-            // g_k contains -w f_ext(t_k).
-            if (d_rest || d_density)
-                sim.external_force_derivatives(record.time, w * lambda, d_rest, d_density);
-            // The friction potential of step k depends on x_{k-1} (start of step and lagged data).
-            if (sim.friction() && !sim.friction()->lagged().empty()) {
-                FrictionAdjointTerms terms { &xbar[size_t(k - 1)], grad.friction.size() ? &grad.friction : nullptr, d_rest };
-                friction_step_adjoint(sim, k, lambda, w, terms);
-            }
-            tp.add_to(st.assembly_time);
-        }
-        // Prescribed dofs: x_k = X + g_k.
-        for (size_t j = 0; j < prescribed.size(); ++j) {
-            const Index i = prescribed[j];
-            if (d_rest)
-                (*d_rest)[i] += xb[i];
-            if (grad.prescribed.size())
-                grad.prescribed(k - 1, Index(j)) += xb[i];
+void AdjointSweep::Impl::step(int k)
+{
+    const Trajectory& tr = sim.trajectory();
+    const StepRecord& record = tr.steps[size_t(k - 1)];
+    if (!record.holds_state())
+        throw std::logic_error("AdjointSweep::step: the record of step " + std::to_string(k) + " was released");
+    const StepScheme s = sim.step_scheme(k);
+    // v_k and a_k are linear in x_k and the history.
+    for (int which = 0; which < 2; ++which) {
+        VectorXd& bar = which == 0 ? abar[size_t(k)] : vbar[size_t(k)];
+        if (!nonzero(bar))
+            continue;
+        const double* cx = which == 0 ? s.ax : s.vx;
+        const double* cv = which == 0 ? s.av : s.vv;
+        const double* ca = which == 0 ? s.aa : s.va;
+        push(xbar[size_t(k)], cx[0], bar);
+        for (int j = 1; j <= 2 && k - j >= 0; ++j) {
+            push(xbar[size_t(k - j)], cx[j], bar);
+            push(vbar[size_t(k - j)], cv[j], bar);
+            push(abar[size_t(k - j)], ca[j], bar);
         }
     }
+    VectorXd& xb = xbar[size_t(k)];
+    if (xb.size() == 0) {
+        xb = VectorXd::Zero(n);
+        grew(xb);
+    }
+    VectorXd rhs = xb;
+    for (Index i = 0; i < n; ++i)
+        if (constrained[size_t(i)])
+            rhs[i] = 0;
+    const VectorXd& x = record.positions;
+    if (!rhs.isZero(0.0)) {
+        Timer ta;
+        const Problem& problem = sim.step_problem(k);
+        problem.hessian(x, false, assembler);
+        const SparseMatrixd H = assembler.matrix(); // lower triangle, before the constraints
+        assembler.apply_constraints(constrained);
+        ta.add_to(st.assembly_time);
+        Timer tf;
+        if (!linear.factorize(assembler.matrix(), true))
+            throw AdjointError("no gradient: the adjoint system of step " + std::to_string(k)
+                + " is singular (true Hessian at the converged state)");
+        tf.add_to(st.factorization_time);
+        Timer ts;
+        VectorXd lambda = linear.solve(rhs);
+        ts.add_to(st.solve_time);
+        if (!lambda.allFinite())
+            throw AdjointError("no gradient: non-finite adjoint at step " + std::to_string(k));
+        for (Index i = 0; i < n; ++i)
+            if (constrained[size_t(i)])
+                lambda[i] = 0;
+        ++st.steps;
+        Timer tp;
+        // Prescribed entries of x_k enter every free row through H.
+        const VectorXd Hl = H.selfadjointView<Eigen::Lower>() * lambda;
+        for (Index i = 0; i < n; ++i)
+            if (constrained[size_t(i)])
+                xb[i] -= Hl[i];
+        // History: g_k contains -M x~_k.
+        if (s.inertia) {
+            const VectorXd Ml = sim.inertia().apply_mass(lambda);
+            for (int j = 1; j <= 2 && k - j >= 0; ++j) {
+                push(xbar[size_t(k - j)], s.tx[j], Ml);
+                push(vbar[size_t(k - j)], s.tv[j], Ml);
+                push(abar[size_t(k - j)], s.ta[j], Ml);
+            }
+        }
+        // Parameters: dJ/dp -= lambda^T dg_k/dp.
+        const double w = s.weight;
+        const ElasticPotential& elastic = sim.elastic();
+        if (d_rest) {
+            elastic.add_shape_derivative(x, lambda, -w, *d_rest);
+            if (s.inertia)
+                sim.inertia().add_shape_derivative(x, lambda, -1.0, *d_rest);
+            if (sim.contact())
+                sim.contact()->add_shape_derivative(x, lambda, -w, *d_rest);
+        }
+        if (request.lame)
+            elastic.add_lame_derivative(x, lambda, -w, grad.mu, grad.lambda);
+        if (d_density && s.inertia)
+            sim.inertia().add_density_derivative(x, lambda, -1.0, *d_density);
+        // g_k contains -w f_ext(t_k).
+        if (d_rest || d_density)
+            sim.external_force_derivatives(record.time, w * lambda, d_rest, d_density);
+        // The friction potential of step k depends on x_{k-1} (start of step and lagged data).
+        if (sim.friction() && !sim.friction()->lagged().empty()) {
+            if (xbar[size_t(k - 1)].size() == 0) {
+                xbar[size_t(k - 1)] = VectorXd::Zero(n);
+                grew(xbar[size_t(k - 1)]);
+            }
+            FrictionAdjointTerms terms { &xbar[size_t(k - 1)], grad.friction.size() ? &grad.friction : nullptr,
+                d_rest };
+            friction_step_adjoint(sim, k, lambda, w, terms);
+        }
+        tp.add_to(st.assembly_time);
+    }
+    // Prescribed dofs: x_k = X + g_k.
+    for (size_t j = 0; j < prescribed.size(); ++j) {
+        const Index i = prescribed[j];
+        if (d_rest)
+            (*d_rest)[i] += xb[i];
+        if (grad.prescribed.size())
+            grad.prescribed(k - 1, Index(j)) += xb[i];
+    }
+    // Nothing reads the adjoint of state k after its step.
+    release(xbar[size_t(k)]);
+    release(vbar[size_t(k)]);
+    release(abar[size_t(k)]);
+}
 
+ParameterGradient AdjointSweep::finish()
+{
+    if (m->next != 0)
+        throw std::logic_error(
+            "AdjointSweep::finish: step " + std::to_string(m->next) + " was not swept (steps go from T down to 1)");
+    Timer total;
+    m->finish();
+    m->next = -1;
+    total.add_to(m->st.total_time);
+    return std::move(m->grad);
+}
+
+void AdjointSweep::Impl::finish()
+{
     // Initial state: x_0 = X + u0 (free dofs; prescribed ones X + g(0)), v_0 free, and
     // Newmark's a_0 = M_ff^-1 (f(0) - grad Psi(x_0))_f.
+    const Trajectory& tr = sim.trajectory();
+    const ElasticPotential& elastic = sim.elastic();
+    const InertiaPotential& inertia = sim.inertia();
     VectorXd& xb0 = xbar[0];
     if (xb0.size() == 0)
         xb0 = VectorXd::Zero(n);
@@ -260,10 +370,19 @@ ParameterGradient adjoint_gradient(
         for (Index i = 0; i < n; ++i)
             if (!constrained[size_t(i)])
                 grad.initial_velocity[i] += vbar[0][i];
+}
 
-    st.total_time = total.seconds();
+ParameterGradient adjoint_gradient(
+    Simulator& sim, const StateSeed& seed, const ParameterRequest& request, AdjointStatistics* stats)
+{
+    AdjointSweep sweep(sim, request);
+    const int T = sim.steps_done();
+    sweep.add_seed(seed, 0, T);
+    for (int k = T; k >= 1; --k)
+        sweep.step(k);
+    ParameterGradient grad = sweep.finish();
     if (stats)
-        *stats = st;
+        *stats = sweep.statistics();
     return grad;
 }
 

@@ -14,6 +14,7 @@
 #include "adjoint/sensitivity.hpp"
 #include "forward/simulation/simulator.hpp"
 
+#include <memory>
 #include <stdexcept>
 #include <string>
 
@@ -33,6 +34,9 @@ struct AdjointStatistics {
     double solve_time = 0; ///< triangular solves (s)
     double total_time = 0; ///< s
     int steps = 0; ///< adjoint systems solved
+    /// Peak bytes of the adjoint state vectors dJ/dx_k, dJ/dv_k, dJ/da_k held at once
+    /// (seeded states not yet swept, and the history a step pushes into).
+    size_t peak_adjoint_bytes = 0;
 };
 
 /// @brief dJ/dp of an objective over the simulator's committed trajectory.
@@ -46,5 +50,39 @@ struct AdjointStatistics {
 ///         friction step re-lagged within the step, or if an adjoint system is singular.
 ParameterGradient adjoint_gradient(
     Simulator& sim, const StateSeed& seed, const ParameterRequest& request, AdjointStatistics* stats = nullptr);
+
+/// The backward sweep of adjoint_gradient() one step at a time, so that a
+/// checkpointed gradient (adjoint/checkpointing.hpp) can recompute records
+/// between steps. Use: add_seed() for each state before its step, step(k) for
+/// k = T, T-1, ..., 1 in that order, then finish() once.
+class AdjointSweep {
+public:
+    /// @param sim     as for adjoint_gradient(); its records may be thinned
+    ///                (StepRecord::release_state()) as long as step(k) finds its own held
+    /// @throws AdjointError as adjoint_gradient() for a run that cannot be differentiated
+    AdjointSweep(Simulator& sim, const ParameterRequest& request);
+    ~AdjointSweep();
+    AdjointSweep(const AdjointSweep&) = delete;
+    AdjointSweep& operator=(const AdjointSweep&) = delete;
+
+    /// @brief Adds the seed's entries for states first..last (its other entries are
+    /// not read) and its explicit partials (add those once in all).
+    /// @param seed  T + 1 entries (adjoint_gradient()'s seed)
+    /// @throws std::logic_error for a state whose step was already swept
+    void add_seed(const StateSeed& seed, int first, int last);
+    /// @brief Backward step k (1-based), the next one: T first. Needs the step-k
+    /// problem (Simulator::step_problem(k)): the records of steps k - history() .. k
+    /// hold their state. The adjoint vectors of state k are freed afterwards.
+    /// @throws AdjointError for a singular or non-finite adjoint system
+    void step(int k);
+    /// @brief The initial state's part, after step(1); returns dJ/dp.
+    ParameterGradient finish();
+    /// The sweep's statistics so far.
+    const AdjointStatistics& statistics() const;
+
+private:
+    struct Impl;
+    std::unique_ptr<Impl> m;
+};
 
 } // namespace diffipc

@@ -10,7 +10,9 @@
 
 #include <Eigen/SparseCholesky>
 
+#include <algorithm>
 #include <cmath>
+#include <stdexcept>
 
 namespace diffipc {
 
@@ -307,6 +309,7 @@ void Simulator::setup_contact()
                     + std::to_string(1e-8 * m_bbox_diagonal) + " m); give a fixed \"kappa\" or a larger dhat");
         settings.kappa = m_kappa_min;
     }
+    m_kappa_initial = settings.kappa;
     m_contact = std::make_unique<ContactPotential>(
         build_collision_mesh(mesh, self_contact, kinematic), mesh.rest_positions, std::move(planes), settings);
     m_problem.add(m_contact.get(), m_integrator->potential_weight());
@@ -466,7 +469,9 @@ void Simulator::set_element_materials(const VectorXd& youngs_modulus, const Vect
 StepStatus Simulator::step()
 {
     Timer wall;
-    const int index = steps_done() + 1;
+    const int index = current_step() + 1;
+    // After restore_state(): a step committed before, recomputed to refill its record.
+    const bool recompute = index <= steps_done();
     const double t_next = index * m_scene.time.dt;
     const double w = m_integrator->potential_weight();
     m_problem.set_weight(m_elastic.get(), w);
@@ -487,10 +492,12 @@ StepStatus Simulator::step()
     } catch (const InputError& e) {
         // A boundary expression that is not finite at this time: not committable.
         record.status = StepStatus::NON_FINITE;
-        m_last_attempt = record;
-        m_trajectory.final_status = record.status;
-        m_trajectory.failed_step = index;
-        m_trajectory.failure_message = e.what();
+        if (!recompute) {
+            m_last_attempt = record;
+            m_trajectory.final_status = record.status;
+            m_trajectory.failed_step = index;
+            m_trajectory.failure_message = e.what();
+        }
         return record.status;
     }
 
@@ -509,10 +516,12 @@ StepStatus Simulator::step()
         const std::string problem = index == 1 ? check_contact_state(x) : std::string();
         if (!problem.empty()) {
             record.status = StepStatus::INVALID_INITIAL_STATE;
-            m_last_attempt = record;
-            m_trajectory.final_status = record.status;
-            m_trajectory.failed_step = index;
-            m_trajectory.failure_message = "step 1 (t = 0): the initial state is invalid for contact: " + problem;
+            if (!recompute) {
+                m_last_attempt = record;
+                m_trajectory.final_status = record.status;
+                m_trajectory.failed_step = index;
+                m_trajectory.failure_message = "step 1 (t = 0): the initial state is invalid for contact: " + problem;
+            }
             return record.status;
         }
         update_kappa_for_step(x);
@@ -577,8 +586,10 @@ StepStatus Simulator::step()
         if (result.status == StepStatus::CCD_UNRESOLVED)
             record.min_distance = m_contact->min_distance(m_integrator->positions(), 1e-2 * m_bbox_diagonal);
     }
-    m_trajectory.phases += record.phases;
-    m_trajectory.newton_iterations += result.iterations;
+    if (!recompute) {
+        m_trajectory.phases += record.phases;
+        m_trajectory.newton_iterations += result.iterations;
+    }
     if (result.status == StepStatus::CONVERGED) {
         record.positions = x;
         m_integrator->update(x, record.velocities, record.accelerations);
@@ -593,6 +604,8 @@ StepStatus Simulator::step()
         if (m_contact)
             m_contact->set_kappa(kappa_before); // a failed step leaves no trace, kappa included
         record.min_volume_ratio = m_space->min_volume_ratio(m_integrator->positions());
+        if (recompute)
+            return result.status;
         m_trajectory.final_status = result.status;
         m_trajectory.failed_step = index;
         m_trajectory.failure_message = "step " + std::to_string(index) + " (t = " + std::to_string(t_next)
@@ -600,6 +613,16 @@ StepStatus Simulator::step()
             + " Newton iterations, residual " + std::to_string(result.residual);
     }
     record.wall_time = wall.seconds();
+    if (recompute) {
+        // Only the state is refilled: the record keeps the first run's diagnostics.
+        StepRecord& kept = m_trajectory.steps[size_t(index - 1)];
+        kept.positions = std::move(record.positions);
+        kept.velocities = std::move(record.velocities);
+        kept.accelerations = std::move(record.accelerations);
+        kept.contacts = std::move(record.contacts);
+        kept.friction = std::move(record.friction);
+        return result.status;
+    }
     m_trajectory.wall_time += record.wall_time;
     m_last_attempt = record;
     if (result.status == StepStatus::CONVERGED)
@@ -607,8 +630,55 @@ StepStatus Simulator::step()
     return result.status;
 }
 
+void Simulator::release_state(int k)
+{
+    if (k < 1 || k > steps_done())
+        throw std::out_of_range("Simulator::release_state: step " + std::to_string(k) + " was not committed");
+    m_trajectory.steps[size_t(k - 1)].release_state();
+}
+
+void Simulator::restore_state(int k)
+{
+    if (k < 0 || k > steps_done())
+        throw std::out_of_range("Simulator::restore_state: step " + std::to_string(k) + " was not committed");
+    const auto held = [this](int j) {
+        if (j >= 1 && !m_trajectory.steps[size_t(j - 1)].holds_state())
+            throw std::logic_error("Simulator::restore_state: the record of step " + std::to_string(j)
+                + " does not hold its state (it was released)");
+        return j;
+    };
+    const Trajectory& tr = m_trajectory;
+    if (k == 0) {
+        m_integrator->restore(0, tr.initial_positions, tr.initial_velocities, tr.initial_accelerations,
+            tr.initial_positions, tr.initial_velocities);
+    } else {
+        const StepRecord& r = tr.steps[size_t(held(k) - 1)];
+        const int j = m_integrator->history() == 2 ? held(k - 1) : k;
+        const VectorXd& x_prev = j == 0 ? tr.initial_positions : tr.steps[size_t(j - 1)].positions;
+        const VectorXd& v_prev = j == 0 ? tr.initial_velocities : tr.steps[size_t(j - 1)].velocities;
+        m_integrator->restore(k, r.positions, r.velocities, r.accelerations, x_prev, v_prev);
+    }
+    // step_problem() and adaptive steps change kappa; step k + 1 started from the value step k ended with.
+    if (m_contact)
+        m_contact->set_kappa(k == 0 ? m_kappa_initial : tr.steps[size_t(k - 1)].kappa);
+}
+
+void Simulator::recompute_steps(int last)
+{
+    if (last > steps_done())
+        throw std::out_of_range("Simulator::recompute_steps: step " + std::to_string(last) + " was not committed");
+    while (current_step() < last) {
+        const StepStatus status = step();
+        if (status != StepStatus::CONVERGED)
+            throw std::runtime_error("recomputing step " + std::to_string(current_step() + 1) + " from a checkpoint: "
+                + to_string(status) + " (the first run converged; the forward is not deterministic)");
+    }
+}
+
 const Trajectory& Simulator::run(const std::function<void(const StepRecord&)>& progress)
 {
+    if (current_step() < steps_done())
+        recompute_steps(steps_done());
     while (steps_done() < m_scene.time.steps) {
         if (step() != StepStatus::CONVERGED)
             break;
@@ -666,6 +736,10 @@ const Problem& Simulator::step_problem(int k)
     if (k < 1 || k > steps_done())
         throw std::out_of_range("Simulator::step_problem: step " + std::to_string(k) + " was not committed");
     const StepScheme s = m_integrator->scheme(k);
+    for (int j = std::max(1, k - m_integrator->history()); j <= k; ++j)
+        if (!m_trajectory.steps[size_t(j - 1)].holds_state())
+            throw std::logic_error("Simulator::step_problem: step " + std::to_string(k) + " reads the record of step "
+                + std::to_string(j) + ", which does not hold its state (it was released)");
     const auto state = [this](int j, int which) -> const VectorXd& {
         if (j == 0)
             return which == 0 ? m_trajectory.initial_positions

@@ -101,6 +101,27 @@ public:
     int num_groups() const { return int(m_scene.bodies.size() + m_scene.obstacles.size()); }
     /// @}
 
+    /// @name Checkpointing (adjoint/checkpointing.hpp): records thinned after the
+    /// forward run are refilled by re-running their steps from a held one.
+    /// The forward is deterministic, so a recomputed step repeats the first one.
+    /// @{
+    /// Committed states a step reads (the integrator's history): 2 for BDF2, 1 otherwise.
+    /// restore_state(k) and step_problem(k + 1) need the records k - history() + 1 .. k.
+    int history() const { return m_integrator->history(); }
+    /// The committed step the integrator stands at: steps_done() unless restore_state() moved it back.
+    int current_step() const { return m_integrator->steps(); }
+    /// @brief Frees the state of committed step k's record (StepRecord::release_state()).
+    void release_state(int k);
+    /// @brief Puts the integrator (and the barrier stiffness) back at committed step k
+    /// (0: the initial state); the next step() recomputes step k + 1.
+    /// @throws std::logic_error if a record that this needs does not hold its state.
+    void restore_state(int k);
+    /// @brief Re-runs steps current_step() + 1 .. last, refilling their records' states;
+    /// the records' diagnostics, last_attempt() and the trajectory's totals stay those of the first run.
+    /// @throws std::runtime_error if a recomputed step does not converge (it did the first time).
+    void recompute_steps(int last);
+    /// @}
+
 private:
     void dirichlet_targets(double t, VectorXd& x) const;
     /// Prescribed positions at step k (1-based): the override's g_k if given, else the expressions at t_k.
@@ -124,6 +145,7 @@ private:
     std::unique_ptr<ContactPotential> m_contact;
     std::unique_ptr<FrictionPotential> m_friction;
     double m_kappa_min = 0;
+    double m_kappa_initial = 0; ///< the barrier stiffness before the first step (restore_state(0))
     Problem m_problem;
     SparseAssembler m_assembler;
     std::unique_ptr<LinearSolver> m_linear;

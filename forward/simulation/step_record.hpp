@@ -49,6 +49,29 @@ struct StepRecord {
     double friction_residual = 0;
     int friction_iterations = 0; ///< Newton solves (lagging iterations) taken
     bool friction_converged = true; ///< friction_residual <= the residual tolerance
+
+    /// @name Checkpointing (adjoint/checkpointing.hpp): a record may be thinned to its
+    /// scalar diagnostics and refilled by recomputing its step.
+    /// @{
+    /// Whether the record holds its state (positions ... friction data), not only its diagnostics.
+    bool holds_state() const { return positions.size() > 0; }
+    /// @brief Frees the state (positions, velocities, accelerations, contacts, friction data);
+    /// index, time, status, kappa and the diagnostics stay.
+    void release_state()
+    {
+        positions = VectorXd();
+        velocities = VectorXd();
+        accelerations = VectorXd();
+        ContactSet().swap(contacts);
+        std::vector<FrictionContact>().swap(friction);
+    }
+    /// Bytes held by the state (the heap part that release_state() frees).
+    size_t state_bytes() const
+    {
+        return sizeof(double) * size_t(positions.size() + velocities.size() + accelerations.size())
+            + sizeof(Contact) * contacts.capacity() + sizeof(FrictionContact) * friction.capacity();
+    }
+    /// @}
 };
 
 /// A run: the initial state and every committed step, in order.

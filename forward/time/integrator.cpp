@@ -22,6 +22,18 @@ void TimeIntegrator::commit(const VectorXd& x_next, const VectorXd& v_next, cons
     ++m_steps;
 }
 
+void TimeIntegrator::restore(
+    int steps, const VectorXd& x, const VectorXd& v, const VectorXd& a, const VectorXd& x_prev, const VectorXd& v_prev)
+{
+    m_x = x;
+    m_v = v;
+    m_a = a;
+    // Only a two-step scheme reads the previous state; a one-step one is given none.
+    m_x_prev = history() == 2 ? x_prev : x;
+    m_v_prev = history() == 2 ? v_prev : v;
+    m_steps = steps;
+}
+
 namespace {
 
     /// Quasi-static load stepping: no inertia; velocities are reported as (x_{n+1} - x_n) / h.
@@ -93,6 +105,7 @@ namespace {
         {
         }
         IntegratorType type() const override { return IntegratorType::BDF2; }
+        int history() const override { return 2; }
         VectorXd inertial_target() const override
         {
             if (m_steps == 0)

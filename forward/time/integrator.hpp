@@ -47,6 +47,16 @@ public:
     virtual StepScheme scheme(int k) const = 0;
     /// @brief Shifts the history after a committed step.
     virtual void commit(const VectorXd& x_next, const VectorXd& v_next, const VectorXd& a_next);
+    /// Number of committed states a step reads: 2 for BDF2 (x_{n-1}, v_{n-1} too), 1 otherwise.
+    virtual int history() const { return 1; }
+    /// @brief Puts the integrator back at committed step `steps` (a restart from a
+    /// checkpoint): x, v, a of that step and, for history() == 2, x and v of the
+    /// step before (ignored otherwise). The next step is then bit-identical to
+    /// the one taken from there the first time.
+    void restore(int steps, const VectorXd& x, const VectorXd& v, const VectorXd& a, const VectorXd& x_prev,
+        const VectorXd& v_prev);
+    /// Steps committed since initialize() (or the step restore() put it at).
+    int steps() const { return m_steps; }
 
     const VectorXd& positions() const { return m_x; }
     const VectorXd& velocities() const { return m_v; }
