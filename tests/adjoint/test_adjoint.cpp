@@ -4,6 +4,7 @@
 // (relative force residual, docs/math.md), far below what the differences resolve.
 
 #include "adjoint/adjoint_check.hpp"
+#include "forward/contact/distance/distance_type.hpp"
 
 using namespace diffipc;
 using namespace diffipc::test;
@@ -231,4 +232,40 @@ TEST(AdjointFriction, StackedBoxesVertexFaceAndEdgeEdge)
     CheckSettings settings;
     settings.tolerance = 1e-5;
     check_adjoint(scene, blocks, settings);
+}
+
+TEST(AdjointFriction, StackedBoxes2DVertexEdge)
+{
+    // A 2D box sliding over another one, offset so that every contact is a vertex
+    // inside the other box's edge (closest-point weights and normals vary with x_{k-1}).
+    const double dhat = 2e-3;
+    json s = box_scene(2, { 0.2, 0.1 }, { 2, 1 }, "neo_hookean", 2e4, 0.3, 1000);
+    s["bodies"] = { box_body("below", { 0, 0 }, { 0.2, 0.1 }, { 2, 1 }),
+        box_body("above", { 0.03, 0.1 + 0.5 * dhat }, { 0.13, 0.15 + 0.5 * dhat }, { 2, 1 }) };
+    for (auto& b : s["bodies"])
+        b["material"]["E"] = 2e4;
+    s["bodies"][1]["initial_velocity"] = { 0.1, 0 };
+    s["gravity"] = { 0, -9.81 };
+    s["dirichlet"] = { { { "body", "below" }, { "region", region({ -1, -1 }, { 1, 1e-6 }) },
+        { "displacement", { "0.01*t", "0.02*t" } } } };
+    s["contact"] = { { "dhat", dhat }, { "kappa", 1e8 } };
+    s["friction"] = { { "coefficient", 0.3 }, { "eps_v", 1e-3 } };
+    s["time"] = { { "integrator", "bdf2" }, { "dt", 0.01 }, { "steps", 3 } };
+    s["solver"] = { { "residual_tolerance", 1e-11 } };
+    Simulator sim(make_scene(s));
+    sim.run();
+    ASSERT_EQ(sim.trajectory().final_status, StepStatus::CONVERGED) << sim.trajectory().failure_message;
+    for (const StepRecord& r : sim.trajectory().steps) {
+        int interior = 0;
+        for (const FrictionContact& f : r.friction)
+            interior += f.kind == ContactKind::VERTEX_EDGE
+                && PointEdgeDistanceType(f.source.distance_type) == PointEdgeDistanceType::P_E;
+        ASSERT_EQ(interior, 4) << "step " << r.index;
+        EXPECT_GT(r.min_distance, 0.05 * dhat) << "step " << r.index;
+    }
+    std::vector<Block> blocks = ALL_BLOCKS;
+    blocks.push_back(Block::FRICTION);
+    CheckSettings settings;
+    settings.tolerance = 1e-5;
+    check_adjoint(s, blocks, settings);
 }
