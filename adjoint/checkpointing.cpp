@@ -117,7 +117,11 @@ ParameterGradient checkpointed_gradient(Simulator& sim, const StreamedObjective&
             for (int k = first; k <= missing; ++k)
                 held[size_t(k - first)] = tr.steps[size_t(k - 1)].holds_state();
             sim.restore_state(first - 1);
-            sim.recompute_steps(missing);
+            try {
+                sim.recompute_steps(missing);
+            } catch (const std::runtime_error& e) {
+                throw AdjointError(std::string("no gradient: ") + e.what());
+            }
             for (int k = first; k <= missing; ++k)
                 if (!held[size_t(k - first)])
                     tally.filled(k);

@@ -82,7 +82,7 @@ int checkpoint_memory_bound(int steps, int stride, int history);
 /// @param stats     optional: memory, recomputation and timings
 /// @throws AdjointError if the forward run fails (its message) or as adjoint_gradient();
 ///         std::invalid_argument for a stepped simulator, missing callbacks or a stride < 0;
-///         std::runtime_error if a recomputed step does not converge.
+///         also if a recomputed step does not converge (the forward was not deterministic).
 ParameterGradient checkpointed_gradient(Simulator& sim, const StreamedObjective& objective,
     const ParameterRequest& request, const CheckpointSettings& settings, CheckpointStatistics* stats = nullptr);
 

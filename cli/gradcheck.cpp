@@ -24,6 +24,16 @@ int gradcheck(const std::string& problem_path, int directions)
     const Evaluation e0 = rf.evaluate(p0, true);
     std::printf("J = %.12e   forward %.3f s, adjoint %.3f s (%.1f%% of the forward)\n", e0.value, e0.forward_time,
         e0.adjoint_time, 100 * e0.adjoint_time / e0.forward_time);
+    for (size_t c = 0; c < e0.checkpoints.size(); ++c) {
+        const CheckpointStatistics& r = e0.checkpoints[c].records;
+        if (e0.checkpoints.size() > 1)
+            std::printf("  load case %zu: ", c);
+        std::printf("checkpointing: stride %d, peak %d of %d step records held (bound %d, %.1f KiB), %d steps "
+                    "recomputed, cost %.2f x the forward; the objective holds %d of %d states (%.1f KiB)\n",
+            r.stride, r.peak_stored_states, r.steps, r.bound_stored_states, r.peak_stored_bytes / 1024.0,
+            r.recomputed_steps, r.cost_ratio, e0.checkpoints[c].objective_stored_states, r.steps + 1,
+            e0.checkpoints[c].objective_stored_bytes / 1024.0);
+    }
 
     std::mt19937 rng(settings.seed);
     std::uniform_real_distribution<double> u(-1.0, 1.0);

@@ -25,6 +25,8 @@ public:
     double value(const Simulator& sim, const Trajectory& trajectory) const override;
     void add_gradient(const Simulator& sim, const Trajectory& trajectory, const ParameterRequest& request, double scale,
         StateSeed& seed) const override;
+    /// None: J depends on the rest shape only.
+    std::vector<int> states_read(int) const override { return {}; }
 
 private:
     /// The umbrella vectors r_v (row per listed vertex).

@@ -32,6 +32,8 @@ public:
     double value(const Simulator& sim, const Trajectory& trajectory) const override;
     void add_gradient(const Simulator& sim, const Trajectory& trajectory, const ParameterRequest& request, double scale,
         StateSeed& seed) const override;
+    /// The listed states.
+    std::vector<int> states_read(int) const override { return m_steps; }
 
     /// @brief The centre of mass c(x) (dim) of flattened positions x.
     VectorXd center(const Simulator& sim, const VectorXd& x) const;

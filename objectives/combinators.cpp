@@ -16,6 +16,18 @@ WeightedSum::WeightedSum(std::vector<Term> terms)
             throw std::invalid_argument("weighted sum: null objective");
 }
 
+std::vector<int> WeightedSum::states_read(int steps) const
+{
+    std::vector<int> k;
+    for (const Term& t : m_terms) {
+        const std::vector<int> kt = t.objective->states_read(steps);
+        k.insert(k.end(), kt.begin(), kt.end());
+    }
+    std::sort(k.begin(), k.end());
+    k.erase(std::unique(k.begin(), k.end()), k.end());
+    return k;
+}
+
 std::string WeightedSum::name() const
 {
     std::string s;

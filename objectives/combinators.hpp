@@ -24,6 +24,8 @@ public:
     double value(const Simulator& sim, const Trajectory& trajectory) const override;
     void add_gradient(const Simulator& sim, const Trajectory& trajectory, const ParameterRequest& request, double scale,
         StateSeed& seed) const override;
+    /// Those of every term.
+    std::vector<int> states_read(int steps) const override;
 
     const std::vector<Term>& terms() const { return m_terms; }
 
@@ -42,6 +44,7 @@ public:
     double value(const Simulator& sim, const Trajectory& trajectory) const override;
     void add_gradient(const Simulator& sim, const Trajectory& trajectory, const ParameterRequest& request, double scale,
         StateSeed& seed) const override;
+    std::vector<int> states_read(int steps) const override { return m_objective->states_read(steps); }
 
 private:
     std::unique_ptr<Objective> m_objective;
@@ -65,6 +68,7 @@ public:
     double value(const Simulator& sim, const Trajectory& trajectory) const override;
     void add_gradient(const Simulator& sim, const Trajectory& trajectory, const ParameterRequest& request, double scale,
         StateSeed& seed) const override;
+    std::vector<int> states_read(int steps) const override { return m_objective->states_read(steps); }
 
 private:
     /// max(0, G - b) (UPPER) or max(0, b - G) (LOWER).

@@ -42,6 +42,8 @@ public:
     double value(const Simulator& sim, const Trajectory& trajectory) const override;
     void add_gradient(const Simulator& sim, const Trajectory& trajectory, const ParameterRequest& request, double scale,
         StateSeed& seed) const override;
+    /// The listed states.
+    std::vector<int> states_read(int) const override { return m_steps; }
 
     /// @brief M by dim marker positions p_m(x) for flattened positions x.
     Positions positions(const VectorXd& x, int dim) const;

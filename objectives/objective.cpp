@@ -11,18 +11,33 @@ namespace {
             throw std::out_of_range("state " + std::to_string(k) + " is outside the trajectory's 0.."
                 + std::to_string(num_steps(trajectory)));
     }
+    const VectorXd& held(const VectorXd& state, int k)
+    {
+        if (state.size() == 0)
+            throw std::logic_error("state " + std::to_string(k)
+                + " is not held (a record released by checkpointing, or missing from the objective's states_read())");
+        return state;
+    }
 } // namespace
+
+std::vector<int> Objective::states_read(int steps) const
+{
+    std::vector<int> k(size_t(steps) + 1);
+    for (int i = 0; i <= steps; ++i)
+        k[size_t(i)] = i;
+    return k;
+}
 
 const VectorXd& state_positions(const Trajectory& trajectory, int k)
 {
     check_state(trajectory, k);
-    return k == 0 ? trajectory.initial_positions : trajectory.steps[size_t(k - 1)].positions;
+    return held(k == 0 ? trajectory.initial_positions : trajectory.steps[size_t(k - 1)].positions, k);
 }
 
 const VectorXd& state_velocities(const Trajectory& trajectory, int k)
 {
     check_state(trajectory, k);
-    return k == 0 ? trajectory.initial_velocities : trajectory.steps[size_t(k - 1)].velocities;
+    return held(k == 0 ? trajectory.initial_velocities : trajectory.steps[size_t(k - 1)].velocities, k);
 }
 
 double state_time(const Trajectory& trajectory, int k)

@@ -30,14 +30,22 @@ public:
     /// requested canonical parameter blocks into `seed` (already resized for T = trajectory.steps.size()).
     virtual void add_gradient(const Simulator& sim, const Trajectory& trajectory, const ParameterRequest& request,
         double scale, StateSeed& seed) const = 0;
+    /// @brief The states k whose positions or velocities value() and add_gradient() read (any order;
+    /// the times t_k are always readable). A checkpointed gradient keeps only these for the objective
+    /// (objectives/streamed.hpp), so a declaration must not miss one: reading an undeclared state there
+    /// throws std::logic_error.
+    /// @param steps T
+    /// @return by default every state 0..T
+    virtual std::vector<int> states_read(int steps) const;
 };
 
 /// @name The states of a trajectory by index k = 0..T.
 /// @{
 inline int num_steps(const Trajectory& trajectory) { return int(trajectory.steps.size()); }
-/// x_k (#V*dim, m). @throws std::out_of_range for k outside 0..T.
+/// x_k (#V*dim, m). @throws std::out_of_range for k outside 0..T; std::logic_error for a state
+/// that the trajectory does not hold (a record released by checkpointing).
 const VectorXd& state_positions(const Trajectory& trajectory, int k);
-/// v_k (#V*dim, m/s). @throws std::out_of_range for k outside 0..T.
+/// v_k (#V*dim, m/s). @throws as state_positions().
 const VectorXd& state_velocities(const Trajectory& trajectory, int k);
 /// t_k (s): trajectory.initial_time for k = 0, steps[k-1].time otherwise.
 double state_time(const Trajectory& trajectory, int k);

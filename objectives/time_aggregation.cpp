@@ -55,6 +55,11 @@ std::string TimeAggregation::name() const
     return mode + "(" + m_functional->name() + ")";
 }
 
+std::vector<int> TimeAggregation::states_read(int steps) const
+{
+    return m_mode == TimeMode::FINAL ? std::vector<int> { steps } : Objective::states_read(steps);
+}
+
 void TimeAggregation::states(const Trajectory& trajectory, std::vector<int>& k, std::vector<double>& weight) const
 {
     const int T = num_steps(trajectory);

@@ -41,6 +41,8 @@ public:
     double value(const Simulator& sim, const Trajectory& trajectory) const override;
     void add_gradient(const Simulator& sim, const Trajectory& trajectory, const ParameterRequest& request, double scale,
         StateSeed& seed) const override;
+    /// {T} for FINAL, every state otherwise.
+    std::vector<int> states_read(int steps) const override;
 
     const StateFunctional& functional() const { return *m_functional; }
     TimeMode mode() const { return m_mode; }

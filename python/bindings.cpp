@@ -237,7 +237,36 @@ PYBIND11_MODULE(_diffipc, m)
             },
             "dJ/dp (numpy), or None if not requested")
         .def_readonly("forward_time", &Evaluation::forward_time, "s, summed over load cases")
-        .def_readonly("adjoint_time", &Evaluation::adjoint_time, "s, summed over load cases");
+        .def_readonly("adjoint_time", &Evaluation::adjoint_time,
+            "s, summed over load cases (with checkpointing: the recomputed steps included)")
+        .def_property_readonly(
+            "checkpoints",
+            [](const Evaluation& e) {
+                py::list out;
+                for (const LoadCaseCheckpoint& c : e.checkpoints) {
+                    const CheckpointStatistics& r = c.records;
+                    py::dict d;
+                    d["steps"] = r.steps;
+                    d["stride"] = r.stride;
+                    d["checkpoints"] = r.checkpoints;
+                    d["peak_stored_states"] = r.peak_stored_states;
+                    d["peak_stored_bytes"] = r.peak_stored_bytes;
+                    d["bound_stored_states"] = r.bound_stored_states;
+                    d["recomputed_steps"] = r.recomputed_steps;
+                    d["forward_time"] = r.forward_time;
+                    d["recompute_time"] = r.recompute_time;
+                    d["adjoint_time"] = r.adjoint_time;
+                    d["cost_ratio"] = r.cost_ratio;
+                    d["objective_stored_states"] = c.objective_stored_states;
+                    d["objective_stored_bytes"] = c.objective_stored_bytes;
+                    out.append(d);
+                }
+                return out;
+            },
+            "With the problem's \"checkpointing\" and a gradient: one dict per load case (steps, stride, "
+            "checkpoints, peak_stored_states, peak_stored_bytes, bound_stored_states, recomputed_steps, "
+            "forward_time, recompute_time, adjoint_time, cost_ratio, objective_stored_states, "
+            "objective_stored_bytes); else an empty list.");
 
     py::class_<ReducedFunctional>(
         m, "ReducedFunctional", "p -> J(p) and its adjoint gradient dJ/dp for a problem file (docs/problem_format.md).")
@@ -267,6 +296,17 @@ PYBIND11_MODULE(_diffipc, m)
                 return d;
             },
             "The problem file's \"gradcheck\" settings (defaults where absent).")
+        .def_property_readonly(
+            "checkpointing",
+            [](const ReducedFunctional& rf) {
+                const CheckpointSettings& c = rf.checkpointing();
+                py::dict d;
+                d["mode"] = c.mode == CheckpointSettings::Mode::NONE ? "none" : "stride";
+                d["stride"] = c.stride;
+                return d;
+            },
+            "The problem file's \"checkpointing\" as a dict (mode \"stride\" or \"none\", stride; 0: the "
+            "default ceil(sqrt(h T))); mode \"none\" without it.")
         .def(
             "evaluation",
             [](const ReducedFunctional& rf, const py::array_t<double, py::array::c_style | py::array::forcecast>& p,

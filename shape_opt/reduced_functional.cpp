@@ -2,7 +2,9 @@
 
 #include "forward/common/error.hpp"
 #include "forward/common/timer.hpp"
+#include "forward/scene/json_field.hpp"
 #include "objectives/objective_json.hpp"
+#include "objectives/streamed.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -188,6 +190,24 @@ namespace {
             lame_to_young_poisson(
                 at.youngs_modulus, at.poisson_ratio, g.mu, g.lambda, d.youngs_modulus, d.poisson_ratio);
         return d;
+    }
+
+    /// The problem's optional "checkpointing": {"mode": "stride" (default) | "none", "stride": s >= 0}.
+    CheckpointSettings parse_checkpointing(const JsonField& j)
+    {
+        j.require_object({ "mode", "stride" });
+        CheckpointSettings c;
+        c.mode = CheckpointSettings::Mode::STRIDE;
+        if (j.has("mode")) {
+            const std::string mode = j["mode"].string();
+            if (mode == "none")
+                c.mode = CheckpointSettings::Mode::NONE;
+            else if (mode != "stride")
+                j["mode"].fail("expected \"stride\" or \"none\", got \"" + mode + "\"");
+        }
+        if (j.has("stride"))
+            c.stride = j["stride"].integer(0);
+        return c;
     }
 
     ParameterSpec parse_parameter(const Scene& scene, const Simulator& sim, const json& spec, const std::string& field)
@@ -433,6 +453,8 @@ ReducedFunctional::ReducedFunctional(const json& doc, const std::string& base_di
         if (m_check.directions < 1 || !(m_check.step > 0) || m_check.halvings < 2)
             throw InputError("gradcheck", "directions >= 1, step > 0 and halvings >= 2 are required");
     }
+    if (doc.contains("checkpointing"))
+        m_checkpointing = parse_checkpointing(JsonField(doc["checkpointing"], "checkpointing"));
 }
 
 std::vector<std::pair<std::string, Index>> ReducedFunctional::layout() const
@@ -463,22 +485,37 @@ Evaluation ReducedFunctional::evaluate(const VectorXd& p, bool gradient) const
             for (size_t i = 0; i < m_parameters[k].targets.size(); ++i)
                 for (Index t : m_parameters[k].targets[i])
                     canonical_entry(sp, traits(m_parameters[k].kind), t) = p[m_offsets[k] + Index(i)];
-        Timer tf;
         Simulator sim(lc->scene, sp);
-        sim.run();
-        out.forward_time += tf.seconds();
-        const Trajectory& tr = sim.trajectory();
-        if (tr.final_status != StepStatus::CONVERGED)
-            throw AdjointError("no value and no gradient: " + tr.failure_message);
         const auto objective = parse_objective(lc->objective, lc->field, sim);
-        out.value += lc->weight * objective->value(sim, tr);
-        if (!gradient)
-            continue;
-        Timer ta;
-        StateSeed seed;
-        seed.resize(int(tr.steps.size()));
-        objective->add_gradient(sim, tr, request, lc->weight, seed);
-        ParameterGradient g = adjoint_gradient(sim, seed, request);
+        ParameterGradient g;
+        if (gradient && m_checkpointing.mode != CheckpointSettings::Mode::NONE) {
+            // The forward runs inside checkpointed_gradient(); J comes from the adapter's copy of the states.
+            StreamedObjectiveAdapter adapter(*objective, request, lc->weight);
+            LoadCaseCheckpoint c;
+            g = checkpointed_gradient(sim, adapter.streamed(), request, m_checkpointing, &c.records);
+            c.objective_stored_states = adapter.stored_states();
+            c.objective_stored_bytes = adapter.stored_bytes();
+            out.value += lc->weight * adapter.value();
+            out.forward_time += c.records.forward_time;
+            out.adjoint_time += c.records.recompute_time + c.records.adjoint_time;
+            out.checkpoints.push_back(c);
+        } else {
+            Timer tf;
+            sim.run();
+            out.forward_time += tf.seconds();
+            const Trajectory& tr = sim.trajectory();
+            if (tr.final_status != StepStatus::CONVERGED)
+                throw AdjointError("no value and no gradient: " + tr.failure_message);
+            out.value += lc->weight * objective->value(sim, tr);
+            if (!gradient)
+                continue;
+            Timer ta;
+            StateSeed seed;
+            seed.resize(int(tr.steps.size()));
+            objective->add_gradient(sim, tr, request, lc->weight, seed);
+            g = adjoint_gradient(sim, seed, request);
+            out.adjoint_time += ta.seconds();
+        }
         const SimulationParameters dJ = canonical_gradient(g, sp, request.lame && !m_lame);
         for (size_t k = 0; k < m_parameters.size(); ++k) {
             const KindTraits& t = traits(m_parameters[k].kind);
@@ -486,7 +523,6 @@ Evaluation ReducedFunctional::evaluate(const VectorXd& p, bool gradient) const
                 for (Index target : m_parameters[k].targets[i])
                     out.gradient[m_offsets[k] + Index(i)] += gradient_entry(dJ, t, target);
         }
-        out.adjoint_time += ta.seconds();
     }
     if (gradient && !out.gradient.allFinite())
         throw AdjointError("no gradient: a non-finite derivative (check the objective's parameters)");

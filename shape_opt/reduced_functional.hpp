@@ -10,8 +10,13 @@
 /// ratio or the Lame parameters mu and lambda (one pair or the other) or density
 /// per element or per body, an initial velocity or displacement per body or per
 /// vertex, the friction coefficients, or every prescribed displacement of every step.
+///
+/// With the file's "checkpointing" the gradient is computed by checkpointed_gradient()
+/// (adjoint/checkpointing.hpp) through StreamedObjectiveAdapter (objectives/streamed.hpp):
+/// the same J and dJ/dp to round-off, with the step records bounded by the schedule.
 
 #include "adjoint/adjoint.hpp"
+#include "adjoint/checkpointing.hpp"
 #include "objectives/objective.hpp"
 
 #include <nlohmann/json.hpp>
@@ -44,11 +49,21 @@ struct ParameterSpec {
     std::vector<std::vector<Index>> targets;
 };
 
+/// What the checkpointed adjoint of one load case held and recomputed.
+struct LoadCaseCheckpoint {
+    CheckpointStatistics records; ///< the step records (peak held, the schedule's bound, recomputed steps, times)
+    int objective_stored_states = 0; ///< states whose x_k, v_k the objective's adapter copied (T + 1 at most)
+    size_t objective_stored_bytes = 0; ///< their bytes
+};
+
 /// Results of one evaluation.
 struct Evaluation {
     double value = 0;
     VectorXd gradient; ///< empty unless requested
-    double forward_time = 0, adjoint_time = 0; ///< s, summed over load cases
+    /// s, summed over load cases; with checkpointing the adjoint time includes the recomputed steps
+    double forward_time = 0, adjoint_time = 0;
+    /// One per load case when the problem has checkpointing and the gradient was computed; else empty.
+    std::vector<LoadCaseCheckpoint> checkpoints;
 };
 
 class ReducedFunctional {
@@ -83,6 +98,8 @@ public:
     const CheckSettings& check_settings() const { return m_check; }
     /// Direction scale per variable (a typical magnitude: lengths for positions, the value for moduli).
     const VectorXd& scales() const { return m_scales; }
+    /// The file's "checkpointing" (mode NONE without it: the full-memory adjoint).
+    const CheckpointSettings& checkpointing() const { return m_checkpointing; }
 
 private:
     struct LoadCase;
@@ -92,6 +109,7 @@ private:
     Index m_size = 0;
     VectorXd m_initial, m_scales;
     CheckSettings m_check;
+    CheckpointSettings m_checkpointing;
     /// The elastic moduli are parametrized by mu and lambda (else by E and nu, or not at all).
     bool m_lame = false;
 };

@@ -16,6 +16,25 @@
 
 namespace diffipc::test {
 
+/// A soft box over a plane obstacle rising at 0.01 m/s (its point is a prescribed dof),
+/// contact with dhat and a fixed kappa = 1e3, forward tolerance 1e-11; the callers
+/// place the box and add what their case needs.
+inline nlohmann::json box_over_rising_plane(int dim, const std::string& integrator, double dhat, double dt, int steps)
+{
+    using json = nlohmann::json;
+    json s = dim == 2 ? box_scene(2, { 0.2, 0.1 }, { 4, 2 }, "neo_hookean", 2e4, 0.3, 1000)
+                      : box_scene(3, { 0.2, 0.1, 0.2 }, { 2, 1, 2 }, "neo_hookean", 2e4, 0.3, 1000);
+    s["gravity"] = dim == 2 ? json { 0, -9.81 } : json { 0, -9.81, 0 };
+    json plane = { { "point", dim == 2 ? json { 0, 0 } : json { 0, 0, 0 } },
+        { "normal", dim == 2 ? json { 0, 1 } : json { 0, 1, 0 } },
+        { "motion", dim == 2 ? json { 0, "0.01*t" } : json { 0, "0.01*t", 0 } } };
+    s["obstacles"] = { { { "name", "floor" }, { "plane", plane } } };
+    s["contact"] = { { "dhat", dhat }, { "kappa", 1e3 } };
+    s["time"] = { { "integrator", integrator }, { "dt", dt }, { "steps", steps } };
+    s["solver"] = { { "residual_tolerance", 1e-11 } };
+    return s;
+}
+
 /// J = sum_k a_k . (x_k - X) + b_k . v_k + c/2 |x_T - X|^2 with fixed random a_k, b_k: every
 /// state of the run is seeded, so every backward path of the adjoint is exercised.
 struct StateObjective {

@@ -45,16 +45,7 @@ json moving_bar(int dim, const std::string& integrator)
 json landing_box(int dim, const std::string& integrator)
 {
     const double dhat = 2e-3;
-    json s = dim == 2 ? box_scene(2, { 0.2, 0.1 }, { 4, 2 }, "neo_hookean", 2e4, 0.3, 1000)
-                      : box_scene(3, { 0.2, 0.1, 0.2 }, { 2, 1, 2 }, "neo_hookean", 2e4, 0.3, 1000);
-    s["gravity"] = dim == 2 ? json { 0, -9.81 } : json { 0, -9.81, 0 };
-    json plane = { { "point", dim == 2 ? json { 0, 0 } : json { 0, 0, 0 } },
-        { "normal", dim == 2 ? json { 0, 1 } : json { 0, 1, 0 } },
-        { "motion", dim == 2 ? json { 0, "0.01*t" } : json { 0, "0.01*t", 0 } } };
-    s["obstacles"] = { { { "name", "floor" }, { "plane", plane } } };
-    s["contact"] = { { "dhat", dhat }, { "kappa", 1e3 } };
-    s["time"] = { { "integrator", integrator }, { "dt", 0.005 }, { "steps", STEPS } };
-    s["solver"] = { { "residual_tolerance", 1e-11 } };
+    json s = box_over_rising_plane(dim, integrator, dhat, 0.005, STEPS);
     if (integrator != "static") {
         s["bodies"][0]["translation"] = dim == 2 ? json { 0, 2.5 * dhat } : json { 0, 2.5 * dhat, 0 };
         s["bodies"][0]["initial_velocity"] = dim == 2 ? json { 0.1, -0.3 } : json { 0.1, -0.3, 0.05 };
