@@ -302,12 +302,45 @@ namespace {
                 p.targets.push_back({ k });
             break;
         }
-        case Selection::GROUPS:
+        case Selection::GROUPS: {
             if (!sim.friction())
                 throw InputError(field, "the scene has no friction (no contact, or every coefficient is 0)");
-            for (Index g = 0; g < sim.num_groups(); ++g)
-                p.targets.push_back({ g });
+            // Contact groups: the bodies, then the obstacles.
+            const std::string mode = spec.value("per", std::string("group"));
+            if (mode != "group" && mode != "global")
+                throw InputError(field + ".per", "friction is per \"group\" (body or obstacle) or \"global\"");
+            std::vector<Index> groups;
+            if (spec.contains("group")) {
+                const json& g = spec["group"];
+                Index found = -1;
+                if (g.is_number_integer() && g.get<Index>() >= 0 && g.get<Index>() < sim.num_groups())
+                    found = g.get<Index>();
+                for (size_t b = 0; g.is_string() && b < scene.bodies.size(); ++b)
+                    if (scene.bodies[b].name == g.get<std::string>())
+                        found = Index(b);
+                for (size_t o = 0; g.is_string() && o < scene.obstacles.size(); ++o)
+                    if (scene.obstacles[o].name == g.get<std::string>())
+                        found = Index(scene.bodies.size() + o);
+                if (found < 0)
+                    throw InputError(field + ".group", "expected the name or index of a body or obstacle");
+                groups.push_back(found);
+            } else
+                for (Index g = 0; g < sim.num_groups(); ++g)
+                    groups.push_back(g);
+            if (mode == "global") {
+                // One value for the selected groups: they must start equal, or p = initial() would change the scene.
+                const std::vector<double>& mu = sim.friction()->group_coefficients();
+                for (Index g : groups)
+                    if (mu[size_t(g)] != mu[size_t(groups.front())])
+                        throw InputError(field + ".per", "\"global\" needs the selected groups to share one coefficient ("
+                            + std::to_string(mu[size_t(groups.front())]) + " and " + std::to_string(mu[size_t(g)])
+                            + " differ)");
+                p.targets.push_back(groups);
+            } else
+                for (Index g : groups)
+                    p.targets.push_back({ g });
             break;
+        }
         }
         if (p.targets.empty())
             throw InputError(field, "selects nothing");

@@ -13,6 +13,7 @@ from conftest import ROOT, box_scene
 STUDIES = {
     "301": ROOT / "studies" / "301_beam_shape_stress" / "problem.json",
     "302": ROOT / "studies" / "302_bar_youngs_markers" / "problem.json",
+    "303": ROOT / "studies" / "303_block_slope_friction" / "problem.json",
 }
 
 
@@ -228,3 +229,39 @@ def test_failed_forward_step_raises_adjoint_error_and_returns_nothing():
     del problem["scene"]["solver"]["max_iterations"]
     value, g = diffipc.ReducedFunctional(problem).value_and_gradient(J.initial)
     assert np.isfinite(value) and np.isfinite(g).all()
+
+
+def test_friction_selection_global_and_one_group():
+    """per "group" (default): one coefficient per body and obstacle; per "global": one value
+    for all of them, whose derivative is the sum; "group": NAME selects one."""
+    base = study_problem("303", [{"type": "friction"}])
+    per_group = diffipc.ReducedFunctional(base, base_directory=str(STUDIES["303"].parent))
+    assert per_group.layout == [("friction", 2)]
+    value, g = per_group.evaluate(per_group.initial)
+
+    glob = study_problem("303", [{"type": "friction", "per": "global"}])
+    J = diffipc.ReducedFunctional(glob, base_directory=str(STUDIES["303"].parent))
+    assert J.layout == [("friction", 1)]
+    np.testing.assert_array_equal(J.initial, [0.2])
+    value_global, g_global = J.evaluate(J.initial)
+    assert value_global == value
+    assert g_global[0] == pytest.approx(g.sum(), rel=1e-12)
+    check_gradient(J, seed=5)
+
+    slope = study_problem("303", [{"type": "friction", "group": "slope"}])
+    J = diffipc.ReducedFunctional(slope, base_directory=str(STUDIES["303"].parent))
+    assert J.size == 1
+    assert J.evaluate(J.initial)[1][0] == pytest.approx(g[1], rel=1e-12)
+
+    for bad, field in [({"type": "friction", "per": "body"}, "parameters[0].per"),
+                       ({"type": "friction", "group": "wall"}, "parameters[0].group")]:
+        problem = study_problem("303", [bad])
+        with pytest.raises(ValueError, match=field.replace("[", r"\[").replace("]", r"\]")):
+            diffipc.ReducedFunctional(problem, base_directory=str(STUDIES["303"].parent))
+
+
+def test_global_friction_needs_equal_group_coefficients():
+    problem = study_problem("303", [{"type": "friction", "per": "global"}])
+    problem["scene"]["obstacles"][0]["friction"] = {"coefficient": 0.4}
+    with pytest.raises(ValueError, match="share one coefficient"):
+        diffipc.ReducedFunctional(problem, base_directory=str(STUDIES["303"].parent))
