@@ -128,9 +128,11 @@ NewtonResult NewtonSolver::solve(VectorXd& x, const VectorXd& target, const std:
             // adjoint needs the residual as small as it gets); once it does not, the
             // residual is at its round-off floor (a tiny dt makes M (x - x~) / h^2
             // dominate it) and further iterations cannot improve x.
+            // Like any step it must be certified by CCD (a gap of a few ulps could be crossed).
             trial = x + p;
-            const double trial_energy = m_problem.energy(trial);
-            bool improves = std::isfinite(trial_energy);
+            bool improves = m_problem.max_step(x, p) >= 1.0;
+            const double trial_energy = improves ? m_problem.energy(trial) : INFINITY;
+            improves = improves && std::isfinite(trial_energy);
             if (improves) {
                 m_problem.gradient(trial, g_trial);
                 double trial_max = 0;
