@@ -140,6 +140,9 @@ AdjointSweep::AdjointSweep(Simulator& sim, const ParameterRequest& request)
 {
     Timer total;
     check_run(sim);
+    if (request.friction && sim.contact() && !sim.friction())
+        throw AdjointError("no gradient: every friction coefficient is 0, where a pair's coefficient "
+                           "sqrt(mu_a mu_b) is not differentiable");
     m = std::make_unique<Impl>(sim, request);
     total.add_to(m->st.total_time);
 }
@@ -277,7 +280,7 @@ void AdjointSweep::Impl::step(int k)
         if (d_rest || d_density)
             sim.external_force_derivatives(record.time, w * lambda, d_rest, d_density);
         // The friction potential of step k depends on x_{k-1} (start of step and lagged data).
-        if (sim.friction() && !sim.friction()->lagged().empty()) {
+        if (sim.friction() && (!sim.friction()->lagged().empty() || grad.friction.size())) {
             if (xbar[size_t(k - 1)].size() == 0) {
                 xbar[size_t(k - 1)] = VectorXd::Zero(n);
                 grew(xbar[size_t(k - 1)]);

@@ -46,11 +46,19 @@ void friction_step_adjoint(
     const double shat = barrier_activation(cs.dhat, cs.min_distance);
     const double kappa = B.kappa();
     if (terms.coefficients) {
+        // A pair with a zero-coefficient side is not lagged, but d sqrt(mu_a mu_b)/dmu_a is
+        // unbounded at mu_a = 0 wherever the pair presses: no number is right there.
+        // Groups never in contact have a zero derivative, which is exact.
         const std::vector<double>& mu = D.group_coefficients();
-        for (size_t g = 0; g < mu.size(); ++g)
-            if (!(mu[g] > 0))
-                throw AdjointError("no gradient: the friction coefficient of contact group " + std::to_string(g)
-                    + " is 0, where a pair's coefficient sqrt(mu_a mu_b) is not differentiable");
+        const VectorXi& group = sim.mesh().vertex_body;
+        for (const Contact& c : B.contacts(y)) {
+            const int other = c.kind == ContactKind::EDGE_EDGE ? 2 : 1;
+            const int ga = group[c.vertices[0]], gb = group[c.vertices[size_t(other)]];
+            if (!(mu[size_t(ga)] > 0) || !(mu[size_t(gb)] > 0))
+                throw AdjointError("no gradient: contact group " + std::to_string(mu[size_t(ga)] > 0 ? gb : ga)
+                    + " has friction coefficient 0 and is in contact at step " + std::to_string(k - 1)
+                    + ", where a pair's coefficient sqrt(mu_a mu_b) is not differentiable");
+        }
     }
 
     for (const FrictionContact& f : D.lagged()) {

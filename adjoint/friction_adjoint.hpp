@@ -19,7 +19,10 @@ struct FrictionAdjointTerms {
 /// the edge-edge mollifier thresholds in the normal forces.
 /// @param lambda  the step's adjoint (#V*dim, zero on constrained dofs)
 /// @param weight  the integrator's weight w of the potentials in g_k
-/// @throws AdjointError if coefficients are requested and a group's coefficient is 0.
+/// Call it for every step of a scene with friction (also one without lagged
+/// contacts): with coefficients requested it checks the contacts at x_{k-1}.
+/// @throws AdjointError if coefficients are requested and a group with coefficient 0
+///         is in contact at x_{k-1}.
 void friction_step_adjoint(
     const Simulator& sim, int k, const VectorXd& lambda, double weight, const FrictionAdjointTerms& terms);
 

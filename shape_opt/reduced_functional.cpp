@@ -215,6 +215,14 @@ namespace {
         if (!spec.is_object() || !spec.contains("type") || !spec["type"].is_string())
             throw InputError(field + ".type", "expected a parameter type (" + kind_names() + ")");
         const std::string type = spec["type"];
+        for (const auto& [key, value] : spec.items()) {
+            static const char* const known[] = { "type", "per", "body", "vertices", "components", "group" };
+            if (std::find(std::begin(known), std::end(known), key) == std::end(known))
+                throw InputError(
+                    field + "." + key, "unknown field (expected type, per, body, vertices, components, group)");
+        }
+        if (spec.contains("per") && !spec["per"].is_string())
+            throw InputError(field + ".per", "expected a string");
         const KindTraits* t = nullptr;
         for (const KindTraits& k : KINDS)
             if (type == k.name)
@@ -327,14 +335,21 @@ namespace {
             } else
                 for (Index g = 0; g < sim.num_groups(); ++g)
                     groups.push_back(g);
+            for (Index g : groups)
+                if (!(sim.friction()->group_coefficients()[size_t(g)] > 0))
+                    throw InputError(field,
+                        "contact group " + std::to_string(g)
+                            + " has friction coefficient 0, where a pair's coefficient sqrt(mu_a mu_b) "
+                              "is not differentiable; start from a positive value");
             if (mode == "global") {
                 // One value for the selected groups: they must start equal, or p = initial() would change the scene.
                 const std::vector<double>& mu = sim.friction()->group_coefficients();
                 for (Index g : groups)
                     if (mu[size_t(g)] != mu[size_t(groups.front())])
-                        throw InputError(field + ".per", "\"global\" needs the selected groups to share one coefficient ("
-                            + std::to_string(mu[size_t(groups.front())]) + " and " + std::to_string(mu[size_t(g)])
-                            + " differ)");
+                        throw InputError(field + ".per",
+                            "\"global\" needs the selected groups to share one coefficient ("
+                                + std::to_string(mu[size_t(groups.front())]) + " and " + std::to_string(mu[size_t(g)])
+                                + " differ)");
                 p.targets.push_back(groups);
             } else
                 for (Index g : groups)
@@ -408,6 +423,7 @@ ReducedFunctional::ReducedFunctional(const json& doc, const std::string& base_di
             && (lc->base.rest_positions.size() != m_cases[0]->base.rest_positions.size()
                 || lc->base.density.size() != m_cases[0]->base.density.size()))
             throw InputError(key("scene"), "every load case must use the same mesh");
+
         m_cases.push_back(std::move(lc));
     }
 
@@ -422,6 +438,20 @@ ReducedFunctional::ReducedFunctional(const json& doc, const std::string& base_di
             m_parameters.push_back(
                 parse_parameter(m_cases[0]->scene, sim, params[k], "parameters[" + std::to_string(k) + "]"));
     }
+    // Friction and prescribed values index the first case's contact groups and
+    // prescribed dofs per step: every case must have the same ones.
+    for (const auto& p : m_parameters)
+        for (size_t c = 1; c < m_cases.size(); ++c) {
+            const SimulationParameters &a = m_cases[0]->base, &b = m_cases[c]->base;
+            if ((p.kind == Kind::FRICTION && a.friction.size() != b.friction.size())
+                || (p.kind == Kind::PRESCRIBED
+                    && (a.prescribed.rows() != b.prescribed.rows() || a.prescribed.cols() != b.prescribed.cols())))
+                throw InputError(p.field,
+                    "every load case must have the same "
+                        + std::string(p.kind == Kind::FRICTION ? "bodies and obstacles (contact groups)"
+                                                               : "prescribed dofs and number of steps")
+                        + " for this parameter");
+        }
     // E and nu, or mu and lambda: SimulationParameters' mu and lambda override E and nu.
     Moduli moduli = Moduli::NONE;
     std::string moduli_field;

@@ -133,9 +133,9 @@ NewtonResult NewtonSolver::solve(VectorXd& x, const VectorXd& target, const std:
             bool improves = m_problem.max_step(x, p) >= 1.0;
             const double trial_energy = improves ? m_problem.energy(trial) : INFINITY;
             improves = improves && std::isfinite(trial_energy);
+            double trial_max = 0;
             if (improves) {
                 m_problem.gradient(trial, g_trial);
-                double trial_max = 0;
                 for (Index i = 0; i < n; ++i)
                     if (!constrained[size_t(i)])
                         trial_max = std::max(trial_max, std::abs(g_trial[i]));
@@ -152,6 +152,15 @@ NewtonResult NewtonSolver::solve(VectorXd& x, const VectorXd& target, const std:
             if (m_problem.end_iteration(x))
                 energy = m_problem.energy(x);
             result.iterations = it + 1;
+            if (result.iterations >= m_settings.max_iterations
+                && trial_max / force_scale > m_settings.residual_tolerance) {
+                // Out of iterations inside the round-off regime: converged as far as it gets
+                // (the state before this step was already accepted as such).
+                result.residual = trial_max / force_scale;
+                result.status = StepStatus::CONVERGED;
+                result.roundoff_limited = true;
+                return result;
+            }
             continue;
         }
         double slope = g.dot(p);

@@ -265,3 +265,17 @@ def test_global_friction_needs_equal_group_coefficients():
     problem["scene"]["obstacles"][0]["friction"] = {"coefficient": 0.4}
     with pytest.raises(ValueError, match="share one coefficient"):
         diffipc.ReducedFunctional(problem, base_directory=str(STUDIES["303"].parent))
+
+
+def test_friction_parameter_errors_name_the_field():
+    problem = study_problem("303", [{"type": "friction", "groups": 1}])  # a typo of "group"
+    with pytest.raises(ValueError, match=r"parameters\[0\]\.groups"):
+        diffipc.ReducedFunctional(problem, base_directory=str(STUDIES["303"].parent))
+    problem = study_problem("303", [{"type": "friction", "per": 3}])
+    with pytest.raises(ValueError, match=r"parameters\[0\]\.per"):
+        diffipc.ReducedFunctional(problem, base_directory=str(STUDIES["303"].parent))
+    # A selected group with coefficient 0: sqrt(mu_a mu_b) has no derivative there.
+    problem = study_problem("303", [{"type": "friction", "group": "slope"}])
+    problem["scene"]["obstacles"][0]["friction"] = {"coefficient": 0.0}
+    with pytest.raises(ValueError, match="coefficient 0"):
+        diffipc.ReducedFunctional(problem, base_directory=str(STUDIES["303"].parent))
