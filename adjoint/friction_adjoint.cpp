@@ -11,13 +11,6 @@ namespace diffipc {
 
 namespace {
 
-    Eigen::Vector3d point3(const VectorXd& x, Index v, int dim)
-    {
-        Eigen::Vector3d p = Eigen::Vector3d::Zero();
-        p.head(dim) = x.segment(v * dim, dim);
-        return p;
-    }
-
     /// rho(y) = f1(y) / y and its derivative (docs/math.md "Friction adjoint").
     void speed_ratio(double y, double eps, double& rho, double& drho)
     {
@@ -146,8 +139,8 @@ void friction_step_adjoint(
         // Edge-edge: m depends on the rest shape through eps_x.
         if (terms.rest_positions && f.kind == ContactKind::EDGE_EDGE) {
             const auto& v = f.vertices;
-            const double dm = edge_edge_mollifier_gradient_wrt_eps_x(point3(y, v[0], dim), point3(y, v[1], dim),
-                point3(y, v[2], dim), point3(y, v[3], dim), f.source.mollifier_threshold);
+            const double dm = edge_edge_mollifier_gradient_wrt_eps_x(vertex_point(y, v[0], dim), vertex_point(y, v[1], dim),
+                vertex_point(y, v[2], dim), vertex_point(y, v[3], dim), f.source.mollifier_threshold);
             if (dm != 0) {
                 const double dlam_deps = kappa * std::abs(b1) * 2 * d * dm;
                 const Eigen::Matrix<double, 12, 1> deps = B.mollifier_threshold_gradient(f.source);

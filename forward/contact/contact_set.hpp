@@ -36,4 +36,12 @@ struct Contact {
 
 using ContactSet = std::vector<Contact>;
 
+/// Vertex v of the flattened #V*dim positions x as a 3D point (z = 0 in 2D).
+inline Eigen::Vector3d vertex_point(const VectorXd& x, Index v, int dim)
+{
+    Eigen::Vector3d p = Eigen::Vector3d::Zero();
+    p.head(dim) = x.segment(v * dim, dim);
+    return p;
+}
+
 } // namespace diffipc

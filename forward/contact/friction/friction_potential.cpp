@@ -15,13 +15,6 @@ namespace diffipc {
 
 namespace {
 
-    Eigen::Vector3d point(const VectorXd& x, Index v, int dim)
-    {
-        Eigen::Vector3d p = Eigen::Vector3d::Zero();
-        p.head(dim) = x.segment(v * dim, dim);
-        return p;
-    }
-
     /// Parameter of the projection of p onto the line through a, b (not clamped).
     double line_parameter(const Eigen::Vector3d& p, const Eigen::Vector3d& a, const Eigen::Vector3d& b)
     {
@@ -58,13 +51,13 @@ std::array<double, 4> closest_point_weights(const Contact& c, const VectorXd& x,
                 return { 1, -1, 0, 0 };
             if (type == PointEdgeDistanceType::P_E1)
                 return { 1, 0, -1, 0 };
-            const double a = line_parameter(point(x, v[0], dim), point(x, v[1], dim), point(x, v[2], dim));
+            const double a = line_parameter(vertex_point(x, v[0], dim), vertex_point(x, v[1], dim), vertex_point(x, v[2], dim));
             return { 1, -(1 - a), -a, 0 };
         }
         case ContactKind::VERTEX_FACE: {
             using PT = PointTriangleDistanceType;
-            const Eigen::Vector3d p = point(x, v[0], dim), t0 = point(x, v[1], dim), t1 = point(x, v[2], dim),
-                                  t2 = point(x, v[3], dim);
+            const Eigen::Vector3d p = vertex_point(x, v[0], dim), t0 = vertex_point(x, v[1], dim), t1 = vertex_point(x, v[2], dim),
+                                  t2 = vertex_point(x, v[3], dim);
             switch (PT(c.distance_type)) {
             case PT::P_T0:
                 return { 1, -1, 0, 0 };
@@ -98,8 +91,8 @@ std::array<double, 4> closest_point_weights(const Contact& c, const VectorXd& x,
         }
         case ContactKind::EDGE_EDGE: {
             using EE = EdgeEdgeDistanceType;
-            const Eigen::Vector3d a0 = point(x, v[0], dim), a1 = point(x, v[1], dim), b0 = point(x, v[2], dim),
-                                  b1 = point(x, v[3], dim);
+            const Eigen::Vector3d a0 = vertex_point(x, v[0], dim), a1 = vertex_point(x, v[1], dim), b0 = vertex_point(x, v[2], dim),
+                                  b1 = vertex_point(x, v[3], dim);
             switch (EE(c.distance_type)) {
             case EE::EA0_EB0:
                 return { 1, 0, -1, 0 };
@@ -212,7 +205,7 @@ void FrictionPotential::lag(const ContactPotential& contact, const VectorXd& x_l
         f.weights = closest_point_weights(c, x_lagged, m_dim);
         Eigen::Vector3d r = Eigen::Vector3d::Zero();
         for (int i = 0; i < f.num_vertices; ++i)
-            r += f.weights[size_t(i)] * point(x_lagged, f.vertices[size_t(i)], m_dim);
+            r += f.weights[size_t(i)] * vertex_point(x_lagged, f.vertices[size_t(i)], m_dim);
         f.normal = c.kind == ContactKind::VERTEX_PLANE ? contact.planes()[size_t(c.plane)].normal : r.normalized();
         bool finite = f.normal.allFinite();
         for (double g : f.weights)
@@ -224,8 +217,8 @@ void FrictionPotential::lag(const ContactPotential& contact, const VectorXd& x_l
         const double d = std::sqrt(c.distance_squared);
         double m = 1;
         if (c.kind == ContactKind::EDGE_EDGE)
-            m = edge_edge_mollifier(point(x_lagged, c.vertices[0], m_dim), point(x_lagged, c.vertices[1], m_dim),
-                point(x_lagged, c.vertices[2], m_dim), point(x_lagged, c.vertices[3], m_dim), c.mollifier_threshold);
+            m = edge_edge_mollifier(vertex_point(x_lagged, c.vertices[0], m_dim), vertex_point(x_lagged, c.vertices[1], m_dim),
+                vertex_point(x_lagged, c.vertices[2], m_dim), vertex_point(x_lagged, c.vertices[3], m_dim), c.mollifier_threshold);
         f.normal_force
             = contact.kappa() * m * std::abs(barrier_first_derivative(c.distance_squared - dmin2, shat)) * 2 * d;
         f.coefficient = mu;
