@@ -139,8 +139,9 @@ void friction_step_adjoint(
         // Edge-edge: m depends on the rest shape through eps_x.
         if (terms.rest_positions && f.kind == ContactKind::EDGE_EDGE) {
             const auto& v = f.vertices;
-            const double dm = edge_edge_mollifier_gradient_wrt_eps_x(vertex_point(y, v[0], dim), vertex_point(y, v[1], dim),
-                vertex_point(y, v[2], dim), vertex_point(y, v[3], dim), f.source.mollifier_threshold);
+            const double dm
+                = edge_edge_mollifier_gradient_wrt_eps_x(vertex_point(y, v[0], dim), vertex_point(y, v[1], dim),
+                    vertex_point(y, v[2], dim), vertex_point(y, v[3], dim), f.source.mollifier_threshold);
             if (dm != 0) {
                 const double dlam_deps = kappa * std::abs(b1) * 2 * d * dm;
                 const Eigen::Matrix<double, 12, 1> deps = B.mollifier_threshold_gradient(f.source);

@@ -122,15 +122,16 @@ void ContactPotential::build_contacts(const VectorXd& x, ContactSet& out, double
     }
     for (const auto& [v, f] : candidates.vertex_face) {
         const Index t0 = m_mesh.faces(f, 0), t1 = m_mesh.faces(f, 1), t2 = m_mesh.faces(f, 2);
-        const Eigen::Vector3d p = vertex_point(x, v, dim), a = vertex_point(x, t0, dim), b = vertex_point(x, t1, dim), c = vertex_point(x, t2, dim);
+        const Eigen::Vector3d p = vertex_point(x, v, dim), a = vertex_point(x, t0, dim), b = vertex_point(x, t1, dim),
+                              c = vertex_point(x, t2, dim);
         const PointTriangleDistanceType type = point_triangle_distance_type(p, a, b, c);
         keep(ContactKind::VERTEX_FACE, int(type), { v, t0, t1, t2 }, point_triangle_distance(p, a, b, c, type));
     }
     for (const auto& [ea, eb] : candidates.edge_edge) {
         const Index a0 = m_mesh.edges(ea, 0), a1 = m_mesh.edges(ea, 1);
         const Index b0 = m_mesh.edges(eb, 0), b1 = m_mesh.edges(eb, 1);
-        const Eigen::Vector3d pa0 = vertex_point(x, a0, dim), pa1 = vertex_point(x, a1, dim), pb0 = vertex_point(x, b0, dim),
-                              pb1 = vertex_point(x, b1, dim);
+        const Eigen::Vector3d pa0 = vertex_point(x, a0, dim), pa1 = vertex_point(x, a1, dim),
+                              pb0 = vertex_point(x, b0, dim), pb1 = vertex_point(x, b1, dim);
         const EdgeEdgeDistanceType type = edge_edge_distance_type(pa0, pa1, pb0, pb1);
         if (Contact* c
             = keep(ContactKind::EDGE_EDGE, int(type), { a0, a1, b0, b1 }, edge_edge_distance(pa0, pa1, pb0, pb1, type)))
@@ -209,7 +210,8 @@ ContactPotential::LocalDistance ContactPotential::local_distance(
     }
     case ContactKind::VERTEX_EDGE: {
         const auto type = PointEdgeDistanceType(c.distance_type);
-        const Eigen::Vector3d p = vertex_point(x, v[0], dim), a = vertex_point(x, v[1], dim), b = vertex_point(x, v[2], dim);
+        const Eigen::Vector3d p = vertex_point(x, v[0], dim), a = vertex_point(x, v[1], dim),
+                              b = vertex_point(x, v[2], dim);
         s = point_edge_distance(p, a, b, type);
         if (derivatives) {
             const Eigen::VectorXd g3 = point_edge_distance_gradient(p, a, b, type);
@@ -225,8 +227,8 @@ ContactPotential::LocalDistance ContactPotential::local_distance(
     }
     case ContactKind::VERTEX_FACE: {
         const auto type = PointTriangleDistanceType(c.distance_type);
-        const Eigen::Vector3d p = vertex_point(x, v[0], dim), a = vertex_point(x, v[1], dim), b = vertex_point(x, v[2], dim),
-                              d = vertex_point(x, v[3], dim);
+        const Eigen::Vector3d p = vertex_point(x, v[0], dim), a = vertex_point(x, v[1], dim),
+                              b = vertex_point(x, v[2], dim), d = vertex_point(x, v[3], dim);
         s = point_triangle_distance(p, a, b, d, type);
         if (derivatives) {
             gs = point_triangle_distance_gradient(p, a, b, d, type);
@@ -236,8 +238,8 @@ ContactPotential::LocalDistance ContactPotential::local_distance(
     }
     case ContactKind::EDGE_EDGE: {
         const auto type = EdgeEdgeDistanceType(c.distance_type);
-        const Eigen::Vector3d a0 = vertex_point(x, v[0], dim), a1 = vertex_point(x, v[1], dim), b0 = vertex_point(x, v[2], dim),
-                              b1 = vertex_point(x, v[3], dim);
+        const Eigen::Vector3d a0 = vertex_point(x, v[0], dim), a1 = vertex_point(x, v[1], dim),
+                              b0 = vertex_point(x, v[2], dim), b1 = vertex_point(x, v[3], dim);
         s = edge_edge_distance(a0, a1, b0, b1, type);
         m = edge_edge_mollifier(a0, a1, b0, b1, c.mollifier_threshold);
         if (derivatives) {
@@ -409,28 +411,31 @@ double ContactPotential::max_step(const VectorXd& x, const VectorXd& p) const
                     const auto& [v, e] = ve[k];
                     const Index a = m_mesh.edges(e, 0), b = m_mesh.edges(e, 1);
                     accept(o,
-                        point_edge_ccd(vertex_point(x, v, dim), vertex_point(x, a, dim), vertex_point(x, b, dim), vertex_point(x1, v, dim),
-                            vertex_point(x1, a, dim), vertex_point(x1, b, dim), settings));
+                        point_edge_ccd(vertex_point(x, v, dim), vertex_point(x, a, dim), vertex_point(x, b, dim),
+                            vertex_point(x1, v, dim), vertex_point(x1, a, dim), vertex_point(x1, b, dim), settings));
                 } else if (k < n_ve + n_vf) {
                     const auto& [v, f] = vf[k - n_ve];
                     const Index a = m_mesh.faces(f, 0), b = m_mesh.faces(f, 1), c = m_mesh.faces(f, 2);
                     accept(o,
-                        point_triangle_ccd(vertex_point(x, v, dim), vertex_point(x, a, dim), vertex_point(x, b, dim), vertex_point(x, c, dim),
-                            vertex_point(x1, v, dim), vertex_point(x1, a, dim), vertex_point(x1, b, dim), vertex_point(x1, c, dim), settings));
+                        point_triangle_ccd(vertex_point(x, v, dim), vertex_point(x, a, dim), vertex_point(x, b, dim),
+                            vertex_point(x, c, dim), vertex_point(x1, v, dim), vertex_point(x1, a, dim),
+                            vertex_point(x1, b, dim), vertex_point(x1, c, dim), settings));
                 } else if (k < n_ve + n_vf + n_ee) {
                     const auto& [ea, eb] = ee[k - n_ve - n_vf];
                     const Index a0 = m_mesh.edges(ea, 0), a1 = m_mesh.edges(ea, 1);
                     const Index b0 = m_mesh.edges(eb, 0), b1 = m_mesh.edges(eb, 1);
                     accept(o,
-                        edge_edge_ccd(vertex_point(x, a0, dim), vertex_point(x, a1, dim), vertex_point(x, b0, dim), vertex_point(x, b1, dim),
-                            vertex_point(x1, a0, dim), vertex_point(x1, a1, dim), vertex_point(x1, b0, dim), vertex_point(x1, b1, dim), settings));
+                        edge_edge_ccd(vertex_point(x, a0, dim), vertex_point(x, a1, dim), vertex_point(x, b0, dim),
+                            vertex_point(x, b1, dim), vertex_point(x1, a0, dim), vertex_point(x1, a1, dim),
+                            vertex_point(x1, b0, dim), vertex_point(x1, b1, dim), settings));
                 } else {
                     const size_t q = k - n_ve - n_vf - n_ee;
                     const ContactPlane& plane = m_planes[q / m_plane_vertices.size()];
                     const Index v = m_plane_vertices[q % m_plane_vertices.size()];
                     accept(o,
-                        point_plane_ccd(vertex_point(x, v, dim), vertex_point(x1, v, dim), vertex_point(x, plane.vertex, dim),
-                            vertex_point(x1, plane.vertex, dim), plane.normal, settings));
+                        point_plane_ccd(vertex_point(x, v, dim), vertex_point(x1, v, dim),
+                            vertex_point(x, plane.vertex, dim), vertex_point(x1, plane.vertex, dim), plane.normal,
+                            settings));
                 }
             }
             return o;
@@ -506,8 +511,8 @@ void ContactPotential::add_shape_derivative(
         if (c.kind != ContactKind::EDGE_EDGE)
             continue;
         const auto& v = c.vertices;
-        const Eigen::Vector3d a0 = vertex_point(x, v[0], dim), a1 = vertex_point(x, v[1], dim), b0 = vertex_point(x, v[2], dim),
-                              b1 = vertex_point(x, v[3], dim);
+        const Eigen::Vector3d a0 = vertex_point(x, v[0], dim), a1 = vertex_point(x, v[1], dim),
+                              b0 = vertex_point(x, v[2], dim), b1 = vertex_point(x, v[3], dim);
         const double eps = c.mollifier_threshold;
         const double dm = edge_edge_mollifier_gradient_wrt_eps_x(a0, a1, b0, b1, eps);
         const Eigen::Matrix<double, 12, 1> dgm = edge_edge_mollifier_gradient_jacobian_wrt_eps_x(a0, a1, b0, b1, eps);

@@ -51,13 +51,14 @@ std::array<double, 4> closest_point_weights(const Contact& c, const VectorXd& x,
                 return { 1, -1, 0, 0 };
             if (type == PointEdgeDistanceType::P_E1)
                 return { 1, 0, -1, 0 };
-            const double a = line_parameter(vertex_point(x, v[0], dim), vertex_point(x, v[1], dim), vertex_point(x, v[2], dim));
+            const double a
+                = line_parameter(vertex_point(x, v[0], dim), vertex_point(x, v[1], dim), vertex_point(x, v[2], dim));
             return { 1, -(1 - a), -a, 0 };
         }
         case ContactKind::VERTEX_FACE: {
             using PT = PointTriangleDistanceType;
-            const Eigen::Vector3d p = vertex_point(x, v[0], dim), t0 = vertex_point(x, v[1], dim), t1 = vertex_point(x, v[2], dim),
-                                  t2 = vertex_point(x, v[3], dim);
+            const Eigen::Vector3d p = vertex_point(x, v[0], dim), t0 = vertex_point(x, v[1], dim),
+                                  t1 = vertex_point(x, v[2], dim), t2 = vertex_point(x, v[3], dim);
             switch (PT(c.distance_type)) {
             case PT::P_T0:
                 return { 1, -1, 0, 0 };
@@ -91,8 +92,8 @@ std::array<double, 4> closest_point_weights(const Contact& c, const VectorXd& x,
         }
         case ContactKind::EDGE_EDGE: {
             using EE = EdgeEdgeDistanceType;
-            const Eigen::Vector3d a0 = vertex_point(x, v[0], dim), a1 = vertex_point(x, v[1], dim), b0 = vertex_point(x, v[2], dim),
-                                  b1 = vertex_point(x, v[3], dim);
+            const Eigen::Vector3d a0 = vertex_point(x, v[0], dim), a1 = vertex_point(x, v[1], dim),
+                                  b0 = vertex_point(x, v[2], dim), b1 = vertex_point(x, v[3], dim);
             switch (EE(c.distance_type)) {
             case EE::EA0_EB0:
                 return { 1, 0, -1, 0 };
@@ -217,8 +218,9 @@ void FrictionPotential::lag(const ContactPotential& contact, const VectorXd& x_l
         const double d = std::sqrt(c.distance_squared);
         double m = 1;
         if (c.kind == ContactKind::EDGE_EDGE)
-            m = edge_edge_mollifier(vertex_point(x_lagged, c.vertices[0], m_dim), vertex_point(x_lagged, c.vertices[1], m_dim),
-                vertex_point(x_lagged, c.vertices[2], m_dim), vertex_point(x_lagged, c.vertices[3], m_dim), c.mollifier_threshold);
+            m = edge_edge_mollifier(vertex_point(x_lagged, c.vertices[0], m_dim),
+                vertex_point(x_lagged, c.vertices[1], m_dim), vertex_point(x_lagged, c.vertices[2], m_dim),
+                vertex_point(x_lagged, c.vertices[3], m_dim), c.mollifier_threshold);
         f.normal_force
             = contact.kappa() * m * std::abs(barrier_first_derivative(c.distance_squared - dmin2, shat)) * 2 * d;
         f.coefficient = mu;
