@@ -1,6 +1,7 @@
 #include "adjoint/adjoint.hpp"
 
 #include "adjoint/friction_adjoint.hpp"
+#include "forward/common/parallel.hpp"
 #include "forward/common/timer.hpp"
 #include "forward/solver/linear_solver.hpp"
 #include "forward/solver/sparse_assembler.hpp"
@@ -14,6 +15,12 @@
 namespace diffipc {
 
 namespace {
+
+    /// An entry (row >= col) of the lower-triangle Hessian.
+    struct Coupling {
+        Index row, col;
+        double value;
+    };
 
     bool nonzero(const VectorXd& v) { return v.size() > 0 && !v.isZero(0.0); }
 
@@ -230,7 +237,14 @@ void AdjointSweep::Impl::step(int k)
         Timer ta;
         const Problem& problem = sim.step_problem(k);
         problem.hessian(x, false, assembler);
-        const SparseMatrixd H = assembler.matrix(); // lower triangle, before the constraints
+        // The couplings of prescribed dofs (lower triangle), before the constraints replace them.
+        const SparseMatrixd& A = assembler.matrix();
+        const std::vector<Coupling> couplings
+            = parallel_collect<Coupling>(size_t(A.cols()), 256, [&](size_t col, std::vector<Coupling>& out) {
+                  for (SparseMatrixd::InnerIterator it(A, Index(col)); it; ++it)
+                      if (constrained[size_t(it.row())] || constrained[col])
+                          out.push_back({ it.row(), Index(col), it.value() });
+              });
         assembler.apply_constraints(constrained);
         ta.add_to(st.assembly_time);
         Timer tf;
@@ -248,11 +262,14 @@ void AdjointSweep::Impl::step(int k)
                 lambda[i] = 0;
         ++st.steps;
         Timer tp;
-        // Prescribed entries of x_k enter every free row through H.
-        const VectorXd Hl = H.selfadjointView<Eigen::Lower>() * lambda;
-        for (Index i = 0; i < n; ++i)
-            if (constrained[size_t(i)])
-                xb[i] -= Hl[i];
+        // Prescribed entries of x_k enter every free row through H: (H lambda)_i for prescribed i
+        // (lambda vanishes on prescribed dofs, so only their couplings to free dofs count).
+        for (const Coupling& c : couplings) {
+            if (constrained[size_t(c.row)])
+                xb[c.row] -= c.value * lambda[c.col];
+            if (c.row != c.col && constrained[size_t(c.col)])
+                xb[c.col] -= c.value * lambda[c.row];
+        }
         // History: g_k contains -M x~_k.
         if (s.inertia) {
             const VectorXd Ml = sim.inertia().apply_mass(lambda);
@@ -290,6 +307,7 @@ void AdjointSweep::Impl::step(int k)
             friction_step_adjoint(sim, k, lambda, w, terms);
         }
         tp.add_to(st.assembly_time);
+        tp.add_to(st.parameter_time);
     }
     // Prescribed dofs: x_k = X + g_k.
     for (size_t j = 0; j < prescribed.size(); ++j) {

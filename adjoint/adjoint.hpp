@@ -30,6 +30,7 @@ public:
 /// Timings and sizes of one backward sweep.
 struct AdjointStatistics {
     double assembly_time = 0; ///< Hessians and parameter derivatives (s)
+    double parameter_time = 0; ///< of which parameter derivatives, history and friction terms (s)
     double factorization_time = 0; ///< s
     double solve_time = 0; ///< triangular solves (s)
     double total_time = 0; ///< s

@@ -1,5 +1,6 @@
 #pragma once
 #include <string>
+#include <vector>
 
 namespace diffipc {
 
@@ -8,13 +9,21 @@ struct BenchOptions {
     int steps = 4;
     /// forward: elasticity without contact; contact: the ~20k-tet contact scene;
     /// scenes: the full contact studies (studies/2xx) run to the end with exact checks;
-    /// adjoint: the contact scene with a fixed kappa, then shape and material gradients
+    /// adjoint: the contact scene with a fixed kappa, then shape and material gradients;
+    /// scaling: the 50k and 200k-tet boxes, the contact scene and the adjoint per thread count
     std::string suite = "forward";
     std::string source_dir = "."; ///< repository root (for the studies)
     double friction = 0; ///< contact suite: friction coefficient of the slabs (0: frictionless)
+    /// scaling suite: thread counts (default 1, 2, 4, ... up to the usable cores)
+    std::vector<int> thread_counts;
+    /// scaling suite: which of "50k,200k,contact,adjoint" to run (empty: all)
+    std::string scenes;
 };
 
 /// Runs the fixed benchmark scenes and prints per-phase timings; returns an exit code.
 int run_bench(const BenchOptions& options);
+
+/// The scaling suite (cli/bench_scaling.cpp): every scene per thread count, efficiency per phase.
+int run_scaling_bench(const BenchOptions& options);
 
 } // namespace diffipc

@@ -6,6 +6,7 @@
 #include "cli/bench.hpp"
 #include "cli/gradcheck.hpp"
 #include "forward/common/error.hpp"
+#include "forward/common/threads.hpp"
 #include "forward/common/timer.hpp"
 #include "forward/io/output.hpp"
 #include "forward/scene/scene.hpp"
@@ -90,12 +91,33 @@ int validate(const std::string& scene_path)
     return 0;
 }
 
+std::string version_text()
+{
+    try {
+        ensure_threads_configured();
+    } catch (const InputError& e) {
+        return std::string("diffipc " DIFFIPC_VERSION "\ndiffipc: error: ") + e.what() + "\n";
+    }
+    return "diffipc " DIFFIPC_VERSION "\n" + describe(thread_config());
+}
+
 } // namespace
 
 int main(int argc, char** argv)
 {
+    // Before anything else: libgomp must see OMP_WAIT_POLICY when it is loaded (threads.hpp).
+    prepare_process_environment(argv);
+
     CLI::App app { "diffipc: differentiable IPC elastodynamics" };
     app.require_subcommand(1);
+    app.fallthrough();
+    app.set_version_flag("--version", version_text, "Print the version and the thread configuration");
+    int threads = -1;
+    app.add_option("--threads", threads,
+           "threads for TBB, OpenBLAS and OpenMP (default: DIFFIPC_THREADS, else the file's \"threads\", else the "
+           "cores this process may use)")
+        ->check(CLI::Range(1, 4096));
+    auto* info_cmd = app.add_subcommand("info", "Print the version and the effective thread configuration");
 
     std::string scene_path, out_dir;
     int vtu_every = -1;
@@ -115,8 +137,15 @@ int main(int argc, char** argv)
     auto* bench_cmd = app.add_subcommand("bench", "Run the fixed benchmark scenes and print per-phase timings");
     bench_cmd->add_option("--size", bench_options.size, "small | full")->check(CLI::IsMember({ "small", "full" }));
     bench_cmd->add_option("--steps", bench_options.steps, "time steps per scene (the first is a warm-up)");
-    bench_cmd->add_option("--suite", bench_options.suite, "forward | contact | scenes | adjoint")
-        ->check(CLI::IsMember({ "forward", "contact", "scenes", "adjoint" }));
+    bench_cmd->add_option("--suite", bench_options.suite, "forward | contact | scenes | adjoint | scaling")
+        ->check(CLI::IsMember({ "forward", "contact", "scenes", "adjoint", "scaling" }));
+    bench_cmd
+        ->add_option("--thread-counts", bench_options.thread_counts,
+            "scaling suite: thread counts, comma-separated (default 1, 2, 4, ... the usable cores)")
+        ->delimiter(',')
+        ->check(CLI::Range(1, 4096));
+    bench_cmd->add_option(
+        "--scenes", bench_options.scenes, "scaling suite: any of 50k,200k,contact,adjoint (default: all)");
     bench_cmd->add_option("--source-dir", bench_options.source_dir, "repository root, where studies/ lives");
     bench_cmd->add_option("--friction", bench_options.friction, "contact suite: friction coefficient (0: none)")
         ->check(CLI::NonNegativeNumber);
@@ -135,6 +164,13 @@ int main(int argc, char** argv)
     }
 
     try {
+        ensure_threads_configured();
+        if (threads > 0)
+            set_threads(threads, ThreadSource::EXPLICIT, "--threads");
+        if (*info_cmd) {
+            std::printf("%s", version_text().c_str());
+            return 0;
+        }
         if (*sim_cmd)
             return simulate(scene_path, out_dir, vtu_every, quiet);
         if (*val_cmd)

@@ -6,6 +6,7 @@
 
 #include "adjoint/adjoint.hpp"
 #include "forward/common/error.hpp"
+#include "forward/common/threads.hpp"
 #include "forward/io/output.hpp"
 #include "forward/potentials/elastic_potential.hpp"
 #include "forward/scene/scene.hpp"
@@ -145,6 +146,19 @@ PYBIND11_MODULE(_diffipc, m)
         .def_property_readonly("dt", [](const Scene& s) { return s.time.dt; })
         .def_property_readonly("integrator", [](const Scene& s) { return to_string(s.time.integrator); });
 
+    m.def(
+        "set_threads",
+        [](int count) { return to_json(set_threads(count, ThreadSource::EXPLICIT, "diffipc.set_threads")).dump(); },
+        py::arg("count"),
+        "Set the threads of TBB, OpenBLAS and OpenMP (0: the cores this process may use); returns the configuration "
+        "as JSON text.");
+    m.def(
+        "_thread_info",
+        [] {
+            ensure_threads_configured();
+            return to_json(thread_config()).dump();
+        },
+        "The effective thread configuration as JSON text.");
     m.def("load_scene", &load_scene, py::arg("path"), "Read and validate a JSON scene file.");
     m.def("_scene_from_json_text", &scene_from_json_text, py::arg("text"), py::arg("base_directory"));
 

@@ -1,6 +1,7 @@
 #include "shape_opt/reduced_functional.hpp"
 
 #include "forward/common/error.hpp"
+#include "forward/common/threads.hpp"
 #include "forward/common/timer.hpp"
 #include "forward/scene/json_field.hpp"
 #include "objectives/objective_json.hpp"
@@ -385,6 +386,10 @@ ReducedFunctional::ReducedFunctional(const json& doc, const std::string& base_di
 {
     if (!doc.is_object())
         throw InputError(source, "a problem file is a JSON object");
+    if (doc.contains("threads")) {
+        const JsonField t(doc["threads"], "threads");
+        set_threads(t.integer(1), ThreadSource::PROBLEM_FILE, "threads of " + source);
+    }
     json cases = doc.contains("scenes") ? doc["scenes"] : json::array({ doc });
     if (!cases.is_array() || cases.empty())
         throw InputError("scenes", "expected a non-empty list of {\"scene\", \"objective\", \"weight\"}");

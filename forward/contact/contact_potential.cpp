@@ -1,5 +1,6 @@
 #include "forward/contact/contact_potential.hpp"
 
+#include "forward/common/parallel.hpp"
 #include "forward/common/timer.hpp"
 #include "forward/contact/barrier.hpp"
 #include "forward/contact/broad_phase/broad_phase.hpp"
@@ -89,7 +90,6 @@ ContactPotential::~ContactPotential() = default;
 
 void ContactPotential::build_contacts(const VectorXd& x, ContactSet& out, double radius) const
 {
-    out.clear();
     const int dim = m_mesh.dim;
     const Positions X = unflatten(x, dim);
     Candidates owned;
@@ -102,8 +102,9 @@ void ContactPotential::build_contacts(const VectorXd& x, ContactSet& out, double
     const Candidates& candidates = reuse ? m_segment->candidates : owned;
     Timer t;
     const double r2 = radius * radius;
-    // Keeps a classified pair if it is closer than the radius.
-    auto keep = [&](ContactKind kind, int type, std::array<Index, 4> vertices, double s) -> Contact* {
+    // Classifies one candidate and keeps it if it is closer than the radius.
+    auto keep = [&](std::vector<Contact>& kept, ContactKind kind, int type, std::array<Index, 4> vertices,
+                    double s) -> Contact* {
         if (!(s < r2))
             return nullptr;
         Contact c;
@@ -111,49 +112,59 @@ void ContactPotential::build_contacts(const VectorXd& x, ContactSet& out, double
         c.distance_type = type;
         c.vertices = vertices;
         c.distance_squared = s;
-        out.push_back(c);
-        return &out.back();
+        kept.push_back(c);
+        return &kept.back();
     };
-    for (const auto& [v, e] : candidates.vertex_edge) {
-        const Index e0 = m_mesh.edges(e, 0), e1 = m_mesh.edges(e, 1);
-        const Eigen::Vector3d p = vertex_point(x, v, dim), a = vertex_point(x, e0, dim), b = vertex_point(x, e1, dim);
-        const PointEdgeDistanceType type = point_edge_distance_type(p, a, b);
-        keep(ContactKind::VERTEX_EDGE, int(type), { v, e0, e1, -1 }, point_edge_distance(p, a, b, type));
-    }
-    for (const auto& [v, f] : candidates.vertex_face) {
-        const Index t0 = m_mesh.faces(f, 0), t1 = m_mesh.faces(f, 1), t2 = m_mesh.faces(f, 2);
-        const Eigen::Vector3d p = vertex_point(x, v, dim), a = vertex_point(x, t0, dim), b = vertex_point(x, t1, dim),
-                              c = vertex_point(x, t2, dim);
-        const PointTriangleDistanceType type = point_triangle_distance_type(p, a, b, c);
-        keep(ContactKind::VERTEX_FACE, int(type), { v, t0, t1, t2 }, point_triangle_distance(p, a, b, c, type));
-    }
-    for (const auto& [ea, eb] : candidates.edge_edge) {
-        const Index a0 = m_mesh.edges(ea, 0), a1 = m_mesh.edges(ea, 1);
-        const Index b0 = m_mesh.edges(eb, 0), b1 = m_mesh.edges(eb, 1);
-        const Eigen::Vector3d pa0 = vertex_point(x, a0, dim), pa1 = vertex_point(x, a1, dim),
-                              pb0 = vertex_point(x, b0, dim), pb1 = vertex_point(x, b1, dim);
-        const EdgeEdgeDistanceType type = edge_edge_distance_type(pa0, pa1, pb0, pb1);
-        if (Contact* c
-            = keep(ContactKind::EDGE_EDGE, int(type), { a0, a1, b0, b1 }, edge_edge_distance(pa0, pa1, pb0, pb1, type)))
-            c->mollifier_threshold = edge_edge_mollifier_threshold(
-                rest_point(m_rest, a0), rest_point(m_rest, a1), rest_point(m_rest, b0), rest_point(m_rest, b1));
-    }
-    for (size_t k = 0; k < m_planes.size(); ++k) {
-        const ContactPlane& plane = m_planes[k];
-        const Eigen::Vector3d o = vertex_point(x, plane.vertex, dim);
-        for (Index v : m_plane_vertices) {
-            const double h = (vertex_point(x, v, dim) - o).dot(plane.normal);
+    const auto& ve = candidates.vertex_edge;
+    const auto& vf = candidates.vertex_face;
+    const auto& ee = candidates.edge_edge;
+    const size_t n_ve = ve.size(), n_vf = vf.size(), n_ee = ee.size();
+    const size_t n_plane = m_planes.size() * m_plane_vertices.size();
+    // In candidate order (vertex-edge, vertex-face, edge-edge, planes), whatever the thread count.
+    out = parallel_collect<Contact>(n_ve + n_vf + n_ee + n_plane, 512, [&](size_t k, std::vector<Contact>& kept) {
+        if (k < n_ve) {
+            const auto& [v, e] = ve[k];
+            const Index e0 = m_mesh.edges(e, 0), e1 = m_mesh.edges(e, 1);
+            const Eigen::Vector3d p = vertex_point(x, v, dim), a = vertex_point(x, e0, dim),
+                                  b = vertex_point(x, e1, dim);
+            const PointEdgeDistanceType type = point_edge_distance_type(p, a, b);
+            keep(kept, ContactKind::VERTEX_EDGE, int(type), { v, e0, e1, -1 }, point_edge_distance(p, a, b, type));
+        } else if (k < n_ve + n_vf) {
+            const auto& [v, f] = vf[k - n_ve];
+            const Index t0 = m_mesh.faces(f, 0), t1 = m_mesh.faces(f, 1), t2 = m_mesh.faces(f, 2);
+            const Eigen::Vector3d p = vertex_point(x, v, dim), a = vertex_point(x, t0, dim),
+                                  b = vertex_point(x, t1, dim), c = vertex_point(x, t2, dim);
+            const PointTriangleDistanceType type = point_triangle_distance_type(p, a, b, c);
+            keep(kept, ContactKind::VERTEX_FACE, int(type), { v, t0, t1, t2 },
+                point_triangle_distance(p, a, b, c, type));
+        } else if (k < n_ve + n_vf + n_ee) {
+            const auto& [ea, eb] = ee[k - n_ve - n_vf];
+            const Index a0 = m_mesh.edges(ea, 0), a1 = m_mesh.edges(ea, 1);
+            const Index b0 = m_mesh.edges(eb, 0), b1 = m_mesh.edges(eb, 1);
+            const Eigen::Vector3d pa0 = vertex_point(x, a0, dim), pa1 = vertex_point(x, a1, dim),
+                                  pb0 = vertex_point(x, b0, dim), pb1 = vertex_point(x, b1, dim);
+            const EdgeEdgeDistanceType type = edge_edge_distance_type(pa0, pa1, pb0, pb1);
+            if (Contact* c = keep(kept, ContactKind::EDGE_EDGE, int(type), { a0, a1, b0, b1 },
+                    edge_edge_distance(pa0, pa1, pb0, pb1, type)))
+                c->mollifier_threshold = edge_edge_mollifier_threshold(
+                    rest_point(m_rest, a0), rest_point(m_rest, a1), rest_point(m_rest, b0), rest_point(m_rest, b1));
+        } else {
+            const size_t q = k - n_ve - n_vf - n_ee;
+            const size_t k_plane = q / m_plane_vertices.size();
+            const ContactPlane& plane = m_planes[k_plane];
+            const Index v = m_plane_vertices[q % m_plane_vertices.size()];
+            const double h = (vertex_point(x, v, dim) - vertex_point(x, plane.vertex, dim)).dot(plane.normal);
             if (h < radius) {
                 Contact c;
                 c.kind = ContactKind::VERTEX_PLANE;
                 c.vertices = { v, plane.vertex, -1, -1 };
-                c.plane = int(k);
+                c.plane = int(k_plane);
                 // A vertex on the wrong side is an intersection: no finite barrier.
                 c.distance_squared = h > 0 ? h * h : -1;
-                out.push_back(c);
+                kept.push_back(c);
             }
         }
-    }
+    });
     t.add_to(m_times.barrier);
 }
 
@@ -291,17 +302,11 @@ double ContactPotential::barrier_value(const VectorXd& x) const
 {
     const ContactSet& set = contacts(x);
     Timer t;
-    double sum = 0;
-    for (const Contact& c : set) {
-        const double e = local_barrier(c, x, nullptr, nullptr);
-        if (!std::isfinite(e)) {
-            sum = INF;
-            break;
-        }
-        sum += e;
-    }
+    // Fixed reduction tree: the same sum for any thread count; an intersecting pair makes it infinite.
+    const double sum
+        = parallel_sum(set.size(), 64, [&](size_t k) { return local_barrier(set[k], x, nullptr, nullptr); });
     t.add_to(m_times.barrier);
-    return sum;
+    return std::isfinite(sum) ? sum : INF;
 }
 
 double ContactPotential::value(const VectorXd& x) const
@@ -315,12 +320,19 @@ void ContactPotential::scatter_gradient(const VectorXd& x, double scale, VectorX
     const ContactSet& set = contacts(x);
     Timer t;
     const int dim = m_mesh.dim;
-    Eigen::VectorXd local;
-    for (const Contact& c : set) {
-        local_barrier(c, x, &local, nullptr);
-        for (int k = 0; k < c.num_vertices(); ++k)
-            g.segment(c.vertices[size_t(k)] * dim, dim) += scale * local.segment(k * dim, dim);
-    }
+    // Local gradients in parallel, then gathered per vertex in contact order (the serial sum).
+    std::vector<double>& locals = m_gradient_buffer;
+    locals.assign(set.size() * 4 * size_t(dim), 0.0);
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, set.size(), 32), [&](const tbb::blocked_range<size_t>& r) {
+        Eigen::VectorXd local;
+        for (size_t k = r.begin(); k < r.end(); ++k) {
+            local_barrier(set[k], x, &local, nullptr);
+            std::copy_n(local.data(), local.size(), locals.data() + k * 4 * size_t(dim));
+        }
+    });
+    m_scatter.build(x.size() / dim, set.size(), 4,
+        [&](size_t k, int a) { return a < set[k].num_vertices() ? set[k].vertices[size_t(a)] : Index(-1); });
+    m_scatter.add(locals.data(), dim, scale, g);
     t.add_to(m_times.barrier);
 }
 
@@ -342,18 +354,18 @@ void ContactPotential::add_hessian(const VectorXd& x, double weight, bool projec
     if (set.empty())
         return;
     Timer t;
-    std::vector<Eigen::MatrixXd> locals(set.size());
     const double scale = weight * m_settings.kappa;
+    const size_t first = H.reserve_locals(set.size());
     tbb::parallel_for(tbb::blocked_range<size_t>(0, set.size(), 16), [&](const tbb::blocked_range<size_t>& r) {
+        Eigen::MatrixXd local;
         for (size_t k = r.begin(); k < r.end(); ++k) {
-            local_barrier(set[k], x, nullptr, &locals[k]);
+            local_barrier(set[k], x, nullptr, &local);
             if (project_to_psd)
-                locals[k] = project_psd(locals[k]);
-            locals[k] *= scale;
+                local = project_psd(local);
+            local *= scale;
+            H.set_local(first + k, set[k].vertices.data(), set[k].num_vertices(), local.data());
         }
     });
-    for (size_t k = 0; k < set.size(); ++k)
-        H.add_local(set[k].vertices.data(), set[k].num_vertices(), locals[k].data());
     t.add_to(m_times.barrier);
 }
 
@@ -507,30 +519,40 @@ void ContactPotential::add_shape_derivative(
     const double dmin2 = m_settings.min_distance * m_settings.min_distance;
     const double shat = barrier_activation(m_settings.dhat, m_settings.min_distance);
     const double scale = weight * m_settings.kappa;
-    for (const Contact& c : contacts(x)) {
-        if (c.kind != ContactKind::EDGE_EDGE)
-            continue;
-        const auto& v = c.vertices;
-        const Eigen::Vector3d a0 = vertex_point(x, v[0], dim), a1 = vertex_point(x, v[1], dim),
-                              b0 = vertex_point(x, v[2], dim), b1 = vertex_point(x, v[3], dim);
-        const double eps = c.mollifier_threshold;
-        const double dm = edge_edge_mollifier_gradient_wrt_eps_x(a0, a1, b0, b1, eps);
-        const Eigen::Matrix<double, 12, 1> dgm = edge_edge_mollifier_gradient_jacobian_wrt_eps_x(a0, a1, b0, b1, eps);
-        if (dm == 0 && dgm.isZero())
-            continue;
-        const auto type = EdgeEdgeDistanceType(c.distance_type);
-        const double z = edge_edge_distance(a0, a1, b0, b1, type) - dmin2;
-        const Eigen::Matrix<double, 12, 1> gs = edge_edge_distance_gradient(a0, a1, b0, b1, type);
-        Eigen::Matrix<double, 12, 1> local;
-        for (int k = 0; k < 4; ++k)
-            local.segment<3>(3 * k) = direction.segment(v[size_t(k)] * dim, dim);
-        // d/d eps_x of grad(m b) = dm/deps b'(z) grad s + b(z) d(grad m)/deps
-        const double sens
-            = scale * (dm * barrier_first_derivative(z, shat) * local.dot(gs) + barrier(z, shat) * local.dot(dgm));
-        const Eigen::Matrix<double, 12, 1> deps = mollifier_threshold_gradient(c);
-        for (int k = 0; k < 4; ++k)
-            d_rest_positions.segment(v[size_t(k)] * dim, dim) += sens * deps.segment<3>(3 * k);
-    }
+    const ContactSet& set = contacts(x);
+    // Per contact in parallel, gathered per vertex in contact order.
+    std::vector<double>& locals = m_gradient_buffer;
+    locals.assign(set.size() * 12, 0.0);
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, set.size(), 32), [&](const tbb::blocked_range<size_t>& r) {
+        for (size_t k = r.begin(); k < r.end(); ++k) {
+            const Contact& c = set[k];
+            if (c.kind != ContactKind::EDGE_EDGE)
+                continue;
+            const auto& v = c.vertices;
+            const Eigen::Vector3d a0 = vertex_point(x, v[0], dim), a1 = vertex_point(x, v[1], dim),
+                                  b0 = vertex_point(x, v[2], dim), b1 = vertex_point(x, v[3], dim);
+            const double eps = c.mollifier_threshold;
+            const double dm = edge_edge_mollifier_gradient_wrt_eps_x(a0, a1, b0, b1, eps);
+            const Eigen::Matrix<double, 12, 1> dgm
+                = edge_edge_mollifier_gradient_jacobian_wrt_eps_x(a0, a1, b0, b1, eps);
+            if (dm == 0 && dgm.isZero())
+                continue;
+            const auto type = EdgeEdgeDistanceType(c.distance_type);
+            const double z = edge_edge_distance(a0, a1, b0, b1, type) - dmin2;
+            const Eigen::Matrix<double, 12, 1> gs = edge_edge_distance_gradient(a0, a1, b0, b1, type);
+            Eigen::Matrix<double, 12, 1> local;
+            for (int i = 0; i < 4; ++i)
+                local.segment<3>(3 * i) = direction.segment(v[size_t(i)] * dim, dim);
+            // d/d eps_x of grad(m b) = dm/deps b'(z) grad s + b(z) d(grad m)/deps
+            const double sens
+                = scale * (dm * barrier_first_derivative(z, shat) * local.dot(gs) + barrier(z, shat) * local.dot(dgm));
+            Eigen::Map<Eigen::Matrix<double, 12, 1>>(locals.data() + 12 * k) = sens * mollifier_threshold_gradient(c);
+        }
+    });
+    m_scatter.build(x.size() / dim, set.size(), 4, [&](size_t k, int a) {
+        return set[k].kind == ContactKind::EDGE_EDGE ? set[k].vertices[size_t(a)] : Index(-1);
+    });
+    m_scatter.add(locals.data(), dim, 1.0, d_rest_positions);
 }
 
 } // namespace diffipc

@@ -6,6 +6,7 @@
 /// inflation dmin + dhat, then exact classification), cached for the last state.
 /// max_step() is the largest step that conservative CCD certifies.
 
+#include "forward/common/parallel.hpp"
 #include "forward/contact/collision_mesh.hpp"
 #include "forward/contact/contact_set.hpp"
 #include "forward/potentials/potential.hpp"
@@ -133,6 +134,8 @@ private:
     mutable ContactSet m_cache;
     mutable bool m_cache_valid = false;
     mutable ContactTimes m_times;
+    mutable std::vector<double> m_gradient_buffer; ///< per-contact local gradients (4 vertices x dim each)
+    mutable VertexScatter m_scatter; ///< gathers them per vertex in contact order
     mutable bool m_ccd_unresolved = false, m_ccd_budget_exhausted = false;
 };
 

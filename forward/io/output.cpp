@@ -1,6 +1,7 @@
 #include "forward/io/output.hpp"
 
 #include "forward/common/error.hpp"
+#include "forward/common/threads.hpp"
 
 #include <Eigen/Dense>
 #include <hdf5.h>
@@ -232,6 +233,7 @@ nlohmann::json summary_json(const Simulator& simulator)
     j["max_residual"] = max_residual;
     j["linear_fallbacks"] = fallbacks;
     j["roundoff_limited_steps"] = roundoff;
+    j["threads"] = to_json(thread_config());
     j["wall_time"]
         = { { "total", tr.wall_time }, { "assembly", tr.phases.assembly }, { "factorization", tr.phases.factorization },
               { "solve", tr.phases.solve }, { "line_search", tr.phases.line_search } };

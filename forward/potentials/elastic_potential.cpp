@@ -111,6 +111,9 @@ ElasticPotential::ElasticPotential(
     , m_lambda(std::move(lambda))
     , m_impl(std::make_unique<Impl>())
 {
+    const Mesh& mesh = m_space.mesh();
+    m_scatter.build(mesh.num_vertices(), size_t(mesh.num_elements()), int(mesh.elements.cols()),
+        [&](size_t e, int a) { return Index(mesh.elements(Index(e), a)); });
 }
 
 ElasticPotential::~ElasticPotential() = default;
@@ -175,7 +178,7 @@ namespace {
     template <int dim, typename MaterialOf>
     void gradient_impl(const FESpace& space, const std::vector<MaterialModel>& models, const VectorXd& mu,
         const VectorXd& lambda, const VectorXd& x, double weight, VectorXd& g, std::vector<double>& local,
-        MaterialOf material)
+        const VertexScatter& scatter, MaterialOf material)
     {
         constexpr int L = Kernel<dim>::L;
         const Mesh& mesh = space.mesh();
@@ -190,10 +193,7 @@ namespace {
                     = Kernel<dim>::gradient(G, P, weight * space.rest_volume(e));
             }
         });
-        for (Index e = 0; e < ne; ++e)
-            for (int a = 0; a <= dim; ++a)
-                for (int i = 0; i < dim; ++i)
-                    g[mesh.elements(e, a) * dim + i] += local[size_t(e) * L + size_t(a * dim + i)];
+        scatter.add(local.data(), dim, 1.0, g);
     }
 
     template <int dim, typename MaterialOf>
@@ -224,10 +224,10 @@ namespace {
 void ElasticPotential::add_gradient(const VectorXd& x, double weight, VectorXd& g) const
 {
     if (m_space.dim() == 2)
-        gradient_impl<2>(m_space, m_models, m_mu, m_lambda, x, weight, g, m_gradient_buffer,
+        gradient_impl<2>(m_space, m_models, m_mu, m_lambda, x, weight, g, m_gradient_buffer, m_scatter,
             [this](MaterialModel m) -> const Material<2>& { return m_impl->material<2>(m); });
     else
-        gradient_impl<3>(m_space, m_models, m_mu, m_lambda, x, weight, g, m_gradient_buffer,
+        gradient_impl<3>(m_space, m_models, m_mu, m_lambda, x, weight, g, m_gradient_buffer, m_scatter,
             [this](MaterialModel m) -> const Material<3>& { return m_impl->material<3>(m); });
 }
 
@@ -334,38 +334,46 @@ namespace {
     template <int dim, typename MaterialOf>
     void shape_impl(const FESpace& space, const std::vector<MaterialModel>& models, const VectorXd& mu,
         const VectorXd& lambda, const VectorXd& x, const VectorXd& dir, double weight, VectorXd& out,
-        MaterialOf material)
+        std::vector<double>& local, const VertexScatter& scatter, MaterialOf material)
     {
         using Mat = Eigen::Matrix<double, dim, dim>;
+        constexpr int LOCAL = Kernel<dim>::L;
         const Mesh& mesh = space.mesh();
-        for (Index e = 0; e < space.num_elements(); ++e) {
-            const auto G = shape<dim>(space, e);
-            const auto F = Kernel<dim>::deformation(G, gather<dim>(mesh, e, x));
-            const Mat L = Kernel<dim>::deformation(G, gather<dim>(mesh, e, dir));
-            const Material<dim>& m = material(models[size_t(e)]);
-            const Mat P = m.stress(F, mu[e], lambda[e]);
-            const typename Kernel<dim>::Tensor A = m.stress_derivative(F, mu[e], lambda[e]);
-            Eigen::Matrix<double, dim * dim, 1> l;
-            for (int i = 0; i < dim; ++i)
-                for (int j = 0; j < dim; ++j)
-                    l[i * dim + j] = L(i, j);
-            const Eigen::Matrix<double, dim * dim, 1> al = A * l;
-            Mat AL;
-            for (int i = 0; i < dim; ++i)
-                for (int j = 0; j < dim; ++j)
-                    AL(i, j) = al[i * dim + j];
-            const Mat DinvT = G.bottomRows(dim).transpose();
-            const double PL = (P.array() * L.array()).sum();
-            const Mat Q
-                = weight * space.rest_volume(e) * (PL * DinvT - F.transpose() * AL * DinvT - L.transpose() * P * DinvT);
-            for (int a = 1; a <= dim; ++a) {
-                const Index va = mesh.elements(e, a), v0 = mesh.elements(e, 0);
-                for (int i = 0; i < dim; ++i) {
-                    out[va * dim + i] += Q(i, a - 1);
-                    out[v0 * dim + i] -= Q(i, a - 1);
-                }
+        const Index ne = space.num_elements();
+        local.resize(size_t(ne) * LOCAL);
+        tbb::parallel_for(tbb::blocked_range<Index>(0, ne, GRAIN), [&](const tbb::blocked_range<Index>& r) {
+            for (Index e = r.begin(); e < r.end(); ++e) {
+                const auto G = shape<dim>(space, e);
+                const auto F = Kernel<dim>::deformation(G, gather<dim>(mesh, e, x));
+                const Mat L = Kernel<dim>::deformation(G, gather<dim>(mesh, e, dir));
+                const Material<dim>& m = material(models[size_t(e)]);
+                const Mat P = m.stress(F, mu[e], lambda[e]);
+                const typename Kernel<dim>::Tensor A = m.stress_derivative(F, mu[e], lambda[e]);
+                Eigen::Matrix<double, dim * dim, 1> l;
+                for (int i = 0; i < dim; ++i)
+                    for (int j = 0; j < dim; ++j)
+                        l[i * dim + j] = L(i, j);
+                const Eigen::Matrix<double, dim * dim, 1> al = A * l;
+                Mat AL;
+                for (int i = 0; i < dim; ++i)
+                    for (int j = 0; j < dim; ++j)
+                        AL(i, j) = al[i * dim + j];
+                const Mat DinvT = G.bottomRows(dim).transpose();
+                const double PL = (P.array() * L.array()).sum();
+                const Mat Q = weight * space.rest_volume(e)
+                    * (PL * DinvT - F.transpose() * AL * DinvT - L.transpose() * P * DinvT);
+                // Vertex a >= 1 gets column a - 1 of Q, vertex 0 minus their sum.
+                double* le = local.data() + size_t(e) * LOCAL;
+                for (int i = 0; i < dim; ++i)
+                    le[i] = 0;
+                for (int a = 1; a <= dim; ++a)
+                    for (int i = 0; i < dim; ++i) {
+                        le[a * dim + i] = Q(i, a - 1);
+                        le[i] -= Q(i, a - 1);
+                    }
             }
-        }
+        });
+        scatter.add(local.data(), dim, 1.0, out);
     }
 
     template <int dim, typename MaterialOf>
@@ -373,15 +381,18 @@ namespace {
         const VectorXd& dir, double weight, VectorXd& dmu, VectorXd& dlambda, MaterialOf material)
     {
         const Mesh& mesh = space.mesh();
-        for (Index e = 0; e < space.num_elements(); ++e) {
-            const auto G = shape<dim>(space, e);
-            const auto F = Kernel<dim>::deformation(G, gather<dim>(mesh, e, x));
-            const auto L = Kernel<dim>::deformation(G, gather<dim>(mesh, e, dir));
-            const Material<dim>& m = material(models[size_t(e)]);
-            const double c = weight * space.rest_volume(e);
-            dmu[e] += c * (m.stress(F, 1.0, 0.0).array() * L.array()).sum();
-            dlambda[e] += c * (m.stress(F, 0.0, 1.0).array() * L.array()).sum();
-        }
+        tbb::parallel_for(
+            tbb::blocked_range<Index>(0, space.num_elements(), GRAIN), [&](const tbb::blocked_range<Index>& r) {
+                for (Index e = r.begin(); e < r.end(); ++e) {
+                    const auto G = shape<dim>(space, e);
+                    const auto F = Kernel<dim>::deformation(G, gather<dim>(mesh, e, x));
+                    const auto L = Kernel<dim>::deformation(G, gather<dim>(mesh, e, dir));
+                    const Material<dim>& m = material(models[size_t(e)]);
+                    const double c = weight * space.rest_volume(e);
+                    dmu[e] += c * (m.stress(F, 1.0, 0.0).array() * L.array()).sum();
+                    dlambda[e] += c * (m.stress(F, 0.0, 1.0).array() * L.array()).sum();
+                }
+            });
     }
 
 } // namespace
@@ -390,11 +401,11 @@ void ElasticPotential::add_shape_derivative(
     const VectorXd& x, const VectorXd& direction, double weight, VectorXd& d_rest_positions) const
 {
     if (m_space.dim() == 2)
-        shape_impl<2>(m_space, m_models, m_mu, m_lambda, x, direction, weight, d_rest_positions,
-            [this](MaterialModel m) -> const Material<2>& { return m_impl->material<2>(m); });
+        shape_impl<2>(m_space, m_models, m_mu, m_lambda, x, direction, weight, d_rest_positions, m_gradient_buffer,
+            m_scatter, [this](MaterialModel m) -> const Material<2>& { return m_impl->material<2>(m); });
     else
-        shape_impl<3>(m_space, m_models, m_mu, m_lambda, x, direction, weight, d_rest_positions,
-            [this](MaterialModel m) -> const Material<3>& { return m_impl->material<3>(m); });
+        shape_impl<3>(m_space, m_models, m_mu, m_lambda, x, direction, weight, d_rest_positions, m_gradient_buffer,
+            m_scatter, [this](MaterialModel m) -> const Material<3>& { return m_impl->material<3>(m); });
 }
 
 void ElasticPotential::add_lame_derivative(

@@ -3,6 +3,7 @@
 /// Total elastic energy Psi(x) = sum_e |e| psi_e(F_e(x)) over P1 elements, each
 /// element with its own material model and Lame parameters.
 
+#include "forward/common/parallel.hpp"
 #include "forward/fem/fe_space.hpp"
 #include "forward/materials/material.hpp"
 #include "forward/potentials/potential.hpp"
@@ -53,8 +54,10 @@ private:
     std::vector<MaterialModel> m_models;
     VectorXd m_mu, m_lambda;
     std::unique_ptr<Impl> m_impl;
-    /// Scratch for per-element gradients (scattered serially for a deterministic sum).
+    /// Scratch for per-element gradients (and shape derivatives), gathered per vertex
+    /// by m_scatter in element order: the sum of a serial scatter, for any thread count.
     mutable std::vector<double> m_gradient_buffer;
+    VertexScatter m_scatter;
 };
 
 /// @name Element-level energy, gradient and Hessian of one P1 element.

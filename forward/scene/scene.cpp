@@ -479,7 +479,9 @@ Scene parse_scene(const nlohmann::json& document, const std::string& base_direct
     if (root.has("solver")) {
         const JsonField s = root["solver"];
         s.require_object({ "residual_tolerance", "step_tolerance", "max_iterations", "linear_solver",
-            "line_search_max_halvings", "armijo", "hessian_projection" });
+            "line_search_max_halvings", "armijo", "hessian_projection", "threads" });
+        if (s.has("threads"))
+            scene.solver.threads = s["threads"].integer(1);
         if (s.has("hessian_projection")) {
             const std::string h = s["hessian_projection"].string();
             if (h != "adaptive" && h != "always")

@@ -1,6 +1,7 @@
 #include "forward/simulation/simulator.hpp"
 
 #include "forward/common/error.hpp"
+#include "forward/common/threads.hpp"
 #include "forward/common/timer.hpp"
 
 #include "forward/contact/barrier.hpp"
@@ -46,6 +47,9 @@ Simulator::Simulator(Scene scene, const SimulationParameters& parameters)
     : m_scene(std::move(scene))
     , m_overrides(parameters)
 {
+    ensure_threads_configured();
+    if (m_scene.solver.threads > 0)
+        set_threads(m_scene.solver.threads, ThreadSource::SCENE_FILE, "solver.threads of " + m_scene.source);
     const Mesh& mesh = m_scene.mesh;
     const int d = mesh.dim;
     const Index ne = mesh.num_elements(), n = mesh.num_dofs();

@@ -1,6 +1,10 @@
 #include "forward/solver/linear_solver.hpp"
 
+#include "forward/common/timer.hpp"
 #include "forward/scene/scene.hpp"
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_reduce.h>
 
 #include <Eigen/CholmodSupport>
 
@@ -16,11 +20,26 @@ struct LinearSolver::Impl {
     // The pattern the analyses were done for: contact can change it.
     std::vector<int> outer, inner;
 
-    bool same_pattern(const SparseMatrixd& A) const
+    /// Is A's pattern contained in the analyzed one? Then the analysis (and its factor's
+    /// pattern) still holds: entries absent from A are zeros of the analyzed pattern. A
+    /// contact pattern that shrinks, or comes back to pairs seen before, needs no new analysis.
+    bool within_pattern(const SparseMatrixd& A) const
     {
-        return A.rows() + 1 == Index(outer.size()) && A.nonZeros() == Index(inner.size())
-            && std::equal(outer.begin(), outer.end(), A.outerIndexPtr())
-            && std::equal(inner.begin(), inner.end(), A.innerIndexPtr());
+        if (A.rows() + 1 != Index(outer.size()) || A.nonZeros() > Index(inner.size()))
+            return false;
+        const int* ao = A.outerIndexPtr();
+        const int* ai = A.innerIndexPtr();
+        if (A.nonZeros() == Index(inner.size()))
+            return std::equal(outer.begin(), outer.end(), ao) && std::equal(inner.begin(), inner.end(), ai);
+        return tbb::parallel_reduce(
+            tbb::blocked_range<Index>(0, A.cols(), 1024), true,
+            [&](const tbb::blocked_range<Index>& r, bool ok) {
+                for (Index c = r.begin(); ok && c < r.end(); ++c)
+                    ok = std::includes(inner.begin() + outer[size_t(c)], inner.begin() + outer[size_t(c) + 1],
+                        ai + ao[c], ai + ao[c + 1]);
+                return ok;
+            },
+            [](bool a, bool b) { return a && b; });
     }
 };
 
@@ -39,16 +58,18 @@ bool LinearSolver::cholesky_first() const { return m_type == LinearSolverType::C
 bool LinearSolver::factorize(const SparseMatrixd& A, bool allow_fallback)
 {
     m_used_fallback = false;
-    if (!m_impl->same_pattern(A)) {
+    if (!m_impl->within_pattern(A)) {
         m_impl->outer.assign(A.outerIndexPtr(), A.outerIndexPtr() + A.cols() + 1);
         m_impl->inner.assign(A.innerIndexPtr(), A.innerIndexPtr() + A.nonZeros());
         m_impl->llt_analyzed = m_impl->ldlt_analyzed = false;
     }
     if (m_type == LinearSolverType::CHOLMOD) {
         if (!m_impl->llt_analyzed) {
+            Timer t;
             m_impl->llt.analyzePattern(A);
             m_impl->llt_analyzed = true;
             ++m_analyses;
+            t.add_to(m_analysis_time);
         }
         m_impl->llt.factorize(A);
         if (m_impl->llt.info() == Eigen::Success) {
@@ -60,9 +81,11 @@ bool LinearSolver::factorize(const SparseMatrixd& A, bool allow_fallback)
         m_used_fallback = true;
     }
     if (!m_impl->ldlt_analyzed) {
+        Timer t;
         m_impl->ldlt.analyzePattern(A);
         m_impl->ldlt_analyzed = true;
         ++m_analyses;
+        t.add_to(m_analysis_time);
     }
     m_impl->ldlt.factorize(A);
     m_impl->last_ldlt = true;

@@ -31,6 +31,8 @@ public:
     /// True if the last factorization had to fall back to LDL^T.
     bool used_fallback() const { return m_used_fallback; }
     int analyses() const { return m_analyses; }
+    /// Seconds spent in symbolic analyses so far.
+    double analysis_time() const { return m_analysis_time; }
 
 private:
     struct Impl;
@@ -38,6 +40,7 @@ private:
     LinearSolverType m_type;
     bool m_used_fallback = false;
     int m_analyses = 0;
+    double m_analysis_time = 0;
 };
 
 } // namespace diffipc

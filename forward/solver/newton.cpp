@@ -94,8 +94,12 @@ NewtonResult NewtonSolver::solve(VectorXd& x, const VectorXd& target, const std:
                 t.add_to(result.times.assembly);
             }
             Timer t;
+            const double analysis_before = m_linear.analysis_time();
+            const int analyses_before = m_linear.analyses();
             const bool ok = m_linear.factorize(m_assembler.matrix(), /*allow_fallback=*/project);
             t.add_to(result.times.factorization);
+            result.times.analysis += m_linear.analysis_time() - analysis_before;
+            result.times.analyses += m_linear.analyses() - analyses_before;
             if (!project) {
                 // An indefinite true Hessian costs a second assembly and factorization:
                 // after a failure, skip the attempt for the next two iterations.

@@ -7,7 +7,10 @@
 /// colored so that elements of one color share no vertex: scattering a color
 /// in parallel has no write conflicts and the sum order is deterministic.
 
+#include "forward/common/parallel.hpp"
 #include "forward/common/types.hpp"
+
+#include <cstdint>
 
 #include <vector>
 
@@ -28,23 +31,34 @@ public:
     /// @brief Adds v to the diagonal entry of `dof`.
     void add_diagonal(Index dof, double v);
     /// @brief Adds a local matrix K (n*dim square, column-major, local dofs
-    /// vertex-major) coupling `vertices` whose pairs need not be in the element
-    /// pattern (contact). Not thread-safe; call finalize() after the last one.
+    /// vertex-major; n <= 4) coupling `vertices` whose pairs need not be in the element
+    /// pattern (contact). Not thread-safe: see reserve_locals(); call finalize() after the last one.
     void add_local(const Index* vertices, int n, const double* K);
-    /// @brief Merges the local contributions into matrix(). The extra pattern
-    /// remembers vertex pairs seen before, so that a contact set that comes
-    /// back does not change the pattern (and CHOLMOD's analysis) again.
+    /// @brief Reserves `count` local matrices after those added so far; returns the index
+    /// of the first. Fill each with set_local(), concurrently for distinct indices.
+    size_t reserve_locals(size_t count);
+    /// @brief Sets reserved local matrix `i` (arguments as add_local). Thread-safe for distinct i.
+    void set_local(size_t i, const Index* vertices, int n, const double* K);
+    /// @brief Merges the local matrices into matrix(), in parallel: each column is summed
+    /// by one task in the order the locals were added, so the values do not depend on the
+    /// thread count. The extra pattern remembers vertex pairs seen before, so that a contact
+    /// set that comes back does not change the pattern (and CHOLMOD's analysis) again.
     void finalize();
     /// @brief Replaces the rows and columns of `constrained` dofs by identity rows.
     void apply_constraints(const std::vector<char>& constrained);
 
     const std::vector<std::vector<Index>>& colors() const { return m_colors; }
-    /// The assembled matrix (lower triangle): the element pattern, plus the extra pattern once local matrices were added.
+    /// The assembled matrix (lower triangle): the element pattern, plus the extra pattern once local matrices were
+    /// added.
     SparseMatrixd& matrix() { return m_has_extra ? m_combined : m_matrix; }
     const SparseMatrixd& matrix() const { return m_has_extra ? m_combined : m_matrix; }
     Index size() const { return m_matrix.rows(); }
 
 private:
+    static constexpr int MAX_LOCAL_VERTICES = 4;
+    bool in_element_pattern(Index column_vertex, Index row_vertex) const;
+    void rebuild_combined_pattern();
+
     int m_dim = 0;
     int m_local = 0; // dim * (dim + 1)
     SparseMatrixd m_matrix;
@@ -52,13 +66,17 @@ private:
     std::vector<int> m_diagonal_slots;
     std::vector<std::vector<Index>> m_colors;
 
-    struct Entry {
-        int col, row;
-        double value;
-    };
-    std::vector<Entry> m_local_entries; // this assembly's extra lower-triangle entries
-    std::vector<std::pair<int, int>> m_extra_pattern; // remembered (col, row), sorted
-    SparseMatrixd m_combined;
+    // This assembly's local matrices: up to 4 vertices (-1 padded) and an (n dim)^2 block each.
+    std::vector<Index> m_local_vertices;
+    std::vector<int> m_local_count;
+    std::vector<double> m_local_values; // stride (4 dim)^2
+    VertexScatter m_local_scatter;
+
+    // Remembered vertex pairs outside the element pattern, key (column vertex << 32) | row vertex, sorted.
+    std::vector<uint64_t> m_extra_blocks;
+    SparseMatrixd m_combined; // element pattern + extra blocks
+    std::vector<int> m_element_to_combined; // value index in m_combined of each value of m_matrix
+    bool m_combined_valid = false;
     bool m_has_extra = false;
 };
 

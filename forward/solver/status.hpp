@@ -42,7 +42,9 @@ inline std::string to_string(StepStatus s)
 /// Wall time (s) per solver phase.
 struct PhaseTimes {
     double assembly = 0; ///< gradient and Hessian assembly
-    double factorization = 0; ///< numeric factorization (symbolic analysis included on first use)
+    double factorization = 0; ///< numeric factorization, and the symbolic analysis when the pattern grew
+    double analysis = 0; ///< of which symbolic analyses (fill-reducing ordering; serial)
+    int analyses = 0; ///< symbolic analyses done
     double solve = 0; ///< triangular solves
     double line_search = 0; ///< energy evaluations and the step bound
     // Contact work; already counted inside assembly and line_search above.
@@ -56,6 +58,8 @@ struct PhaseTimes {
         barrier += o.barrier;
         assembly += o.assembly;
         factorization += o.factorization;
+        analysis += o.analysis;
+        analyses += o.analyses;
         solve += o.solve;
         line_search += o.line_search;
         return *this;

@@ -10,7 +10,26 @@ computed raises AdjointError (a RuntimeError). See docs/python.md.
 import json
 import os
 
-from ._diffipc import (  # noqa: F401
+
+def _prepare_openmp():
+    """libgomp (loaded with the extension, through SuiteSparse) reads OMP_WAIT_POLICY once,
+    when it is loaded: ask its idle threads to sleep rather than spin against TBB and
+    OpenBLAS (forward/common/threads.hpp), unless the user chose, or it is loaded already."""
+    if os.environ.get("OMP_WAIT_POLICY") or os.environ.get("GOMP_SPINCOUNT"):
+        return
+    try:
+        with open("/proc/self/maps") as maps:
+            if "libgomp" in maps.read():
+                return
+    except OSError:
+        return
+    os.environ["OMP_WAIT_POLICY"] = "PASSIVE"
+    os.environ["DIFFIPC_SET_OMP_WAIT_POLICY"] = "1"
+
+
+_prepare_openmp()
+
+from ._diffipc import (  # noqa: E402,F401
     AdjointError,
     Evaluation,
     InputError,
@@ -22,8 +41,24 @@ from ._diffipc import (  # noqa: F401
     lame_parameters,
     load_scene,
     _scene_from_json_text,
+    _thread_info,
 )
-from .reduced import ReducedFunctional, finite_difference_check, taylor_test  # noqa: F401
+from ._diffipc import set_threads as _set_threads  # noqa: E402
+from .reduced import ReducedFunctional, finite_difference_check, taylor_test  # noqa: E402,F401
+
+
+def set_threads(count):
+    """Use `count` threads in TBB, OpenBLAS and OpenMP (0: the cores this process may use,
+    CPU affinity and cgroup quota respected). Wins over DIFFIPC_THREADS and the files'
+    `threads` keys; a user's OPENBLAS_NUM_THREADS / OMP_NUM_THREADS still win for their
+    library. Returns thread_info()."""
+    return json.loads(_set_threads(int(count)))
+
+
+def thread_info():
+    """The effective thread configuration: the count and where it came from, the usable
+    cores, and each pool's setting read back from TBB, OpenBLAS and OpenMP."""
+    return json.loads(_thread_info())
 
 
 def scene(source, base_directory=None):

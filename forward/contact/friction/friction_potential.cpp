@@ -1,5 +1,7 @@
 #include "forward/contact/friction/friction_potential.hpp"
 
+#include "forward/common/parallel.hpp"
+
 #include "forward/contact/barrier.hpp"
 #include "forward/contact/contact_potential.hpp"
 #include "forward/contact/distance/distance.hpp"
@@ -189,16 +191,18 @@ void FrictionPotential::set_step(const VectorXd& x_start, double dt)
 
 void FrictionPotential::lag(const ContactPotential& contact, const VectorXd& x_lagged)
 {
-    m_contacts.clear();
     const ContactSettings& s = contact.settings();
     const double shat = barrier_activation(s.dhat, s.min_distance);
     const double dmin2 = s.min_distance * s.min_distance;
-    for (const Contact& c : contact.contacts(x_lagged)) {
+    const ContactSet& set = contact.contacts(x_lagged);
+    // In contact order, whatever the thread count.
+    m_contacts = parallel_collect<FrictionContact>(set.size(), 64, [&](size_t k, std::vector<FrictionContact>& out) {
+        const Contact& c = set[k];
         const int other = c.kind == ContactKind::EDGE_EDGE ? 2 : 1;
         const int ga = m_vertex_group[c.vertices[0]], gb = m_vertex_group[c.vertices[size_t(other)]];
         const double mu = std::sqrt(m_group_coefficient[size_t(ga)] * m_group_coefficient[size_t(gb)]);
         if (!(mu > 0) || !(c.distance_squared > dmin2))
-            continue;
+            return;
         FrictionContact f;
         f.kind = c.kind;
         f.vertices = c.vertices;
@@ -212,7 +216,7 @@ void FrictionPotential::lag(const ContactPotential& contact, const VectorXd& x_l
         for (double g : f.weights)
             finite = finite && std::isfinite(g);
         if (!finite)
-            continue; // a degenerate pair (its barrier is finite; it simply exerts no friction)
+            return; // a degenerate pair (its barrier is finite; it simply exerts no friction)
         f.tangent = tangent_basis(f.normal, m_dim);
         // lambda = kappa m |d b / d d| = kappa m |b'(s)| 2 d, with s = d^2 - dmin^2.
         const double d = std::sqrt(c.distance_squared);
@@ -227,8 +231,8 @@ void FrictionPotential::lag(const ContactPotential& contact, const VectorXd& x_l
         f.groups = { ga, gb };
         f.source = c;
         if (f.normal_force > 0)
-            m_contacts.push_back(f);
-    }
+            out.push_back(f);
+    });
 }
 
 Eigen::Vector2d FrictionPotential::tangential_displacement(const FrictionContact& c, const VectorXd& x) const
@@ -246,53 +250,69 @@ Eigen::Vector2d FrictionPotential::tangential_displacement(const FrictionContact
 
 double FrictionPotential::value(const VectorXd& x) const
 {
-    double sum = 0;
-    for (const FrictionContact& c : m_contacts)
-        sum += c.coefficient * c.normal_force * f0(tangential_displacement(c, x).norm(), m_eps);
-    return sum;
+    return parallel_sum(m_contacts.size(), 64, [&](size_t k) {
+        const FrictionContact& c = m_contacts[k];
+        return c.coefficient * c.normal_force * f0(tangential_displacement(c, x).norm(), m_eps);
+    });
 }
 
 void FrictionPotential::add_gradient(const VectorXd& x, double weight, VectorXd& g) const
 {
-    for (const FrictionContact& c : m_contacts) {
-        const Eigen::Vector2d u = tangential_displacement(c, x);
-        const double y = u.norm();
-        // f1(y)/y stays finite as y -> 0 (2/eps); at y = 0 the gradient is zero anyway.
-        const double ratio = y > 0 ? f1(y, m_eps) / y : 0.0;
-        const Eigen::Vector3d force = weight * c.coefficient * c.normal_force * ratio * (c.tangent * u);
-        for (int i = 0; i < c.num_vertices; ++i)
-            g.segment(c.vertices[size_t(i)] * m_dim, m_dim) += c.weights[size_t(i)] * force.head(m_dim);
-    }
+    // Local forces in parallel, gathered per vertex in contact order (the serial sum).
+    std::vector<double>& locals = m_gradient_buffer;
+    locals.assign(m_contacts.size() * 4 * size_t(m_dim), 0.0);
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, m_contacts.size(), 64), [&](const tbb::blocked_range<size_t>& r) {
+        for (size_t k = r.begin(); k < r.end(); ++k) {
+            const FrictionContact& c = m_contacts[k];
+            const Eigen::Vector2d u = tangential_displacement(c, x);
+            const double y = u.norm();
+            // f1(y)/y stays finite as y -> 0 (2/eps); at y = 0 the gradient is zero anyway.
+            const double ratio = y > 0 ? f1(y, m_eps) / y : 0.0;
+            const Eigen::Vector3d force = weight * c.coefficient * c.normal_force * ratio * (c.tangent * u);
+            for (int i = 0; i < c.num_vertices; ++i)
+                for (int d = 0; d < m_dim; ++d)
+                    locals[(4 * k + size_t(i)) * size_t(m_dim) + size_t(d)] = c.weights[size_t(i)] * force[d];
+        }
+    });
+    m_scatter.build(x.size() / m_dim, m_contacts.size(), 4, [&](size_t k, int a) {
+        return a < m_contacts[k].num_vertices ? m_contacts[k].vertices[size_t(a)] : Index(-1);
+    });
+    m_scatter.add(locals.data(), m_dim, 1.0, g);
 }
 
 void FrictionPotential::add_hessian(const VectorXd& x, double weight, bool project_to_psd, SparseAssembler& H) const
 {
     (void)project_to_psd; // PSD by construction (see the file comment)
-    for (const FrictionContact& c : m_contacts) {
-        const Eigen::Vector2d u = tangential_displacement(c, x);
-        const double y = u.norm();
-        // M = (f1/y) I + (d(f1/y)/dy) u u^T / y: for y < eps, 2/eps - y/eps^2 and -1/(eps^2 y);
-        // for y >= eps, 1/y and -1/y^3. Both PSD; the limit y -> 0 is (2/eps) I.
-        Eigen::Matrix2d M;
-        if (y < m_eps) {
-            M = (2 / m_eps - y / (m_eps * m_eps)) * Eigen::Matrix2d::Identity();
-            if (y > 0)
-                M -= u * u.transpose() / (m_eps * m_eps * y);
-        } else {
-            M = Eigen::Matrix2d::Identity() / y - u * u.transpose() / (y * y * y);
+    const size_t first = H.reserve_locals(m_contacts.size());
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, m_contacts.size(), 64), [&](const tbb::blocked_range<size_t>& r) {
+        Eigen::MatrixXd local;
+        for (size_t k = r.begin(); k < r.end(); ++k) {
+            const FrictionContact& c = m_contacts[k];
+            const Eigen::Vector2d u = tangential_displacement(c, x);
+            const double y = u.norm();
+            // M = (f1/y) I + (d(f1/y)/dy) u u^T / y: for y < eps, 2/eps - y/eps^2 and -1/(eps^2 y);
+            // for y >= eps, 1/y and -1/y^3. Both PSD; the limit y -> 0 is (2/eps) I.
+            Eigen::Matrix2d M;
+            if (y < m_eps) {
+                M = (2 / m_eps - y / (m_eps * m_eps)) * Eigen::Matrix2d::Identity();
+                if (y > 0)
+                    M -= u * u.transpose() / (m_eps * m_eps * y);
+            } else {
+                M = Eigen::Matrix2d::Identity() / y - u * u.transpose() / (y * y * y);
+            }
+            if (m_dim == 2) {
+                M(0, 1) = M(1, 0) = M(1, 1) = 0;
+            }
+            const Eigen::Matrix3d K3 = c.tangent * M * c.tangent.transpose();
+            const Eigen::MatrixXd K = weight * c.coefficient * c.normal_force * K3.topLeftCorner(m_dim, m_dim);
+            const int n = c.num_vertices * m_dim;
+            local.resize(n, n);
+            for (int i = 0; i < c.num_vertices; ++i)
+                for (int j = 0; j < c.num_vertices; ++j)
+                    local.block(i * m_dim, j * m_dim, m_dim, m_dim) = c.weights[size_t(i)] * c.weights[size_t(j)] * K;
+            H.set_local(first + k, c.vertices.data(), c.num_vertices, local.data());
         }
-        if (m_dim == 2) {
-            M(0, 1) = M(1, 0) = M(1, 1) = 0;
-        }
-        const Eigen::Matrix3d K3 = c.tangent * M * c.tangent.transpose();
-        const Eigen::MatrixXd K = weight * c.coefficient * c.normal_force * K3.topLeftCorner(m_dim, m_dim);
-        const int n = c.num_vertices * m_dim;
-        Eigen::MatrixXd local(n, n);
-        for (int i = 0; i < c.num_vertices; ++i)
-            for (int j = 0; j < c.num_vertices; ++j)
-                local.block(i * m_dim, j * m_dim, m_dim, m_dim) = c.weights[size_t(i)] * c.weights[size_t(j)] * K;
-        H.add_local(c.vertices.data(), c.num_vertices, local.data());
-    }
+    });
 }
 
 } // namespace diffipc

@@ -10,6 +10,7 @@
 /// Its Hessian is positive semi-definite (a congruence of PSD 1x1 or 2x2 blocks),
 /// so the search matrix and the true Hessian coincide.
 
+#include "forward/common/parallel.hpp"
 #include "forward/contact/contact_set.hpp"
 #include "forward/potentials/potential.hpp"
 
@@ -84,6 +85,8 @@ private:
     double m_eps = 0;
     VectorXd m_x_start;
     std::vector<FrictionContact> m_contacts;
+    mutable std::vector<double> m_gradient_buffer; ///< per-contact local forces (4 vertices x dim each)
+    mutable VertexScatter m_scatter; ///< gathers them per vertex in contact order
 };
 
 } // namespace diffipc
