@@ -27,20 +27,6 @@ namespace {
         nlohmann::json scene;
     };
 
-    PhaseTimes minus(PhaseTimes a, const PhaseTimes& b)
-    {
-        a.assembly -= b.assembly;
-        a.factorization -= b.factorization;
-        a.analysis -= b.analysis;
-        a.analyses -= b.analyses;
-        a.solve -= b.solve;
-        a.line_search -= b.line_search;
-        a.broad_phase -= b.broad_phase;
-        a.ccd -= b.ccd;
-        a.barrier -= b.barrier;
-        return a;
-    }
-
     int run_contact_bench(const BenchOptions& options)
     {
         const bool full = options.size == "full";
@@ -63,7 +49,7 @@ namespace {
                 r.index, r.newton_iterations, r.active_contacts, r.min_distance, r.kappa, r.wall_time);
         }
         const Trajectory& tr = sim.trajectory();
-        const PhaseTimes p = minus(tr.phases, warm.phases);
+        const PhaseTimes p = tr.phases - warm.phases;
         const int steps = int(tr.steps.size() - warm.steps.size());
         const int iterations = tr.newton_iterations - warm.newton_iterations;
         const double wall = tr.wall_time - warm.wall_time;

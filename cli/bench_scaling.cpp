@@ -75,23 +75,9 @@ namespace {
         std::fflush(stdout);
     }
 
-    PhaseTimes difference(PhaseTimes a, const PhaseTimes& b)
-    {
-        a.assembly -= b.assembly;
-        a.factorization -= b.factorization;
-        a.analysis -= b.analysis;
-        a.analyses -= b.analyses;
-        a.solve -= b.solve;
-        a.line_search -= b.line_search;
-        a.broad_phase -= b.broad_phase;
-        a.ccd -= b.ccd;
-        a.barrier -= b.barrier;
-        return a;
-    }
-
     Sample forward_sample(int threads, const Trajectory& before, const Trajectory& after, bool contact, int units)
     {
-        const PhaseTimes p = difference(after.phases, before.phases);
+        const PhaseTimes p = after.phases - before.phases;
         Sample s;
         s.threads = threads;
         s.newton_iterations = after.newton_iterations - before.newton_iterations;

@@ -64,6 +64,21 @@ struct PhaseTimes {
         line_search += o.line_search;
         return *this;
     }
+    /// The times of a span of a run: later totals minus earlier ones.
+    PhaseTimes operator-(const PhaseTimes& o) const
+    {
+        PhaseTimes d = *this;
+        d.broad_phase -= o.broad_phase;
+        d.ccd -= o.ccd;
+        d.barrier -= o.barrier;
+        d.assembly -= o.assembly;
+        d.factorization -= o.factorization;
+        d.analysis -= o.analysis;
+        d.analyses -= o.analyses;
+        d.solve -= o.solve;
+        d.line_search -= o.line_search;
+        return d;
+    }
 };
 
 } // namespace diffipc
