@@ -323,8 +323,8 @@ ThreadConfig thread_config()
             c.blas_library += e.coretype_by_diffipc
                 ? " (OPENBLAS_CORETYPE=" + e.coretype + " set by diffipc: OpenBLAS took this CPU for an older one)"
                 : " (the user's OPENBLAS_CORETYPE=" + e.coretype + ")";
-        else if (!blas_coretype_override().empty())
-            c.blas_library += " (pre-AVX kernels on an AVX CPU: set OPENBLAS_CORETYPE=" + blas_coretype_override()
+        else if (const std::string better = blas_coretype_override(); !better.empty())
+            c.blas_library += " (pre-AVX kernels on an AVX CPU: set OPENBLAS_CORETYPE=" + better
                 + " before the program starts, as the diffipc CLI does)";
         if (blas_parallel)
             c.blas_library += blas_parallel() == 0 ? " (sequential)"
