@@ -16,7 +16,7 @@ struct BenchOptions {
     double friction = 0; ///< contact suite: friction coefficient of the slabs (0: frictionless)
     /// scaling suite: thread counts (default 1, 2, 4, ... up to the usable cores)
     std::vector<int> thread_counts;
-    /// scaling suite: which of "50k,200k,contact,adjoint" to run (empty: all)
+    /// scaling suite: which of "50k,200k,contact,adjoint,factor" to run (empty: all)
     std::string scenes;
 };
 
@@ -25,5 +25,10 @@ int run_bench(const BenchOptions& options);
 
 /// The scaling suite (cli/bench_scaling.cpp): every scene per thread count, efficiency per phase.
 int run_scaling_bench(const BenchOptions& options);
+
+/// @brief CHOLMOD's and diffipc's numeric factorization of the same Newton matrices (the two
+/// boxes, the contact scene) per thread count (cli/bench_factorization.cpp).
+/// @param repeats factorizations per count; the fastest is printed
+void factorization_comparison(bool full, const std::vector<int>& counts, int repeats);
 
 } // namespace diffipc

@@ -246,6 +246,8 @@ int run_scaling_bench(const BenchOptions& options)
         contact_scaling(full, counts, options.steps, options.friction);
     if (wanted("adjoint"))
         adjoint_scaling(full, counts, options.steps, options.friction);
+    if (wanted("factor"))
+        factorization_comparison(full, counts, std::max(1, options.steps));
     return 0;
 }
 

@@ -145,7 +145,7 @@ int main(int argc, char** argv)
         ->delimiter(',')
         ->check(CLI::Range(1, 4096));
     bench_cmd->add_option(
-        "--scenes", bench_options.scenes, "scaling suite: any of 50k,200k,contact,adjoint (default: all)");
+        "--scenes", bench_options.scenes, "scaling suite: any of 50k,200k,contact,adjoint,factor (default: all)");
     bench_cmd->add_option("--source-dir", bench_options.source_dir, "repository root, where studies/ lives");
     bench_cmd->add_option("--friction", bench_options.friction, "contact suite: friction coefficient (0: none)")
         ->check(CLI::NonNegativeNumber);

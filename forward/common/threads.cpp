@@ -430,4 +430,34 @@ void prepare_process_environment(char** argv)
     }
 }
 
+namespace {
+    struct BlasControl {
+        int (*get)() = symbol<int (*)()>("openblas_get_num_threads");
+        void (*set)(int) = symbol<void (*)(int)>("openblas_set_num_threads");
+    };
+    const BlasControl& blas_control()
+    {
+        static const BlasControl control;
+        return control;
+    }
+} // namespace
+
+BlasThreadsScope::BlasThreadsScope(int count)
+{
+    const BlasControl& blas = blas_control();
+    if (!blas.get || !blas.set)
+        return;
+    m_previous = blas.get();
+    if (m_previous != count)
+        blas.set(count);
+    else
+        m_previous = 0;
+}
+
+BlasThreadsScope::~BlasThreadsScope()
+{
+    if (m_previous > 0)
+        blas_control().set(m_previous);
+}
+
 } // namespace diffipc

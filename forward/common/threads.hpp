@@ -89,4 +89,18 @@ nlohmann::json to_json(const ThreadConfig& config);
 /// OMP_WAIT_POLICY=PASSIVE; returns if it is set already or the re-execution fails.
 void prepare_process_environment(char** argv);
 
+/// @brief Sets OpenBLAS's thread count for a scope and restores it after: code that runs
+/// BLAS calls from its own tasks (the parallel Cholesky) wants each call on its caller's
+/// thread. Does nothing for a BLAS without thread control.
+class BlasThreadsScope {
+public:
+    explicit BlasThreadsScope(int count);
+    ~BlasThreadsScope();
+    BlasThreadsScope(const BlasThreadsScope&) = delete;
+    BlasThreadsScope& operator=(const BlasThreadsScope&) = delete;
+
+private:
+    int m_previous = 0;
+};
+
 } // namespace diffipc

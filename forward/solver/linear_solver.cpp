@@ -2,6 +2,7 @@
 
 #include "forward/common/timer.hpp"
 #include "forward/scene/scene.hpp"
+#include "forward/solver/supernodal_cholesky.hpp"
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_reduce.h>
@@ -14,7 +15,7 @@
 namespace diffipc {
 
 struct LinearSolver::Impl {
-    Eigen::CholmodSupernodalLLT<SparseMatrixd, Eigen::Lower> llt;
+    SupernodalCholesky llt;
     Eigen::CholmodSimplicialLDLT<SparseMatrixd, Eigen::Lower> ldlt;
     bool llt_analyzed = false, ldlt_analyzed = false, last_ldlt = false;
     // The pattern the analyses were done for: contact can change it.
@@ -48,7 +49,6 @@ LinearSolver::LinearSolver(LinearSolverType type)
     , m_type(type)
 {
     // A failed factorization is reported as a status; CHOLMOD need not print it.
-    m_impl->llt.cholmod().print = 0;
     m_impl->ldlt.cholmod().print = 0;
 }
 LinearSolver::~LinearSolver() = default;
@@ -66,13 +66,12 @@ bool LinearSolver::factorize(const SparseMatrixd& A, bool allow_fallback)
     if (m_type == LinearSolverType::CHOLMOD) {
         if (!m_impl->llt_analyzed) {
             Timer t;
-            m_impl->llt.analyzePattern(A);
+            m_impl->llt.analyze(A);
             m_impl->llt_analyzed = true;
             ++m_analyses;
             t.add_to(m_analysis_time);
         }
-        m_impl->llt.factorize(A);
-        if (m_impl->llt.info() == Eigen::Success) {
+        if (m_impl->llt.factorize(A)) {
             m_impl->last_ldlt = false;
             return true;
         }

@@ -1,6 +1,7 @@
 #pragma once
 /// @file linear_solver.hpp
-/// Sparse symmetric solves for Newton: CHOLMOD supernodal Cholesky with the
+/// Sparse symmetric solves for Newton: supernodal Cholesky (CHOLMOD's analysis and
+/// solves, our parallel numeric factorization: supernodal_cholesky.hpp) with the
 /// symbolic analysis done once for the fixed pattern and reused across
 /// iterations and time steps; if the numeric Cholesky fails (matrix not
 /// positive definite) CHOLMOD's LDL^T is tried on the same pattern.

@@ -1,0 +1,506 @@
+#include "forward/solver/supernodal_cholesky.hpp"
+
+#include "forward/common/threads.hpp"
+
+#include <cholmod.h>
+#include <tbb/blocked_range.h>
+#include <tbb/enumerable_thread_specific.h>
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <atomic>
+#include <stdexcept>
+#include <vector>
+
+extern "C" {
+void dgemm_(const char* transa, const char* transb, const int* m, const int* n, const int* k, const double* alpha,
+    const double* a, const int* lda, const double* b, const int* ldb, const double* beta, double* c, const int* ldc);
+void dsyrk_(const char* uplo, const char* trans, const int* n, const int* k, const double* alpha, const double* a,
+    const int* lda, const double* beta, double* c, const int* ldc);
+void dtrsm_(const char* side, const char* uplo, const char* transa, const char* diag, const int* m, const int* n,
+    const double* alpha, const double* a, const int* lda, double* b, const int* ldb);
+void dpotrf_(const char* uplo, const int* n, double* a, const int* lda, int* info);
+}
+
+namespace diffipc {
+
+namespace {
+
+    // Tile sizes of a large supernode. Fixed (not derived from the thread count), so that
+    // the operations, and their rounding, are the same for any number of threads.
+    constexpr int COLUMN_BLOCK = 64;
+    constexpr int ROW_BLOCK = 256;
+    /// A supernode whose work exceeds this many flops splits it into tiles.
+    constexpr double TILED_FLOPS = 2e7;
+
+    const double ONE = 1, ZERO = 0, MINUS_ONE = -1;
+
+    /// C (m x n, leading dimension ldc) = A B^T, A m x k, B n x k (column-major).
+    void gemm_nt(int m, int n, int k, const double* a, int lda, const double* b, int ldb, double* c, int ldc)
+    {
+        dgemm_("N", "T", &m, &n, &k, &ONE, a, &lda, b, &ldb, &ZERO, c, &ldc);
+    }
+
+    /// C -= A B^T in place.
+    void gemm_nt_sub(int m, int n, int k, const double* a, int lda, const double* b, int ldb, double* c, int ldc)
+    {
+        dgemm_("N", "T", &m, &n, &k, &MINUS_ONE, a, &lda, b, &ldb, &ONE, c, &ldc);
+    }
+
+    /// Solves X L^T = B for X in place (B m x n, L n x n lower).
+    void trsm_right_lower_t(int m, int n, const double* l, int ldl, double* b, int ldb)
+    {
+        dtrsm_("R", "L", "T", "N", &m, &n, &ONE, l, &ldl, b, &ldb);
+    }
+
+    struct Workspace {
+        std::vector<int> map; ///< global row -> local row of the supernode being assembled
+        std::vector<double> c; ///< update matrix
+    };
+
+    /// A descendant d whose rows p1..p2 (offsets into its row list) are columns of supernode s.
+    struct Update {
+        int d, p1, p2;
+    };
+
+} // namespace
+
+struct SupernodalCholesky::Impl {
+    cholmod_common common;
+    cholmod_factor* factor = nullptr;
+    Index n = 0;
+    int nsuper = 0;
+    const int* super = nullptr; // first column of each supernode (nsuper + 1)
+    const int* lpi = nullptr; // row-index pointers
+    const int* lpx = nullptr; // value pointers
+    const int* ls = nullptr; // row indices
+    std::vector<int> parent; // supernodal elimination tree
+    std::vector<int> children_count;
+    std::vector<int> leaves;
+    std::vector<int> update_ptr; // updates of supernode s: updates[update_ptr[s] .. update_ptr[s+1])
+    std::vector<Update> updates;
+    std::vector<char> tiled;
+    // Assembly of A: entry k of A's values goes to value assembly_offset[e] of supernode s,
+    // for e in assembly_ptr[s] .. assembly_ptr[s+1], k = assembly_entry[e].
+    std::vector<int> assembly_ptr, assembly_entry, assembly_offset;
+    std::vector<int> assembled_outer, assembled_inner; // the pattern the assembly map is for
+    std::vector<int> pinv;
+    std::vector<int> supermap; // column -> supernode
+    tbb::enumerable_thread_specific<Workspace> workspaces;
+    std::atomic<Index> minor { 0 };
+    Statistics stats;
+
+    Impl()
+    {
+        cholmod_start(&common);
+        common.print = 0;
+        common.supernodal = CHOLMOD_SUPERNODAL;
+    }
+    ~Impl()
+    {
+        if (factor)
+            cholmod_free_factor(&factor, &common);
+        cholmod_finish(&common);
+    }
+
+    int nscol(int s) const { return super[s + 1] - super[s]; }
+    int nsrow(int s) const { return lpi[s + 1] - lpi[s]; }
+    double* values(int s) const { return static_cast<double*>(factor->x) + lpx[s]; }
+    const int* rows(int s) const { return ls + lpi[s]; }
+
+    void build_schedule();
+    void build_assembly(const SparseMatrixd& lower);
+    void factor_supernode(int s, const double* a);
+    void factor_supernode_tiled(int s, const double* a);
+    void fail(Index column)
+    {
+        Index m = minor.load();
+        while (column < m && !minor.compare_exchange_weak(m, column)) { }
+    }
+    bool failed() const { return minor.load(std::memory_order_relaxed) < n; }
+};
+
+SupernodalCholesky::SupernodalCholesky()
+    : m_impl(std::make_unique<Impl>())
+{
+}
+SupernodalCholesky::~SupernodalCholesky() = default;
+
+bool SupernodalCholesky::analyzed() const { return m_impl->factor != nullptr; }
+Index SupernodalCholesky::minor_column() const { return m_impl->minor.load(); }
+const SupernodalCholesky::Statistics& SupernodalCholesky::statistics() const { return m_impl->stats; }
+
+namespace {
+    cholmod_sparse view_lower(const SparseMatrixd& lower)
+    {
+        cholmod_sparse a {};
+        a.nrow = size_t(lower.rows());
+        a.ncol = size_t(lower.cols());
+        a.nzmax = size_t(lower.nonZeros());
+        a.p = const_cast<int*>(lower.outerIndexPtr());
+        a.i = const_cast<int*>(lower.innerIndexPtr());
+        a.x = const_cast<double*>(lower.valuePtr());
+        a.stype = -1;
+        a.itype = CHOLMOD_INT;
+        a.xtype = CHOLMOD_REAL;
+        a.dtype = CHOLMOD_DOUBLE;
+        a.sorted = 1;
+        a.packed = 1;
+        return a;
+    }
+} // namespace
+
+void SupernodalCholesky::analyze(const SparseMatrixd& lower)
+{
+    Impl& m = *m_impl;
+    if (!lower.isCompressed())
+        throw std::invalid_argument("SupernodalCholesky: the matrix must be compressed");
+    if (m.factor)
+        cholmod_free_factor(&m.factor, &m.common);
+    cholmod_sparse a = view_lower(lower);
+    m.factor = cholmod_analyze(&a, &m.common);
+    if (!m.factor || m.common.status < CHOLMOD_OK)
+        throw std::runtime_error("CHOLMOD's symbolic analysis failed (status " + std::to_string(m.common.status) + ")");
+    if (!m.factor->is_super)
+        throw std::logic_error("CHOLMOD's analysis did not give a supernodal factor");
+    m.n = lower.rows();
+    m.minor = m.n;
+    m.nsuper = int(m.factor->nsuper);
+    m.super = static_cast<const int*>(m.factor->super);
+    m.lpi = static_cast<const int*>(m.factor->pi);
+    m.lpx = static_cast<const int*>(m.factor->px);
+    m.ls = static_cast<const int*>(m.factor->s);
+    const int* perm = static_cast<const int*>(m.factor->Perm);
+    m.pinv.assign(size_t(m.n), 0);
+    for (Index k = 0; k < m.n; ++k)
+        m.pinv[size_t(perm[k])] = int(k);
+    m.build_schedule();
+    m.assembled_outer.clear();
+    m.assembled_inner.clear();
+}
+
+void SupernodalCholesky::Impl::build_schedule()
+{
+    supermap.assign(size_t(n), 0);
+    for (int s = 0; s < nsuper; ++s) {
+        for (int j = super[s]; j < super[s + 1]; ++j)
+            supermap[size_t(j)] = s;
+        // The binary searches below need each supernode's rows sorted (CHOLMOD sorts them).
+        const int* r = rows(s);
+        if (!std::is_sorted(r, r + nsrow(s)) || r[0] != super[s])
+            throw std::logic_error("CHOLMOD's supernodal pattern is not sorted");
+    }
+    parent.assign(size_t(nsuper), -1);
+    children_count.assign(size_t(nsuper), 0);
+    update_ptr.assign(size_t(nsuper) + 1, 0);
+    // Pass 1 counts the updates of each supernode, pass 2 stores them (ordered by descendant).
+    for (int pass = 0; pass < 2; ++pass) {
+        std::vector<int> fill;
+        if (pass == 1) {
+            for (int s = 0; s < nsuper; ++s)
+                update_ptr[size_t(s) + 1] += update_ptr[size_t(s)];
+            updates.resize(size_t(update_ptr[size_t(nsuper)]));
+            fill.assign(update_ptr.begin(), update_ptr.end() - 1);
+        }
+        for (int d = 0; d < nsuper; ++d) {
+            const int* r = rows(d);
+            const int ndrow = nsrow(d);
+            for (int p = nscol(d); p < ndrow;) {
+                const int s = supermap[size_t(r[p])];
+                int p2 = p;
+                while (p2 < ndrow && r[p2] < super[s + 1])
+                    ++p2;
+                if (pass == 0)
+                    ++update_ptr[size_t(s) + 1];
+                else
+                    updates[size_t(fill[size_t(s)]++)] = { d, p, p2 };
+                p = p2;
+            }
+        }
+    }
+    leaves.clear();
+    stats = {};
+    stats.supernodes = nsuper;
+    stats.factor_entries = double(factor->xsize);
+    tiled.assign(size_t(nsuper), 0);
+    for (int s = 0; s < nsuper; ++s) {
+        const int k = nscol(s), m = nsrow(s);
+        if (m > k) {
+            parent[size_t(s)] = supermap[size_t(rows(s)[k])];
+            ++children_count[size_t(parent[size_t(s)])];
+        }
+        double flops = double(k) * k * k / 3 + double(m - k) * k * k;
+        for (int u = update_ptr[size_t(s)]; u < update_ptr[size_t(s) + 1]; ++u) {
+            const Update& up = updates[size_t(u)];
+            const double n1 = up.p2 - up.p1, n2 = nsrow(up.d) - up.p1;
+            flops += double(nscol(up.d)) * n1 * (2 * n2 - n1);
+        }
+        stats.flops += flops;
+        tiled[size_t(s)] = flops > TILED_FLOPS;
+        stats.tiled_supernodes += tiled[size_t(s)];
+    }
+    for (int s = 0; s < nsuper; ++s)
+        if (children_count[size_t(s)] == 0)
+            leaves.push_back(s);
+}
+
+void SupernodalCholesky::Impl::build_assembly(const SparseMatrixd& lower)
+{
+    const int* op = lower.outerIndexPtr();
+    const int* ip = lower.innerIndexPtr();
+    const size_t nnz = size_t(lower.nonZeros());
+    std::vector<int> target(nnz), offset(nnz);
+    tbb::parallel_for(tbb::blocked_range<Index>(0, lower.cols(), 256), [&](const tbb::blocked_range<Index>& range) {
+        for (Index c = range.begin(); c < range.end(); ++c)
+            for (int k = op[c]; k < op[c + 1]; ++k) {
+                if (ip[k] < c)
+                    throw std::invalid_argument("SupernodalCholesky: entry above the diagonal");
+                const int i = pinv[size_t(ip[k])], j = pinv[size_t(c)];
+                const int col = std::min(i, j), row = std::max(i, j);
+                const int s = supermap[size_t(col)];
+                const int* r = rows(s);
+                const int* at = std::lower_bound(r, r + nsrow(s), row);
+                if (at == r + nsrow(s) || *at != row)
+                    throw std::invalid_argument("SupernodalCholesky: the matrix is outside the analyzed pattern");
+                target[size_t(k)] = s;
+                offset[size_t(k)] = (col - super[s]) * nsrow(s) + int(at - r);
+            }
+    });
+    assembly_ptr.assign(size_t(nsuper) + 1, 0);
+    for (size_t k = 0; k < nnz; ++k)
+        ++assembly_ptr[size_t(target[k]) + 1];
+    for (int s = 0; s < nsuper; ++s)
+        assembly_ptr[size_t(s) + 1] += assembly_ptr[size_t(s)];
+    assembly_entry.resize(nnz);
+    assembly_offset.resize(nnz);
+    std::vector<int> fill(assembly_ptr.begin(), assembly_ptr.end() - 1);
+    for (size_t k = 0; k < nnz; ++k) {
+        const int e = fill[size_t(target[k])]++;
+        assembly_entry[size_t(e)] = int(k);
+        assembly_offset[size_t(e)] = offset[k];
+    }
+    assembled_outer.assign(op, op + lower.cols() + 1);
+    assembled_inner.assign(ip, ip + nnz);
+}
+
+void SupernodalCholesky::Impl::factor_supernode(int s, const double* a)
+{
+    const int k1 = super[s], ncol = nscol(s), nrow = nsrow(s);
+    double* x = values(s);
+    std::fill(x, x + size_t(ncol) * size_t(nrow), 0.0);
+    for (int e = assembly_ptr[size_t(s)]; e < assembly_ptr[size_t(s) + 1]; ++e)
+        x[assembly_offset[size_t(e)]] = a[assembly_entry[size_t(e)]];
+
+    Workspace& w = workspaces.local();
+    if (w.map.size() < size_t(n))
+        w.map.resize(size_t(n));
+    const int* r = rows(s);
+    for (int i = 0; i < nrow; ++i)
+        w.map[size_t(r[i])] = i;
+    for (int u = update_ptr[size_t(s)]; u < update_ptr[size_t(s) + 1]; ++u) {
+        const Update& up = updates[size_t(u)];
+        const int ndrow = nsrow(up.d), ndcol = nscol(up.d);
+        const int n1 = up.p2 - up.p1, n2 = ndrow - up.p1;
+        const double* ld = values(up.d);
+        const int* rd = rows(up.d);
+        if (w.c.size() < size_t(n1) * size_t(n2))
+            w.c.resize(size_t(n1) * size_t(n2));
+        double* c = w.c.data();
+        dsyrk_("L", "N", &n1, &ndcol, &ONE, ld + up.p1, &ndrow, &ZERO, c, &n2);
+        if (n2 > n1)
+            gemm_nt(n2 - n1, n1, ndcol, ld + up.p2, ndrow, ld + up.p1, ndrow, c + n1, n2);
+        for (int jj = 0; jj < n1; ++jj) {
+            double* column = x + size_t(rd[up.p1 + jj] - k1) * size_t(nrow);
+            const double* cj = c + size_t(jj) * size_t(n2);
+            for (int ii = jj; ii < n2; ++ii)
+                column[w.map[size_t(rd[up.p1 + ii])]] -= cj[ii];
+        }
+    }
+    int info = 0;
+    dpotrf_("L", &ncol, x, &nrow, &info);
+    if (info != 0) {
+        fail(k1 + info - 1);
+        return;
+    }
+    if (nrow > ncol)
+        trsm_right_lower_t(nrow - ncol, ncol, x, nrow, x + ncol, nrow);
+}
+
+void SupernodalCholesky::Impl::factor_supernode_tiled(int s, const double* a)
+{
+    const int k1 = super[s], ncol = nscol(s), nrow = nsrow(s);
+    double* x = values(s);
+    const int* r = rows(s);
+    tbb::parallel_for(tbb::blocked_range<int>(0, ncol, 16), [&](const tbb::blocked_range<int>& range) {
+        std::fill(x + size_t(range.begin()) * size_t(nrow), x + size_t(range.end()) * size_t(nrow), 0.0);
+    });
+    for (int e = assembly_ptr[size_t(s)]; e < assembly_ptr[size_t(s) + 1]; ++e)
+        x[assembly_offset[size_t(e)]] = a[assembly_entry[size_t(e)]];
+    // This supernode's own row map: the thread that runs it may run other supernodes
+    // (with the thread-local workspace) while it waits for its tiles.
+    std::unique_ptr<int[]> map(new int[size_t(n)]);
+    for (int i = 0; i < nrow; ++i)
+        map[size_t(r[i])] = i;
+
+    // Tiles of the lower trapezoid: column block cb, row block rb with rows >= its first column.
+    struct Tile {
+        int c1, c2, r1, r2;
+    };
+    auto tiles_from = [&](int first_column, int column_end) {
+        std::vector<Tile> tiles;
+        for (int c1 = first_column; c1 < column_end; c1 += COLUMN_BLOCK) {
+            const int c2 = std::min(c1 + COLUMN_BLOCK, column_end);
+            for (int r1 = c1; r1 < nrow; r1 += ROW_BLOCK)
+                tiles.push_back({ c1, c2, r1, std::min(r1 + ROW_BLOCK, nrow) });
+        }
+        return tiles;
+    };
+
+    // 1. Updates from the descendants, tile by tile (each tile adds them in descendant order).
+    const std::vector<Tile> update_tiles = tiles_from(0, ncol);
+    tbb::parallel_for(
+        tbb::blocked_range<size_t>(0, update_tiles.size(), 1), [&](const tbb::blocked_range<size_t>& range) {
+            Workspace& w = workspaces.local();
+            for (size_t t = range.begin(); t < range.end(); ++t) {
+                const Tile& tile = update_tiles[t];
+                const int first_row = r[tile.r1], last_row = r[tile.r2 - 1];
+                for (int u = update_ptr[size_t(s)]; u < update_ptr[size_t(s) + 1]; ++u) {
+                    const Update& up = updates[size_t(u)];
+                    const int* rd = rows(up.d);
+                    const int ndrow = nsrow(up.d);
+                    const int q1 = int(std::lower_bound(rd + up.p1, rd + up.p2, k1 + tile.c1) - rd);
+                    const int q2 = int(std::lower_bound(rd + q1, rd + up.p2, k1 + tile.c2) - rd);
+                    if (q1 == q2)
+                        continue;
+                    const int t1 = std::max(q1, int(std::lower_bound(rd + up.p1, rd + ndrow, first_row) - rd));
+                    const int t2 = int(std::upper_bound(rd + t1, rd + ndrow, last_row) - rd);
+                    if (t1 >= t2)
+                        continue;
+                    const int m = t2 - t1, nn = q2 - q1;
+                    if (w.c.size() < size_t(m) * size_t(nn))
+                        w.c.resize(size_t(m) * size_t(nn));
+                    const double* ld = values(up.d);
+                    gemm_nt(m, nn, nscol(up.d), ld + t1, ndrow, ld + q1, ndrow, w.c.data(), m);
+                    for (int jj = 0; jj < nn; ++jj) {
+                        double* column = x + size_t(rd[q1 + jj] - k1) * size_t(nrow);
+                        const double* cj = w.c.data() + size_t(jj) * size_t(m);
+                        for (int ii = std::max(0, q1 + jj - t1); ii < m; ++ii)
+                            column[map[size_t(rd[t1 + ii])]] -= cj[ii];
+                    }
+                }
+            }
+        });
+
+    // 2. Blocked right-looking Cholesky of the panel (nrow x ncol).
+    for (int kb = 0; kb < ncol && !failed(); kb += COLUMN_BLOCK) {
+        const int kw = std::min(COLUMN_BLOCK, ncol - kb);
+        double* akk = x + size_t(kb) * size_t(nrow) + size_t(kb);
+        int info = 0;
+        dpotrf_("L", &kw, akk, &nrow, &info);
+        if (info != 0) {
+            fail(k1 + kb + info - 1);
+            return;
+        }
+        const int below = nrow - kb - kw;
+        if (below <= 0)
+            break;
+        tbb::parallel_for(tbb::blocked_range<int>(0, below, ROW_BLOCK), [&](const tbb::blocked_range<int>& range) {
+            trsm_right_lower_t(range.end() - range.begin(), kw, akk, nrow, akk + kw + range.begin(), nrow);
+        });
+        const std::vector<Tile> trailing = tiles_from(kb + kw, ncol);
+        tbb::parallel_for(
+            tbb::blocked_range<size_t>(0, trailing.size(), 1), [&](const tbb::blocked_range<size_t>& range) {
+                for (size_t t = range.begin(); t < range.end(); ++t) {
+                    const Tile& tile = trailing[t];
+                    const int nn = tile.c2 - tile.c1;
+                    const double* lc = x + size_t(kb) * size_t(nrow) + size_t(tile.c1); // L(c1:c2, kb:kb+kw)
+                    double* target = x + size_t(tile.c1) * size_t(nrow) + size_t(tile.r1);
+                    int r1 = tile.r1;
+                    if (r1 == tile.c1) { // the diagonal square: lower triangle only
+                        dsyrk_("L", "N", &nn, &kw, &MINUS_ONE, lc, &nrow, &ONE, target, &nrow);
+                        r1 += nn;
+                        target += nn;
+                    }
+                    if (tile.r2 > r1)
+                        gemm_nt_sub(tile.r2 - r1, nn, kw, x + size_t(kb) * size_t(nrow) + size_t(r1), nrow, lc, nrow,
+                            target, nrow);
+                }
+            });
+    }
+}
+
+bool SupernodalCholesky::factorize(const SparseMatrixd& lower)
+{
+    Impl& m = *m_impl;
+    if (!m.factor)
+        analyze(lower);
+    if (lower.rows() != m.n || lower.cols() != m.n)
+        throw std::invalid_argument("SupernodalCholesky: the matrix size changed since the analysis");
+    if (m.factor->xtype == CHOLMOD_PATTERN) {
+        m.factor->is_ll = 1;
+        if (!cholmod_change_factor(CHOLMOD_REAL, 1, 1, 1, 1, m.factor, &m.common) || !m.factor->x)
+            throw std::runtime_error(
+                "CHOLMOD could not allocate the factor (status " + std::to_string(m.common.status) + ")");
+        m.lpx = static_cast<const int*>(m.factor->px);
+    }
+    const size_t nnz = size_t(lower.nonZeros());
+    if (m.assembled_outer.size() != size_t(m.n) + 1 || m.assembled_inner.size() != nnz
+        || !std::equal(m.assembled_outer.begin(), m.assembled_outer.end(), lower.outerIndexPtr())
+        || !std::equal(m.assembled_inner.begin(), m.assembled_inner.end(), lower.innerIndexPtr()))
+        m.build_assembly(lower);
+
+    m.minor = m.n;
+    const double* a = lower.valuePtr();
+    std::vector<std::atomic<int>> pending(size_t(m.nsuper));
+    for (int s = 0; s < m.nsuper; ++s)
+        pending[size_t(s)].store(m.children_count[size_t(s)], std::memory_order_relaxed);
+    {
+        // Our tasks are the parallelism: BLAS runs each call on the calling thread.
+        const BlasThreadsScope single_threaded_blas(1);
+        // Each leaf starts a chain: after a supernode, its parent runs next on the same
+        // thread if this was the last of its children.
+        tbb::parallel_for(
+            tbb::blocked_range<size_t>(0, m.leaves.size(), 1), [&](const tbb::blocked_range<size_t>& range) {
+                for (size_t i = range.begin(); i < range.end(); ++i)
+                    for (int s = m.leaves[i]; s >= 0;) {
+                        if (!m.failed()) {
+                            if (m.tiled[size_t(s)])
+                                m.factor_supernode_tiled(s, a);
+                            else
+                                m.factor_supernode(s, a);
+                        }
+                        const int p = m.parent[size_t(s)];
+                        if (p < 0 || pending[size_t(p)].fetch_sub(1, std::memory_order_acq_rel) != 1)
+                            break;
+                        s = p;
+                    }
+            });
+    }
+    m.factor->minor = size_t(m.minor.load());
+    return !m.failed();
+}
+
+VectorXd SupernodalCholesky::solve(const VectorXd& b) const
+{
+    Impl& m = *m_impl;
+    if (!m.factor || m.factor->xtype != CHOLMOD_REAL || m.failed())
+        throw std::logic_error("SupernodalCholesky::solve without a successful factorization");
+    if (b.size() != m.n)
+        throw std::invalid_argument("SupernodalCholesky::solve: right-hand side of the wrong size");
+    cholmod_dense rhs {};
+    rhs.nrow = size_t(m.n);
+    rhs.ncol = 1;
+    rhs.nzmax = size_t(m.n);
+    rhs.d = size_t(m.n);
+    rhs.x = const_cast<double*>(b.data());
+    rhs.xtype = CHOLMOD_REAL;
+    rhs.dtype = CHOLMOD_DOUBLE;
+    cholmod_dense* x = cholmod_solve(CHOLMOD_A, m.factor, &rhs, &m.common);
+    if (!x)
+        throw std::runtime_error("CHOLMOD's solve failed (status " + std::to_string(m.common.status) + ")");
+    VectorXd result = Eigen::Map<const VectorXd>(static_cast<const double*>(x->x), m.n);
+    cholmod_free_dense(&x, &m.common);
+    return result;
+}
+
+} // namespace diffipc
