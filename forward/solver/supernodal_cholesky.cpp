@@ -20,6 +20,10 @@ void dsyrk_(const char* uplo, const char* trans, const int* n, const int* k, con
 void dtrsm_(const char* side, const char* uplo, const char* transa, const char* diag, const int* m, const int* n,
     const double* alpha, const double* a, const int* lda, double* b, const int* ldb);
 void dpotrf_(const char* uplo, const int* n, double* a, const int* lda, int* info);
+void dtrsv_(const char* uplo, const char* trans, const char* diag, const int* n, const double* a, const int* lda,
+    double* x, const int* incx);
+void dgemv_(const char* trans, const int* m, const int* n, const double* alpha, const double* a, const int* lda,
+    const double* x, const int* incx, const double* beta, double* y, const int* incy);
 }
 
 namespace diffipc {
@@ -76,7 +80,9 @@ struct SupernodalCholesky::Impl {
     const int* ls = nullptr; // row indices
     std::vector<int> parent; // supernodal elimination tree
     std::vector<int> children_count;
-    std::vector<int> leaves;
+    std::vector<int> leaves, roots;
+    std::vector<int> children_ptr, children; // children of s: children[children_ptr[s] .. children_ptr[s+1])
+    std::vector<int> below_ptr; // forward solve: L21 x_s of supernode s at below[below_ptr[s] ..]
     std::vector<int> update_ptr; // updates of supernode s: updates[update_ptr[s] .. update_ptr[s+1])
     std::vector<Update> updates;
     std::vector<char> tiled;
@@ -109,6 +115,12 @@ struct SupernodalCholesky::Impl {
     const int* rows(int s) const { return ls + lpi[s]; }
 
     void build_schedule();
+    /// Runs f(s) for every supernode after f ran for all its children (independent subtrees
+    /// concurrently): each leaf starts a chain, and a supernode runs on the thread that
+    /// finished its last child.
+    template <typename F> void bottom_up(const F& f) const;
+    /// Runs f(s) for every supernode after f ran for its parent.
+    template <typename F> void top_down(const F& f) const;
     void build_assembly(const SparseMatrixd& lower);
     void factor_supernode(int s, const double* a);
     void factor_supernode_tiled(int s, const double* a);
@@ -239,9 +251,66 @@ void SupernodalCholesky::Impl::build_schedule()
         tiled[size_t(s)] = flops > TILED_FLOPS;
         stats.tiled_supernodes += tiled[size_t(s)];
     }
-    for (int s = 0; s < nsuper; ++s)
+    roots.clear();
+    children_ptr.assign(size_t(nsuper) + 1, 0);
+    below_ptr.assign(size_t(nsuper) + 1, 0);
+    for (int s = 0; s < nsuper; ++s) {
         if (children_count[size_t(s)] == 0)
             leaves.push_back(s);
+        if (parent[size_t(s)] < 0)
+            roots.push_back(s);
+        children_ptr[size_t(s) + 1] = children_ptr[size_t(s)] + children_count[size_t(s)];
+        below_ptr[size_t(s) + 1] = below_ptr[size_t(s)] + nsrow(s) - nscol(s);
+    }
+    children.resize(size_t(children_ptr[size_t(nsuper)]));
+    std::vector<int> fill(children_ptr.begin(), children_ptr.end() - 1);
+    for (int s = 0; s < nsuper; ++s)
+        if (parent[size_t(s)] >= 0)
+            children[size_t(fill[size_t(parent[size_t(s)])]++)] = s;
+}
+
+template <typename F> void SupernodalCholesky::Impl::bottom_up(const F& f) const
+{
+    std::vector<std::atomic<int>> pending(static_cast<size_t>(nsuper));
+    for (int s = 0; s < nsuper; ++s)
+        pending[size_t(s)].store(children_count[size_t(s)], std::memory_order_relaxed);
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, leaves.size(), 1), [&](const tbb::blocked_range<size_t>& range) {
+        for (size_t i = range.begin(); i < range.end(); ++i)
+            for (int s = leaves[i]; s >= 0;) {
+                f(s);
+                const int p = parent[size_t(s)];
+                if (p < 0 || pending[size_t(p)].fetch_sub(1, std::memory_order_acq_rel) != 1)
+                    break;
+                s = p;
+            }
+    });
+}
+
+template <typename F> void SupernodalCholesky::Impl::top_down(const F& f) const
+{
+    // Recursion depth is the height of the supernodal tree: a chain of one child each is
+    // followed in a loop, so only branching nodes nest.
+    auto visit = [&](auto&& self, int s) -> void {
+        while (true) {
+            f(s);
+            const int first = children_ptr[size_t(s)], count = children_ptr[size_t(s) + 1] - first;
+            if (count == 0)
+                return;
+            if (count == 1) {
+                s = children[size_t(first)];
+                continue;
+            }
+            tbb::parallel_for(tbb::blocked_range<int>(first, first + count, 1), [&](const tbb::blocked_range<int>& r) {
+                for (int c = r.begin(); c < r.end(); ++c)
+                    self(self, children[size_t(c)]);
+            });
+            return;
+        }
+    };
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, roots.size(), 1), [&](const tbb::blocked_range<size_t>& r) {
+        for (size_t i = r.begin(); i < r.end(); ++i)
+            visit(visit, roots[i]);
+    });
 }
 
 void SupernodalCholesky::Impl::build_assembly(const SparseMatrixd& lower)
@@ -451,30 +520,17 @@ bool SupernodalCholesky::factorize(const SparseMatrixd& lower)
 
     m.minor = m.n;
     const double* a = lower.valuePtr();
-    std::vector<std::atomic<int>> pending(size_t(m.nsuper));
-    for (int s = 0; s < m.nsuper; ++s)
-        pending[size_t(s)].store(m.children_count[size_t(s)], std::memory_order_relaxed);
     {
         // Our tasks are the parallelism: BLAS runs each call on the calling thread.
         const BlasThreadsScope single_threaded_blas(1);
-        // Each leaf starts a chain: after a supernode, its parent runs next on the same
-        // thread if this was the last of its children.
-        tbb::parallel_for(
-            tbb::blocked_range<size_t>(0, m.leaves.size(), 1), [&](const tbb::blocked_range<size_t>& range) {
-                for (size_t i = range.begin(); i < range.end(); ++i)
-                    for (int s = m.leaves[i]; s >= 0;) {
-                        if (!m.failed()) {
-                            if (m.tiled[size_t(s)])
-                                m.factor_supernode_tiled(s, a);
-                            else
-                                m.factor_supernode(s, a);
-                        }
-                        const int p = m.parent[size_t(s)];
-                        if (p < 0 || pending[size_t(p)].fetch_sub(1, std::memory_order_acq_rel) != 1)
-                            break;
-                        s = p;
-                    }
-            });
+        m.bottom_up([&](int s) {
+            if (m.failed())
+                return;
+            if (m.tiled[size_t(s)])
+                m.factor_supernode_tiled(s, a);
+            else
+                m.factor_supernode(s, a);
+        });
     }
     m.factor->minor = size_t(m.minor.load());
     return !m.failed();
@@ -482,24 +538,59 @@ bool SupernodalCholesky::factorize(const SparseMatrixd& lower)
 
 VectorXd SupernodalCholesky::solve(const VectorXd& b) const
 {
-    Impl& m = *m_impl;
+    const Impl& m = *m_impl;
     if (!m.factor || m.factor->xtype != CHOLMOD_REAL || m.failed())
         throw std::logic_error("SupernodalCholesky::solve without a successful factorization");
     if (b.size() != m.n)
         throw std::invalid_argument("SupernodalCholesky::solve: right-hand side of the wrong size");
-    cholmod_dense rhs {};
-    rhs.nrow = size_t(m.n);
-    rhs.ncol = 1;
-    rhs.nzmax = size_t(m.n);
-    rhs.d = size_t(m.n);
-    rhs.x = const_cast<double*>(b.data());
-    rhs.xtype = CHOLMOD_REAL;
-    rhs.dtype = CHOLMOD_DOUBLE;
-    cholmod_dense* x = cholmod_solve(CHOLMOD_A, m.factor, &rhs, &m.common);
-    if (!x)
-        throw std::runtime_error("CHOLMOD's solve failed (status " + std::to_string(m.common.status) + ")");
-    VectorXd result = Eigen::Map<const VectorXd>(static_cast<const double*>(x->x), m.n);
-    cholmod_free_dense(&x, &m.common);
+    const int* perm = static_cast<const int*>(m.factor->Perm);
+    VectorXd y(m.n);
+    for (Index k = 0; k < m.n; ++k)
+        y[k] = b[perm[k]];
+    // Forward, L y = P b, bottom-up: supernode s takes its descendants' L21 y_d terms for its
+    // columns (in descendant order), solves with its diagonal block, and leaves L21 y_s for
+    // its ancestors. Backward, L^T x = y, top-down: s subtracts L21^T x of its rows below
+    // (its ancestors' columns, final by then) and solves with the transposed diagonal block.
+    // Each supernode writes only its own columns, in an order fixed by the tree: the result
+    // is the same for any thread count.
+    std::vector<double> below(size_t(m.below_ptr[size_t(m.nsuper)]));
+    const int one = 1;
+    const BlasThreadsScope single_threaded_blas(1);
+    m.bottom_up([&](int s) {
+        const int k1 = m.super[s], ncol = m.nscol(s), nrow = m.nsrow(s);
+        for (int u = m.update_ptr[size_t(s)]; u < m.update_ptr[size_t(s) + 1]; ++u) {
+            const Update& up = m.updates[size_t(u)];
+            const int* rd = m.rows(up.d);
+            const double* bd = below.data() + m.below_ptr[size_t(up.d)] - m.nscol(up.d);
+            for (int i = up.p1; i < up.p2; ++i)
+                y[rd[i]] -= bd[i];
+        }
+        const double* x = m.values(s);
+        dtrsv_("L", "N", "N", &ncol, x, &nrow, y.data() + k1, &one);
+        if (nrow > ncol) {
+            const int rows_below = nrow - ncol;
+            dgemv_("N", &rows_below, &ncol, &ONE, x + ncol, &nrow, y.data() + k1, &one, &ZERO,
+                below.data() + m.below_ptr[size_t(s)], &one);
+        }
+    });
+    tbb::enumerable_thread_specific<std::vector<double>> gathered;
+    m.top_down([&](int s) {
+        const int k1 = m.super[s], ncol = m.nscol(s), nrow = m.nsrow(s);
+        const double* x = m.values(s);
+        if (nrow > ncol) {
+            const int rows_below = nrow - ncol;
+            std::vector<double>& g = gathered.local();
+            g.resize(size_t(rows_below));
+            const int* r = m.rows(s) + ncol;
+            for (int i = 0; i < rows_below; ++i)
+                g[size_t(i)] = y[r[i]];
+            dgemv_("T", &rows_below, &ncol, &MINUS_ONE, x + ncol, &nrow, g.data(), &one, &ONE, y.data() + k1, &one);
+        }
+        dtrsv_("L", "T", "N", &ncol, x, &nrow, y.data() + k1, &one);
+    });
+    VectorXd result(m.n);
+    for (Index k = 0; k < m.n; ++k)
+        result[perm[k]] = y[k];
     return result;
 }
 
