@@ -202,21 +202,18 @@ namespace {
     {
         const Mesh& mesh = space.mesh();
         for (const auto& color : H.colors())
-            tbb::parallel_for(
-                tbb::blocked_range<size_t>(0, color.size(), 64), [&](const tbb::blocked_range<size_t>& r) {
-                    for (size_t k = r.begin(); k < r.end(); ++k) {
-                        const Index e = color[k];
-                        const auto G = shape<dim>(space, e);
-                        const auto F = Kernel<dim>::deformation(G, gather<dim>(mesh, e, x));
-                        typename Kernel<dim>::Tensor A
-                            = material(models[size_t(e)]).stress_derivative(F, mu[e], lambda[e]);
-                        if (project)
-                            A = project_psd<dim * dim>(A);
-                        const typename Kernel<dim>::LocalMat Ke
-                            = Kernel<dim>::hessian(G, A, weight * space.rest_volume(e));
-                        H.add_element(e, Ke.data());
-                    }
-                });
+            tbb::parallel_for(tbb::blocked_range<size_t>(0, color.size(), 8), [&](const tbb::blocked_range<size_t>& r) {
+                for (size_t k = r.begin(); k < r.end(); ++k) {
+                    const Index e = color[k];
+                    const auto G = shape<dim>(space, e);
+                    const auto F = Kernel<dim>::deformation(G, gather<dim>(mesh, e, x));
+                    typename Kernel<dim>::Tensor A = material(models[size_t(e)]).stress_derivative(F, mu[e], lambda[e]);
+                    if (project)
+                        A = project_psd<dim * dim>(A);
+                    const typename Kernel<dim>::LocalMat Ke = Kernel<dim>::hessian(G, A, weight * space.rest_volume(e));
+                    H.add_element(e, Ke.data());
+                }
+            });
     }
 
 } // namespace

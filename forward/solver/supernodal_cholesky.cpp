@@ -34,6 +34,9 @@ namespace {
     // the operations, and their rounding, are the same for any number of threads.
     constexpr int COLUMN_BLOCK = 64;
     constexpr int ROW_BLOCK = 256;
+    /// Rows per task of the panel's triangular solves (the chain of a large supernode's
+    /// blocked Cholesky waits for them at every step).
+    constexpr int TRSM_BLOCK = 64;
     /// A supernode whose work exceeds this many flops splits it into tiles.
     constexpr double TILED_FLOPS = 2e7;
 
@@ -473,9 +476,13 @@ void SupernodalCholesky::Impl::factor_supernode_tiled(int s, const double* a)
         const int below = nrow - kb - kw;
         if (below <= 0)
             break;
-        tbb::parallel_for(tbb::blocked_range<int>(0, below, ROW_BLOCK), [&](const tbb::blocked_range<int>& range) {
-            trsm_right_lower_t(range.end() - range.begin(), kw, akk, nrow, akk + kw + range.begin(), nrow);
-        });
+        // simple_partitioner: the blocks (and so each BLAS call) do not depend on the threads.
+        tbb::parallel_for(
+            tbb::blocked_range<int>(0, below, TRSM_BLOCK),
+            [&](const tbb::blocked_range<int>& range) {
+                trsm_right_lower_t(range.end() - range.begin(), kw, akk, nrow, akk + kw + range.begin(), nrow);
+            },
+            tbb::simple_partitioner());
         const std::vector<Tile> trailing = tiles_from(kb + kw, ncol);
         tbb::parallel_for(
             tbb::blocked_range<size_t>(0, trailing.size(), 1), [&](const tbb::blocked_range<size_t>& range) {
