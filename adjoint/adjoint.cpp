@@ -97,8 +97,16 @@ struct AdjointSweep::Impl {
     int next; ///< the step that step() takes next (0: finish())
     size_t bytes = 0; ///< held by xbar, vbar, abar
 
+    static Simulator& with_records(Simulator& s)
+    {
+        if (s.trajectory().first_index != 1)
+            throw std::logic_error("the adjoint needs the records of every step; this simulator forgot them "
+                                   "(Simulator::forget_records)");
+        return s;
+    }
+
     Impl(Simulator& s, const ParameterRequest& r)
-        : sim(s)
+        : sim(with_records(s))
         , request(r)
         , T(s.steps_done())
         , n(s.mesh().num_dofs())

@@ -1,6 +1,8 @@
 // diffipc command-line interface: simulate, validate, bench.
 // Exit codes: 0 success, 1 bad input (one line naming the field or file),
-// 2 a simulation step failed (outputs of the committed steps are still written).
+// 2 a simulation step failed (outputs of the committed steps are still written),
+// 3 internal error, 4 gradcheck: a direction failed, 130 / 143 simulate stopped by
+// SIGINT / SIGTERM (committed steps written, summary status INTERRUPTED).
 
 #include "adjoint/adjoint.hpp"
 #include "cli/bench.hpp"
@@ -15,14 +17,30 @@
 #include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
 
+#include <csignal>
 #include <cstdio>
 #include <filesystem>
 #include <iostream>
+#include <memory>
 
 namespace fs = std::filesystem;
 using namespace diffipc;
 
 namespace {
+
+/// The first SIGINT or SIGTERM asks the run to stop after the current step; the handler
+/// then restores the default action, so a second one ends the process at once (the
+/// trajectory keeps every step up to its last flush).
+volatile std::sig_atomic_t g_stop_signal = 0;
+
+extern "C" void on_stop_signal(int signal)
+{
+    g_stop_signal = signal;
+    std::signal(signal, SIG_DFL);
+}
+
+/// Exit code of a run stopped by `signal`: 128 + the signal number, as shells report it.
+int interrupted_exit_code(int signal) { return 128 + signal; }
 
 int simulate(const std::string& scene_path, std::string out_dir, int vtu_every, bool quiet)
 {
@@ -43,6 +61,15 @@ int simulate(const std::string& scene_path, std::string out_dir, int vtu_every, 
             long(sim.mesh().num_vertices()), long(sim.mesh().num_elements()), int(sc.bodies.size()),
             to_string(sc.time.integrator).c_str(), sc.time.dt, sc.time.steps);
 
+    const std::string summary_path = (fs::path(out_dir) / "summary.json").string();
+    const std::string pvd_path = (fs::path(out_dir) / "trajectory.pvd").string();
+    std::unique_ptr<TrajectoryWriter> h5;
+    if (sc.output.hdf5)
+        h5 = std::make_unique<TrajectoryWriter>((fs::path(out_dir) / "trajectory.h5").string(), sim.mesh(),
+            sim.trajectory(), sim.contact() != nullptr,
+            std::vector<std::pair<std::string, std::string>> {
+                { "diffipc_version", DIFFIPC_VERSION }, { "scene", sc.source } });
+
     std::vector<std::pair<double, std::string>> vtu_files;
     auto write_frame = [&](int index, double t, const VectorXd& x, const VectorXd& v) {
         const std::string name = "frame_" + std::to_string(index) + ".vtu";
@@ -52,33 +79,82 @@ int simulate(const std::string& scene_path, std::string out_dir, int vtu_every, 
     if (sc.output.vtu_every > 0)
         write_frame(0, 0.0, sim.positions(), sim.velocities());
 
-    Timer since_print;
+    // Outputs are brought up to date at most FLUSH_SECONDS apart: trajectory.h5 flushed,
+    // summary.json (status RUNNING) and the .pvd replaced. A step's record is dropped once
+    // written (its totals stay), so memory does not grow with the number of steps.
+    constexpr double FLUSH_SECONDS = 1.0;
+    double output_seconds = 0; // trajectory.h5, VTU frames, summary.json, .pvd
+    auto bring_up_to_date = [&](const char* status) {
+        const Timer timer;
+        if (h5)
+            h5->flush();
+        if (!vtu_files.empty())
+            write_pvd(pvd_path, vtu_files);
+        nlohmann::json summary = summary_json(sim);
+        if (status)
+            summary["status"] = status;
+        summary["wall_time"]["output"] = output_seconds;
+        write_json(summary_path, summary);
+        timer.add_to(output_seconds);
+    };
+    g_stop_signal = 0;
+    std::signal(SIGINT, on_stop_signal);
+    std::signal(SIGTERM, on_stop_signal);
+    bring_up_to_date("RUNNING");
+
+    Timer since_print, since_flush;
     const int total = sc.time.steps;
-    sim.run([&](const StepRecord& r) {
-        if (sc.output.vtu_every > 0 && r.index % sc.output.vtu_every == 0)
-            write_frame(r.index, r.time, r.positions, r.velocities);
+    while (sim.steps_done() < total && !g_stop_signal) {
+        if (sim.step() != StepStatus::CONVERGED)
+            break;
+        const StepRecord& r = sim.trajectory().steps.back();
+        {
+            const Timer timer;
+            if (h5)
+                h5->append(r);
+            if (sc.output.vtu_every > 0 && r.index % sc.output.vtu_every == 0)
+                write_frame(r.index, r.time, r.positions, r.velocities);
+            timer.add_to(output_seconds);
+        }
         if (!quiet && (total <= 50 || since_print.seconds() > 1.0 || r.index == total)) {
             std::printf("  step %d/%d  t = %.4g s  newton %d  residual %.2e  %.3f s/step  min volume ratio %.3f\n",
                 r.index, total, r.time, r.newton_iterations, r.residual, r.wall_time, r.min_volume_ratio);
             std::fflush(stdout);
             since_print = Timer();
         }
-    });
+        sim.forget_records();
+        if (since_flush.seconds() > FLUSH_SECONDS) {
+            bring_up_to_date("RUNNING");
+            since_flush = Timer();
+        }
+    }
+    const int stop_signal = g_stop_signal;
+    std::signal(SIGINT, SIG_DFL);
+    std::signal(SIGTERM, SIG_DFL);
 
     const Trajectory& tr = sim.trajectory();
-    if (sc.output.hdf5)
-        write_hdf5((fs::path(out_dir) / "trajectory.h5").string(), sim.mesh(), tr, sim.contact() != nullptr);
-    if (!vtu_files.empty())
-        write_pvd((fs::path(out_dir) / "trajectory.pvd").string(), vtu_files);
-    write_json((fs::path(out_dir) / "summary.json").string(), summary_json(sim));
+    const bool interrupted = stop_signal != 0 && tr.final_status == StepStatus::CONVERGED && sim.steps_done() < total;
+    if (h5) {
+        const Timer timer;
+        h5->close();
+        timer.add_to(output_seconds);
+    }
+    bring_up_to_date(interrupted ? "INTERRUPTED" : nullptr);
 
+    if (interrupted) {
+        std::fprintf(stderr, "diffipc: interrupted by %s after %d of %d steps; wrote %s\n",
+            stop_signal == SIGINT ? "SIGINT" : "SIGTERM", sim.steps_done(), total, out_dir.c_str());
+        return interrupted_exit_code(stop_signal);
+    }
     if (tr.final_status != StepStatus::CONVERGED) {
         std::fprintf(stderr, "diffipc: %s\n", tr.failure_message.c_str());
         return 2;
     }
     if (!quiet)
-        std::printf("diffipc: %zu steps converged in %.2f s (%d Newton iterations); wrote %s\n", tr.steps.size(),
-            tr.wall_time, tr.newton_iterations, out_dir.c_str());
+        std::printf("diffipc: %d steps converged in %.2f s (%d Newton iterations); wrote %s (output %.3f s, %.1f%% "
+                    "of the steps' time)\n",
+            tr.committed(), tr.wall_time, tr.newton_iterations, out_dir.c_str(), output_seconds,
+            tr.wall_time > 0 ? 100 * output_seconds / tr.wall_time : 0.0);
     return 0;
 }
 

@@ -4,132 +4,16 @@
 #include "forward/common/threads.hpp"
 
 #include <Eigen/Dense>
-#include <hdf5.h>
 #include <nlohmann/json.hpp>
 
 #include <cmath>
+#include <cstdio>
 #include <fstream>
+#include <functional>
 #include <iomanip>
 #include <limits>
 
 namespace diffipc {
-
-namespace {
-
-    class H5File {
-    public:
-        explicit H5File(const std::string& path)
-            : m_path(path)
-        {
-            m_id = H5Fcreate(path.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT);
-            if (m_id < 0)
-                throw InputError(path, "cannot create HDF5 file");
-        }
-        ~H5File()
-        {
-            if (m_id >= 0)
-                H5Fclose(m_id);
-        }
-        hid_t id() const { return m_id; }
-        const std::string& path() const { return m_path; }
-
-    private:
-        std::string m_path;
-        hid_t m_id = -1;
-    };
-
-    template <typename T> hid_t h5_type();
-    template <> hid_t h5_type<double>() { return H5T_NATIVE_DOUBLE; }
-    template <> hid_t h5_type<int>() { return H5T_NATIVE_INT; }
-
-    template <typename T>
-    void write_dataset(
-        const H5File& file, hid_t group, const std::string& name, const std::vector<hsize_t>& dims, const T* data)
-    {
-        const hid_t space = H5Screate_simple(int(dims.size()), dims.data(), nullptr);
-        const hid_t set = H5Dcreate2(group, name.c_str(), h5_type<T>(), space, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
-        herr_t status = -1;
-        if (set >= 0) {
-            status = H5Dwrite(set, h5_type<T>(), H5S_ALL, H5S_ALL, H5P_DEFAULT, data);
-            H5Dclose(set);
-        }
-        H5Sclose(space);
-        if (status < 0)
-            throw InputError(file.path(), "cannot write dataset '" + name + "'");
-    }
-
-} // namespace
-
-void write_hdf5(const std::string& path, const Mesh& mesh, const Trajectory& trajectory, bool contact)
-{
-    H5File file(path);
-    const hid_t root = file.id();
-    const hsize_t T = trajectory.steps.size(), N = hsize_t(mesh.num_vertices()), d = hsize_t(mesh.dim);
-
-    std::vector<double> time { trajectory.initial_time };
-    std::vector<double> positions(
-        trajectory.initial_positions.data(), trajectory.initial_positions.data() + trajectory.initial_positions.size());
-    std::vector<double> velocities(trajectory.initial_velocities.data(),
-        trajectory.initial_velocities.data() + trajectory.initial_velocities.size());
-    std::vector<int> status, iterations;
-    std::vector<double> residual, step, volume, wall;
-    for (const auto& s : trajectory.steps) {
-        time.push_back(s.time);
-        positions.insert(positions.end(), s.positions.data(), s.positions.data() + s.positions.size());
-        velocities.insert(velocities.end(), s.velocities.data(), s.velocities.data() + s.velocities.size());
-        status.push_back(int(s.status));
-        iterations.push_back(s.newton_iterations);
-        residual.push_back(s.residual);
-        step.push_back(s.newton_step);
-        volume.push_back(s.min_volume_ratio);
-        wall.push_back(s.wall_time);
-    }
-    write_dataset(file, root, "time", { T + 1 }, time.data());
-    write_dataset(file, root, "positions", { T + 1, N, d }, positions.data());
-    write_dataset(file, root, "velocities", { T + 1, N, d }, velocities.data());
-    write_dataset(file, root, "status", { T }, status.data());
-    write_dataset(file, root, "newton_iterations", { T }, iterations.data());
-    write_dataset(file, root, "residual", { T }, residual.data());
-    write_dataset(file, root, "newton_step", { T }, step.data());
-    write_dataset(file, root, "min_volume_ratio", { T }, volume.data());
-    write_dataset(file, root, "wall_time", { T }, wall.data());
-    if (contact) {
-        std::vector<double> min_distance, kappa, ccd, broad;
-        std::vector<int> active;
-        for (const auto& s : trajectory.steps) {
-            min_distance.push_back(s.min_distance);
-            kappa.push_back(s.kappa);
-            active.push_back(s.active_contacts);
-            ccd.push_back(s.phases.ccd);
-            broad.push_back(s.phases.broad_phase);
-        }
-        std::vector<double> friction_residual;
-        for (const auto& s : trajectory.steps)
-            friction_residual.push_back(s.friction_residual);
-        write_dataset(file, root, "friction_residual", { T }, friction_residual.data());
-        write_dataset(file, root, "ccd_time", { T }, ccd.data());
-        write_dataset(file, root, "broad_phase_time", { T }, broad.data());
-        write_dataset(file, root, "min_distance", { T }, min_distance.data());
-        write_dataset(file, root, "active_contacts", { T }, active.data());
-        write_dataset(file, root, "kappa", { T }, kappa.data());
-    }
-    if (!trajectory.steps.empty() && trajectory.steps.front().accelerations.size()) {
-        std::vector<double> acc(trajectory.initial_accelerations.data(),
-            trajectory.initial_accelerations.data() + trajectory.initial_accelerations.size());
-        for (const auto& s : trajectory.steps)
-            acc.insert(acc.end(), s.accelerations.data(), s.accelerations.data() + s.accelerations.size());
-        write_dataset(file, root, "accelerations", { T + 1, N, d }, acc.data());
-    }
-
-    const hid_t group = H5Gcreate2(root, "mesh", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
-    if (group < 0)
-        throw InputError(path, "cannot create group 'mesh'");
-    write_dataset(file, group, "rest_positions", { N, d }, mesh.rest_positions.data());
-    write_dataset(file, group, "elements", { hsize_t(mesh.num_elements()), d + 1 }, mesh.elements.data());
-    write_dataset(file, group, "body", { N }, mesh.vertex_body.data());
-    write_dataset(file, group, "element_body", { hsize_t(mesh.num_elements()) }, mesh.element_body.data());
-    H5Gclose(group);
-}
 
 void write_vtu(const std::string& path, const Simulator& simulator, const VectorXd& x, const VectorXd& v)
 {
@@ -195,15 +79,45 @@ void write_vtu(const std::string& path, const Simulator& simulator, const Vector
         throw InputError(path, "error while writing VTU file");
 }
 
+namespace {
+    /// Writes `path` through a temporary file in the same directory, renamed over it once
+    /// complete: a reader (or a run killed meanwhile) sees the old file or the new one,
+    /// never half of one. A failed write (a full disk) is an InputError naming the file.
+    void write_replacing(const std::string& path, const std::function<void(std::ostream&)>& write)
+    {
+        const std::string temporary = path + ".tmp";
+        {
+            std::ofstream out(temporary, std::ios::trunc);
+            if (!out)
+                throw InputError(path, "cannot write file");
+            write(out);
+            out.flush();
+            if (!out) {
+                out.close();
+                std::remove(temporary.c_str());
+                throw InputError(path, "cannot write file (is the disk full?)");
+            }
+            out.close();
+            if (out.fail()) {
+                std::remove(temporary.c_str());
+                throw InputError(path, "cannot write file (is the disk full?)");
+            }
+        }
+        if (std::rename(temporary.c_str(), path.c_str()) != 0) {
+            std::remove(temporary.c_str());
+            throw InputError(path, "cannot replace file");
+        }
+    }
+} // namespace
+
 void write_pvd(const std::string& path, const std::vector<std::pair<double, std::string>>& entries)
 {
-    std::ofstream out(path);
-    if (!out)
-        throw InputError(path, "cannot write PVD file");
-    out << "<?xml version=\"1.0\"?>\n<VTKFile type=\"Collection\" version=\"0.1\">\n<Collection>\n";
-    for (const auto& [t, file] : entries)
-        out << "<DataSet timestep=\"" << std::setprecision(12) << t << "\" file=\"" << file << "\"/>\n";
-    out << "</Collection>\n</VTKFile>\n";
+    write_replacing(path, [&](std::ostream& out) {
+        out << "<?xml version=\"1.0\"?>\n<VTKFile type=\"Collection\" version=\"0.1\">\n<Collection>\n";
+        for (const auto& [t, file] : entries)
+            out << "<DataSet timestep=\"" << std::setprecision(12) << t << "\" file=\"" << file << "\"/>\n";
+        out << "</Collection>\n</VTKFile>\n";
+    });
 }
 
 nlohmann::json summary_json(const Simulator& simulator)
@@ -213,7 +127,7 @@ nlohmann::json summary_json(const Simulator& simulator)
     j["status"] = to_string(tr.final_status);
     j["scene"] = simulator.scene().source;
     j["steps_requested"] = simulator.scene().time.steps;
-    j["steps_committed"] = tr.steps.size();
+    j["steps_committed"] = tr.committed();
     if (tr.failed_step > 0) {
         j["failed_step"] = tr.failed_step;
         j["failure"] = tr.failure_message;
@@ -221,29 +135,18 @@ nlohmann::json summary_json(const Simulator& simulator)
     j["counts"] = { { "vertices", simulator.mesh().num_vertices() }, { "elements", simulator.mesh().num_elements() },
         { "dofs", simulator.mesh().num_dofs() }, { "bodies", simulator.scene().bodies.size() },
         { "newton_iterations", tr.newton_iterations } };
-    double min_ratio = 1, max_residual = 0;
-    int fallbacks = 0, roundoff = 0;
-    for (const auto& s : tr.steps) {
-        roundoff += s.roundoff_limited;
-        min_ratio = std::min(min_ratio, s.min_volume_ratio);
-        max_residual = std::max(max_residual, s.residual);
-        fallbacks += s.linear_fallbacks;
-    }
-    j["min_volume_ratio"] = min_ratio;
-    j["max_residual"] = max_residual;
-    j["linear_fallbacks"] = fallbacks;
-    j["roundoff_limited_steps"] = roundoff;
+    const StepTotals& totals = tr.totals;
+    j["min_volume_ratio"] = totals.min_volume_ratio;
+    j["max_residual"] = totals.max_residual;
+    j["linear_fallbacks"] = totals.linear_fallbacks;
+    j["roundoff_limited_steps"] = totals.roundoff_limited_steps;
     j["threads"] = to_json(thread_config());
     j["wall_time"]
         = { { "total", tr.wall_time }, { "assembly", tr.phases.assembly }, { "factorization", tr.phases.factorization },
               { "solve", tr.phases.solve }, { "line_search", tr.phases.line_search } };
     if (simulator.contact()) {
-        double min_distance = std::numeric_limits<double>::infinity();
-        int max_active = 0;
-        for (const auto& s : tr.steps) {
-            min_distance = std::min(min_distance, s.min_distance);
-            max_active = std::max(max_active, s.active_contacts);
-        }
+        const double min_distance = totals.min_distance;
+        const int max_active = totals.max_active_contacts;
         j["contact"] = { { "min_distance",
                              std::isfinite(min_distance) ? nlohmann::json(min_distance) : nlohmann::json(nullptr) },
             { "max_active_contacts", max_active }, { "final_kappa", simulator.contact()->kappa() } };
@@ -256,10 +159,7 @@ nlohmann::json summary_json(const Simulator& simulator)
 
 void write_json(const std::string& path, const nlohmann::json& value)
 {
-    std::ofstream out(path);
-    if (!out)
-        throw InputError(path, "cannot write file");
-    out << value.dump(2) << '\n';
+    write_replacing(path, [&](std::ostream& out) { out << value.dump(2) << '\n'; });
 }
 
 } // namespace diffipc

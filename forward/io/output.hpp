@@ -3,6 +3,7 @@
 /// Writers for a simulated trajectory: HDF5 (docs/output_format.md), VTU
 /// files with a .pvd index for ParaView, and summary.json.
 
+#include "forward/io/trajectory_writer.hpp"
 #include "forward/simulation/simulator.hpp"
 
 #include <nlohmann/json_fwd.hpp>
@@ -10,15 +11,6 @@
 #include <string>
 
 namespace diffipc {
-
-/// @brief Writes trajectory.h5 layout: datasets time [T+1], positions [T+1,N,d],
-/// velocities [T+1,N,d], status [T], newton_iterations [T], residual [T],
-/// newton_step [T], min_volume_ratio [T], wall_time [T]; group mesh with
-/// rest_positions [N,d], elements [E,d+1], body [N], element_body [E]. With
-/// `contact`: min_distance [T] (m, +inf if no pair is within 1e-2 of the bbox
-/// diagonal), active_contacts [T], kappa [T].
-/// @throws InputError naming the file if it cannot be written.
-void write_hdf5(const std::string& path, const Mesh& mesh, const Trajectory& trajectory, bool contact = false);
 
 /// @brief One VTU (XML, ASCII) file of the mesh at positions x with point data
 /// displacement and velocity and cell data body, volume_ratio and von_mises.

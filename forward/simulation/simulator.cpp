@@ -619,7 +619,10 @@ StepStatus Simulator::step()
     record.wall_time = wall.seconds();
     if (recompute) {
         // Only the state is refilled: the record keeps the first run's diagnostics.
-        StepRecord& kept = m_trajectory.steps[size_t(index - 1)];
+        if (!m_trajectory.has_record(index))
+            throw std::logic_error(
+                "Simulator::step: recomputing step " + std::to_string(index) + ", whose record was forgotten");
+        StepRecord& kept = m_trajectory.step(index);
         kept.positions = std::move(record.positions);
         kept.velocities = std::move(record.velocities);
         kept.accelerations = std::move(record.accelerations);
@@ -629,16 +632,34 @@ StepStatus Simulator::step()
     }
     m_trajectory.wall_time += record.wall_time;
     m_last_attempt = record;
-    if (result.status == StepStatus::CONVERGED)
+    if (result.status == StepStatus::CONVERGED) {
+        m_trajectory.totals.add(record);
         m_trajectory.steps.push_back(std::move(record));
+    }
     return result.status;
+}
+
+StepRecord& Simulator::record_of(int k, const char* caller)
+{
+    if (!m_trajectory.has_record(k))
+        throw std::logic_error(std::string("Simulator::") + caller + ": the record of step " + std::to_string(k)
+            + " was forgotten (forget_records)");
+    return m_trajectory.step(k);
+}
+
+void Simulator::forget_records()
+{
+    if (current_step() != steps_done())
+        throw std::logic_error("Simulator::forget_records while steps are being recomputed");
+    m_trajectory.first_index += int(m_trajectory.steps.size());
+    m_trajectory.steps.clear();
 }
 
 void Simulator::release_state(int k)
 {
     if (k < 1 || k > steps_done())
         throw std::out_of_range("Simulator::release_state: step " + std::to_string(k) + " was not committed");
-    m_trajectory.steps[size_t(k - 1)].release_state();
+    record_of(k, "release_state").release_state();
 }
 
 void Simulator::restore_state(int k)
@@ -646,7 +667,7 @@ void Simulator::restore_state(int k)
     if (k < 0 || k > steps_done())
         throw std::out_of_range("Simulator::restore_state: step " + std::to_string(k) + " was not committed");
     const auto held = [this](int j) {
-        if (j >= 1 && !m_trajectory.steps[size_t(j - 1)].holds_state())
+        if (j >= 1 && !record_of(j, "restore_state").holds_state())
             throw std::logic_error("Simulator::restore_state: the record of step " + std::to_string(j)
                 + " does not hold its state (it was released)");
         return j;
@@ -656,15 +677,15 @@ void Simulator::restore_state(int k)
         m_integrator->restore(0, tr.initial_positions, tr.initial_velocities, tr.initial_accelerations,
             tr.initial_positions, tr.initial_velocities);
     } else {
-        const StepRecord& r = tr.steps[size_t(held(k) - 1)];
+        const StepRecord& r = tr.step(held(k));
         const int j = m_integrator->history() == 2 ? held(k - 1) : k;
-        const VectorXd& x_prev = j == 0 ? tr.initial_positions : tr.steps[size_t(j - 1)].positions;
-        const VectorXd& v_prev = j == 0 ? tr.initial_velocities : tr.steps[size_t(j - 1)].velocities;
+        const VectorXd& x_prev = j == 0 ? tr.initial_positions : tr.step(j).positions;
+        const VectorXd& v_prev = j == 0 ? tr.initial_velocities : tr.step(j).velocities;
         m_integrator->restore(k, r.positions, r.velocities, r.accelerations, x_prev, v_prev);
     }
     // step_problem() and adaptive steps change kappa; step k + 1 started from the value step k ended with.
     if (m_contact)
-        m_contact->set_kappa(k == 0 ? m_kappa_initial : tr.steps[size_t(k - 1)].kappa);
+        m_contact->set_kappa(k == 0 ? m_kappa_initial : tr.step(k).kappa);
 }
 
 void Simulator::recompute_steps(int last)
@@ -741,7 +762,7 @@ const Problem& Simulator::step_problem(int k)
         throw std::out_of_range("Simulator::step_problem: step " + std::to_string(k) + " was not committed");
     const StepScheme s = m_integrator->scheme(k);
     for (int j = std::max(1, k - m_integrator->history()); j <= k; ++j)
-        if (!m_trajectory.steps[size_t(j - 1)].holds_state())
+        if (!record_of(j, "step_problem").holds_state())
             throw std::logic_error("Simulator::step_problem: step " + std::to_string(k) + " reads the record of step "
                 + std::to_string(j) + ", which does not hold its state (it was released)");
     const auto state = [this](int j, int which) -> const VectorXd& {
@@ -749,7 +770,7 @@ const Problem& Simulator::step_problem(int k)
             return which == 0 ? m_trajectory.initial_positions
                 : which == 1  ? m_trajectory.initial_velocities
                               : m_trajectory.initial_accelerations;
-        const StepRecord& r = m_trajectory.steps[size_t(j - 1)];
+        const StepRecord& r = m_trajectory.step(j);
         return which == 0 ? r.positions : which == 1 ? r.velocities : r.accelerations;
     };
     VectorXd target = VectorXd::Zero(m_scene.mesh.num_dofs());
@@ -765,7 +786,7 @@ const Problem& Simulator::step_problem(int k)
     m_problem.set_weight(m_elastic.get(), s.weight);
     m_problem.set_weight(m_external.get(), s.weight);
     m_external->set_force(external_forces(k * m_scene.time.dt));
-    const StepRecord& record = m_trajectory.steps[size_t(k - 1)];
+    const StepRecord& record = m_trajectory.step(k);
     if (m_contact) {
         m_problem.set_weight(m_contact.get(), s.weight);
         m_contact->set_kappa(record.kappa);

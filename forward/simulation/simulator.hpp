@@ -54,7 +54,7 @@ public:
 
     const Trajectory& trajectory() const { return m_trajectory; }
     const StepRecord& last_attempt() const { return m_last_attempt; }
-    int steps_done() const { return int(m_trajectory.steps.size()); }
+    int steps_done() const { return m_trajectory.committed(); }
     double time() const;
 
     /// Current committed positions, velocities (flattened #V*dim).
@@ -112,6 +112,11 @@ public:
     int current_step() const { return m_integrator->steps(); }
     /// @brief Frees the state of committed step k's record (StepRecord::release_state()).
     void release_state(int k);
+    /// @brief Drops the records of every committed step (a streamed run that wrote them):
+    /// memory then does not grow with the number of steps. The trajectory keeps its
+    /// totals (Trajectory::totals) and count; the adjoint, step_problem() and
+    /// restore_state() need the records and refuse a simulator that forgot them.
+    void forget_records();
     /// @brief Puts the integrator (and the barrier stiffness) back at committed step k
     /// (0: the initial state); the next step() recomputes step k + 1.
     /// @throws std::logic_error if a record that this needs does not hold its state.
@@ -123,6 +128,9 @@ public:
     /// @}
 
 private:
+    /// Committed step k's record; std::logic_error naming `caller` if it was forgotten.
+    StepRecord& record_of(int k, const char* caller);
+
     void dirichlet_targets(double t, VectorXd& x) const;
     /// Prescribed positions at step k (1-based): the override's g_k if given, else the expressions at t_k.
     void prescribed_targets(int k, VectorXd& x) const;

@@ -9,6 +9,7 @@
 #include "forward/contact/friction/friction_potential.hpp"
 #include "forward/solver/status.hpp"
 
+#include <algorithm>
 #include <limits>
 #include <string>
 #include <vector>
@@ -74,11 +75,40 @@ struct StepRecord {
     /// @}
 };
 
+/// Aggregates over every committed step, kept also when records are forgotten.
+struct StepTotals {
+    double min_volume_ratio = 1;
+    double max_residual = 0;
+    int linear_fallbacks = 0;
+    int roundoff_limited_steps = 0;
+    double min_distance = std::numeric_limits<double>::infinity();
+    int max_active_contacts = 0;
+    void add(const StepRecord& r)
+    {
+        min_volume_ratio = std::min(min_volume_ratio, r.min_volume_ratio);
+        max_residual = std::max(max_residual, r.residual);
+        linear_fallbacks += r.linear_fallbacks;
+        roundoff_limited_steps += r.roundoff_limited;
+        min_distance = std::min(min_distance, r.min_distance);
+        max_active_contacts = std::max(max_active_contacts, r.active_contacts);
+    }
+};
+
 /// A run: the initial state and every committed step, in order.
 struct Trajectory {
     double initial_time = 0;
     VectorXd initial_positions, initial_velocities, initial_accelerations;
+    /// The records of steps first_index, first_index + 1, ...: all of them (first_index 1)
+    /// unless Simulator::forget_records() dropped the earlier ones (a streamed run).
     std::vector<StepRecord> steps;
+    int first_index = 1;
+    /// Committed steps, forgotten records included.
+    int committed() const { return first_index - 1 + int(steps.size()); }
+    /// Whether step k's record is kept (1 <= k <= committed()).
+    bool has_record(int k) const { return k >= first_index && k <= committed(); }
+    const StepRecord& step(int k) const { return steps[size_t(k - first_index)]; }
+    StepRecord& step(int k) { return steps[size_t(k - first_index)]; }
+    StepTotals totals;
     /// CONVERGED if every attempted step converged; otherwise the status of the failed step.
     StepStatus final_status = StepStatus::CONVERGED;
     int failed_step = 0; ///< index of the step that failed (0: none)

@@ -1,0 +1,101 @@
+"""Interrupted runs keep their committed steps (docs/output_format.md, "Interrupted runs").
+
+A long simulation is started, followed live through trajectory.h5 (h5py in SWMR mode,
+as a user watching a run would), then stopped by SIGINT, SIGTERM or SIGKILL. What was
+committed and flushed must be readable afterwards, consistent between trajectory.h5 and
+summary.json, finite, and in order.
+"""
+import json
+import signal
+import subprocess
+import time
+
+import numpy as np
+import pytest
+
+h5py = pytest.importorskip("h5py")
+
+
+def long_scene(tmp_path):
+    scene = {
+        "dimension": 2,
+        "bodies": [{"name": "b", "mesh": {"box": {"min": [0, 0], "max": [0.5, 0.2], "cells": [20, 8]}},
+                    "material": {"model": "neo_hookean", "E": 1e5, "nu": 0.3, "density": 1000.0}}],
+        "gravity": [0, -9.81],
+        "time": {"integrator": "implicit_euler", "dt": 1e-3, "steps": 1000000},
+        "solver": {"residual_tolerance": 1e-10},
+    }
+    path = tmp_path / "scene.json"
+    path.write_text(json.dumps(scene))
+    return path
+
+
+def start_and_watch(cli, tmp_path, min_steps):
+    """Starts the run and waits until trajectory.h5 shows at least `min_steps` flushed steps."""
+    out = tmp_path / "out"
+    proc = subprocess.Popen([cli, "simulate", str(long_scene(tmp_path)), "-o", str(out), "-q"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    deadline = time.time() + 60
+    seen = 0
+    while time.time() < deadline and proc.poll() is None:
+        try:
+            with h5py.File(out / "trajectory.h5", "r", swmr=True) as f:
+                seen = f["status"].shape[0]
+                # A live file is consistent: the state datasets have one more row than the step ones.
+                assert f["time"].shape[0] == seen + 1 or f["time"].shape[0] == seen
+        except (OSError, KeyError):
+            seen = 0
+        if seen >= min_steps:
+            return proc, out, seen
+        time.sleep(0.1)
+    proc.kill()
+    pytest.fail(f"the run did not show {min_steps} steps in time (saw {seen}, exit {proc.poll()})")
+
+
+def check_trajectory(path, at_least, swmr=False):
+    with h5py.File(path, "r", swmr=swmr) as f:
+        T = f["status"].shape[0]
+        assert T >= at_least
+        N = f["mesh/rest_positions"].shape[0]
+        assert f["time"].shape == (T + 1,)
+        assert f["positions"].shape == (T + 1, N, 2)
+        assert f["velocities"].shape == (T + 1, N, 2)
+        for name in ("newton_iterations", "residual", "min_volume_ratio", "wall_time"):
+            assert f[name].shape == (T,)
+        assert (f["status"][:] == 0).all()
+        t = f["time"][:]
+        np.testing.assert_allclose(np.diff(t), 1e-3, rtol=1e-9)
+        x = f["positions"][:]
+        assert np.isfinite(x).all() and np.isfinite(f["velocities"][:]).all()
+        np.testing.assert_array_equal(x[0], f["mesh/rest_positions"][:])
+        # The body falls under gravity: every committed state is a real step, not a copy.
+        assert (np.diff(x[:, :, 1].mean(axis=1)) < 0).all()
+        assert f.attrs["diffipc_version"]
+        return T
+
+
+@pytest.mark.parametrize("sig,code", [(signal.SIGINT, 130), (signal.SIGTERM, 143)])
+def test_signal_stops_after_the_step_and_writes_everything(cli, tmp_path, sig, code):
+    proc, out, seen = start_and_watch(cli, tmp_path, 20)
+    proc.send_signal(sig)
+    _, stderr = proc.communicate(timeout=60)
+    assert proc.returncode == code, stderr
+    assert "interrupted by" in stderr
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["status"] == "INTERRUPTED"
+    T = check_trajectory(out / "trajectory.h5", seen)
+    assert summary["steps_committed"] == T
+    assert not (out / "summary.json.tmp").exists()
+
+
+def test_sigkill_keeps_every_flushed_step(cli, tmp_path):
+    proc, out, seen = start_and_watch(cli, tmp_path, 20)
+    proc.kill()
+    proc.communicate(timeout=60)
+    assert proc.returncode == -signal.SIGKILL
+    # Everything that a reader saw before the kill is still there. The writer could not
+    # close the file, so HDF5 still marks it open for writing: it opens in SWMR mode.
+    check_trajectory(out / "trajectory.h5", seen, swmr=True)
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["status"] == "RUNNING"
+    assert 0 < summary["steps_committed"] <= 1000000
