@@ -42,8 +42,22 @@ extern "C" void on_stop_signal(int signal)
 /// Exit code of a run stopped by `signal`: 128 + the signal number, as shells report it.
 int interrupted_exit_code(int signal) { return 128 + signal; }
 
-int simulate(const std::string& scene_path, std::string out_dir, int vtu_every, bool quiet)
+int simulate(std::string scene_path, std::string out_dir, int vtu_every, bool quiet, const std::string& restart)
 {
+    // --restart DIR: the run in DIR goes on from its last committed step in trajectory.h5.
+    std::unique_ptr<StoredTrajectory> stored;
+    if (!restart.empty()) {
+        if (!out_dir.empty() && fs::path(out_dir) != fs::path(restart))
+            throw InputError("--restart", "continues the run in its own directory; leave -o out");
+        out_dir = restart;
+        stored = std::make_unique<StoredTrajectory>(read_trajectory((fs::path(restart) / "trajectory.h5").string()));
+        if (scene_path.empty())
+            scene_path = stored->scene;
+        if (scene_path.empty())
+            throw InputError("--restart", "the trajectory does not name its scene: give the scene file");
+    }
+    if (scene_path.empty())
+        throw InputError("scene", "a scene file is required");
     Scene scene = load_scene(scene_path);
     if (out_dir.empty())
         out_dir = scene.output.directory;
@@ -56,6 +70,14 @@ int simulate(const std::string& scene_path, std::string out_dir, int vtu_every, 
 
     Simulator sim(std::move(scene));
     const Scene& sc = sim.scene();
+    if (stored) {
+        if (!stored->scene.empty() && fs::weakly_canonical(stored->scene, ec) != fs::weakly_canonical(scene_path, ec))
+            std::fprintf(stderr, "diffipc: warning: the trajectory was written for %s, not %s\n", stored->scene.c_str(),
+                scene_path.c_str());
+        sim.resume(stored->trajectory, stored->contact);
+        if (!quiet)
+            std::printf("diffipc: resuming %s at step %d\n", out_dir.c_str(), sim.steps_done());
+    }
     if (!quiet)
         std::printf("diffipc: %s: %ld vertices, %ld elements, %d bodies, %s, dt = %g s, %d steps\n", scene_path.c_str(),
             long(sim.mesh().num_vertices()), long(sim.mesh().num_elements()), int(sc.bodies.size()),
@@ -64,25 +86,43 @@ int simulate(const std::string& scene_path, std::string out_dir, int vtu_every, 
     const std::string summary_path = (fs::path(out_dir) / "summary.json").string();
     const std::string pvd_path = (fs::path(out_dir) / "trajectory.pvd").string();
     std::unique_ptr<TrajectoryWriter> h5;
-    if (sc.output.hdf5)
-        h5 = std::make_unique<TrajectoryWriter>((fs::path(out_dir) / "trajectory.h5").string(), sim.mesh(),
-            sim.trajectory(), sim.contact() != nullptr,
+    const std::string h5_path = (fs::path(out_dir) / "trajectory.h5").string();
+    if (sc.output.hdf5 || stored) {
+        // A restart copies the stored steps into a new file, which then replaces the old one.
+        const std::string path = stored ? h5_path + ".restart" : h5_path;
+        h5 = std::make_unique<TrajectoryWriter>(path, sim.mesh(), stored ? stored->trajectory : sim.trajectory(),
+            sim.contact() != nullptr,
             std::vector<std::pair<std::string, std::string>> {
                 { "diffipc_version", DIFFIPC_VERSION }, { "scene", sc.source } });
+        if (stored) {
+            for (const StepRecord& r : stored->trajectory.steps)
+                h5->append(r);
+            h5->flush();
+            if (std::rename(path.c_str(), h5_path.c_str()) != 0)
+                throw InputError(h5_path, "cannot replace the trajectory with its continued copy");
+        }
+    }
 
     std::vector<std::pair<double, std::string>> vtu_files;
+    if (stored)
+        for (int k = 0; k <= sim.steps_done(); ++k) {
+            const std::string name = "frame_" + std::to_string(k) + ".vtu";
+            if (fs::exists(fs::path(out_dir) / name))
+                vtu_files.emplace_back(
+                    k == 0 ? stored->trajectory.initial_time : stored->trajectory.step(k).time, name);
+        }
+    stored.reset();
     auto write_frame = [&](int index, double t, const VectorXd& x, const VectorXd& v) {
         const std::string name = "frame_" + std::to_string(index) + ".vtu";
         write_vtu((fs::path(out_dir) / name).string(), sim, x, v);
         vtu_files.emplace_back(t, name);
     };
-    if (sc.output.vtu_every > 0)
+    if (sc.output.vtu_every > 0 && sim.steps_done() == 0)
         write_frame(0, 0.0, sim.positions(), sim.velocities());
 
-    // Outputs are brought up to date at most FLUSH_SECONDS apart: trajectory.h5 flushed,
+    // Outputs are brought up to date output.flush_interval (1 s) apart: trajectory.h5 flushed,
     // summary.json (status RUNNING) and the .pvd replaced. A step's record is dropped once
     // written (its totals stay), so memory does not grow with the number of steps.
-    constexpr double FLUSH_SECONDS = 1.0;
     double output_seconds = 0; // trajectory.h5, VTU frames, summary.json, .pvd
     auto bring_up_to_date = [&](const char* status) {
         const Timer timer;
@@ -123,7 +163,7 @@ int simulate(const std::string& scene_path, std::string out_dir, int vtu_every, 
             since_print = Timer();
         }
         sim.forget_records();
-        if (since_flush.seconds() > FLUSH_SECONDS) {
+        if (since_flush.seconds() >= sc.output.flush_interval) {
             bring_up_to_date("RUNNING");
             since_flush = Timer();
         }
@@ -195,12 +235,14 @@ int main(int argc, char** argv)
         ->check(CLI::Range(1, 4096));
     auto* info_cmd = app.add_subcommand("info", "Print the version and the effective thread configuration");
 
-    std::string scene_path, out_dir;
+    std::string scene_path, out_dir, restart_dir;
     int vtu_every = -1;
     bool quiet = false;
     auto* sim_cmd
         = app.add_subcommand("simulate", "Run a scene; writes trajectory.h5, summary.json and optional VTU files");
-    sim_cmd->add_option("scene", scene_path, "scene file (JSON)")->required();
+    sim_cmd->add_option("scene", scene_path, "scene file (JSON); with --restart, default: the one the run was for");
+    sim_cmd->add_option("--restart", restart_dir,
+        "continue the run in this output directory from the last committed step of its trajectory.h5");
     sim_cmd->add_option("-o,--output", out_dir, "output directory (default: the scene's output.directory)");
     sim_cmd->add_option("--vtu-every", vtu_every, "write a VTU frame every N steps (0: none; default: the scene's)");
     sim_cmd->add_flag("-q,--quiet", quiet, "no progress output");
@@ -248,7 +290,7 @@ int main(int argc, char** argv)
             return 0;
         }
         if (*sim_cmd)
-            return simulate(scene_path, out_dir, vtu_every, quiet);
+            return simulate(scene_path, out_dir, vtu_every, quiet, restart_dir);
         if (*val_cmd)
             return validate(validate_path);
         if (*bench_cmd)

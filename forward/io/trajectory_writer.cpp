@@ -5,7 +5,9 @@
 #include <hdf5.h>
 
 #include <algorithm>
+#include <cstring>
 #include <functional>
+#include <type_traits>
 #include <vector>
 
 namespace diffipc {
@@ -304,6 +306,124 @@ void TrajectoryWriter::close()
 
 int TrajectoryWriter::steps() const { return m_impl->steps; }
 const std::string& TrajectoryWriter::path() const { return m_impl->path; }
+
+namespace {
+    /// Reads dataset `name` (rows along the first axis) into `out`; returns its dimensions.
+    template <typename T>
+    std::vector<hsize_t> read_dataset(hid_t file, const std::string& path, const std::string& name, std::vector<T>& out)
+    {
+        const hid_t set = H5Dopen2(file, name.c_str(), H5P_DEFAULT);
+        if (set < 0)
+            throw InputError(path, "not a diffipc trajectory: no dataset '" + name + "'");
+        const hid_t space = H5Dget_space(set);
+        const int rank = H5Sget_simple_extent_ndims(space);
+        std::vector<hsize_t> dims(size_t(std::max(rank, 0)));
+        if (rank > 0)
+            H5Sget_simple_extent_dims(space, dims.data(), nullptr);
+        hsize_t count = 1;
+        for (hsize_t d : dims)
+            count *= d;
+        out.resize(size_t(count));
+        const hid_t type = std::is_same_v<T, int> ? H5T_NATIVE_INT : H5T_NATIVE_DOUBLE;
+        const herr_t status = count == 0 ? 0 : H5Dread(set, type, H5S_ALL, H5S_ALL, H5P_DEFAULT, out.data());
+        H5Sclose(space);
+        H5Dclose(set);
+        if (status < 0 || rank < 0)
+            throw InputError(path, "cannot read dataset '" + name + "'");
+        return dims;
+    }
+} // namespace
+
+StoredTrajectory read_trajectory(const std::string& path)
+{
+    H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);
+    const hid_t file = H5Fopen(path.c_str(), H5F_ACC_RDONLY | H5F_ACC_SWMR_READ, H5P_DEFAULT);
+    if (file < 0)
+        throw InputError(path, "cannot open the trajectory (missing, or not an HDF5 file)");
+    StoredTrajectory out;
+    try {
+        std::vector<double> time, x, v, a, residual, newton_step, volume, wall, kappa, min_distance, friction_residual;
+        std::vector<int> status, iterations, active;
+        read_dataset(file, path, "time", time);
+        const std::vector<hsize_t> dims = read_dataset(file, path, "positions", x);
+        read_dataset(file, path, "velocities", v);
+        read_dataset(file, path, "accelerations", a);
+        read_dataset(file, path, "status", status);
+        read_dataset(file, path, "newton_iterations", iterations);
+        read_dataset(file, path, "residual", residual);
+        read_dataset(file, path, "newton_step", newton_step);
+        read_dataset(file, path, "min_volume_ratio", volume);
+        read_dataset(file, path, "wall_time", wall);
+        out.contact = H5Lexists(file, "kappa", H5P_DEFAULT) > 0;
+        if (out.contact) {
+            read_dataset(file, path, "kappa", kappa);
+            read_dataset(file, path, "min_distance", min_distance);
+            read_dataset(file, path, "active_contacts", active);
+            read_dataset(file, path, "friction_residual", friction_residual);
+        }
+        if (dims.size() != 3 || dims[0] < 1)
+            throw InputError(path, "not a diffipc trajectory: 'positions' is not [T+1, N, d]");
+        // A file read while (or after) its writer appended may have datasets one batch apart:
+        // the steps are those that every dataset has.
+        size_t T = std::min({ size_t(dims[0]) - 1, time.size() - 1, status.size(), iterations.size(), residual.size(),
+            newton_step.size(), volume.size(), wall.size() });
+        const size_t row = size_t(dims[1] * dims[2]);
+        T = std::min({ T, v.size() / row - 1, a.size() / row - 1 });
+        if (out.contact)
+            T = std::min({ T, kappa.size(), min_distance.size(), active.size(), friction_residual.size() });
+        out.vertices = Index(dims[1]);
+        out.dim = int(dims[2]);
+        const auto state = [&](const std::vector<double>& data, size_t k) {
+            return VectorXd(Eigen::Map<const VectorXd>(data.data() + k * row, Index(row)));
+        };
+        Trajectory& tr = out.trajectory;
+        tr.initial_time = time[0];
+        tr.initial_positions = state(x, 0);
+        tr.initial_velocities = state(v, 0);
+        tr.initial_accelerations = state(a, 0);
+        for (size_t k = 1; k <= T; ++k) {
+            StepRecord r;
+            r.index = int(k);
+            r.time = time[k];
+            r.positions = state(x, k);
+            r.velocities = state(v, k);
+            r.accelerations = state(a, k);
+            r.status = StepStatus(status[k - 1]);
+            r.newton_iterations = iterations[k - 1];
+            r.residual = residual[k - 1];
+            r.newton_step = newton_step[k - 1];
+            r.min_volume_ratio = volume[k - 1];
+            r.wall_time = wall[k - 1];
+            if (out.contact) {
+                r.kappa = kappa[k - 1];
+                r.min_distance = min_distance[k - 1];
+                r.active_contacts = active[k - 1];
+                r.friction_residual = friction_residual[k - 1];
+            }
+            if (r.status != StepStatus::CONVERGED || !r.positions.allFinite() || !r.velocities.allFinite())
+                throw InputError(path, "step " + std::to_string(k) + " is not a converged, finite state");
+            tr.newton_iterations += r.newton_iterations;
+            tr.wall_time += r.wall_time;
+            tr.totals.add(r);
+            tr.steps.push_back(std::move(r));
+        }
+        if (H5Aexists(file, "scene") > 0) {
+            const hid_t attribute = H5Aopen(file, "scene", H5P_DEFAULT);
+            const hid_t type = H5Aget_type(attribute);
+            std::string value(H5Tget_size(type), '\0');
+            H5Aread(attribute, type, value.data());
+            value.resize(std::strlen(value.c_str()));
+            out.scene = value;
+            H5Tclose(type);
+            H5Aclose(attribute);
+        }
+    } catch (...) {
+        H5Fclose(file);
+        throw;
+    }
+    H5Fclose(file);
+    return out;
+}
 
 void write_hdf5(const std::string& path, const Mesh& mesh, const Trajectory& trajectory, bool contact)
 {

@@ -517,13 +517,15 @@ Scene parse_scene(const nlohmann::json& document, const std::string& base_direct
 
     if (root.has("output")) {
         const JsonField o = root["output"];
-        o.require_object({ "directory", "vtu_every", "hdf5" });
+        o.require_object({ "directory", "vtu_every", "hdf5", "flush_interval" });
         if (o.has("directory"))
             scene.output.directory = o["directory"].string();
         if (o.has("vtu_every"))
             scene.output.vtu_every = o["vtu_every"].integer(0);
         if (o.has("hdf5"))
             scene.output.hdf5 = o["hdf5"].boolean();
+        if (o.has("flush_interval"))
+            scene.output.flush_interval = o["flush_interval"].positive();
     }
     return scene;
 }

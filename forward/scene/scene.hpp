@@ -118,6 +118,8 @@ struct ObstacleSpec {
 struct OutputSpec {
     std::string directory = "output";
     int vtu_every = 0; ///< write a VTU file every n steps (0: none)
+    /// Seconds (wall time) between flushes of trajectory.h5, summary.json and the .pvd during a run.
+    double flush_interval = 1.0;
     bool hdf5 = true;
 };
 

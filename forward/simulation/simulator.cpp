@@ -639,6 +639,52 @@ StepStatus Simulator::step()
     return result.status;
 }
 
+void Simulator::resume(const Trajectory& stored, bool stored_contact)
+{
+    if (steps_done() > 0 || current_step() > 0)
+        throw InputError("restart", "a run can only be resumed before its first step");
+    const Index n = m_scene.mesh.num_dofs();
+    if (stored.initial_positions.size() != n)
+        throw InputError("restart",
+            "the stored trajectory has " + std::to_string(stored.initial_positions.size())
+                + " position values, this scene " + std::to_string(n));
+    if (stored_contact != (m_contact != nullptr))
+        throw InputError("restart",
+            stored_contact ? "the stored run has contact, this scene has none"
+                           : "this scene has contact, the stored run has none");
+    const double scale = std::max(1.0, m_trajectory.initial_positions.lpNorm<Eigen::Infinity>());
+    if ((stored.initial_positions - m_trajectory.initial_positions).lpNorm<Eigen::Infinity>() > 1e-12 * scale
+        || (stored.initial_velocities - m_trajectory.initial_velocities).lpNorm<Eigen::Infinity>() > 1e-12 * scale)
+        throw InputError("restart", "the stored trajectory does not start from this scene's initial state");
+    const int k = stored.committed();
+    if (k > m_scene.time.steps)
+        throw InputError("restart",
+            "the stored run has " + std::to_string(k) + " steps, this scene asks for "
+                + std::to_string(m_scene.time.steps));
+    if (k == 0)
+        return;
+    for (int j = std::max(1, k - 1); j <= k; ++j) {
+        const StepRecord& r = stored.step(j);
+        if (r.positions.size() != n || r.velocities.size() != n || r.accelerations.size() != n)
+            throw InputError("restart", "step " + std::to_string(j) + " of the stored trajectory has the wrong size");
+        if (std::abs(r.time - j * m_scene.time.dt) > 1e-9 * std::max(1.0, r.time))
+            throw InputError("restart",
+                "step " + std::to_string(j) + " of the stored trajectory is at t = " + std::to_string(r.time)
+                    + " s, not at step * dt of this scene");
+    }
+    const StepRecord& last = stored.step(k);
+    const VectorXd& x_prev = k == 1 ? stored.initial_positions : stored.step(k - 1).positions;
+    const VectorXd& v_prev = k == 1 ? stored.initial_velocities : stored.step(k - 1).velocities;
+    m_integrator->restore(k, last.positions, last.velocities, last.accelerations, x_prev, v_prev);
+    if (m_contact)
+        m_contact->set_kappa(last.kappa);
+    m_trajectory.steps.clear();
+    m_trajectory.first_index = k + 1;
+    m_trajectory.totals = stored.totals;
+    m_trajectory.newton_iterations = stored.newton_iterations;
+    m_trajectory.wall_time = stored.wall_time;
+}
+
 StepRecord& Simulator::record_of(int k, const char* caller)
 {
     if (!m_trajectory.has_record(k))

@@ -117,6 +117,13 @@ public:
     /// totals (Trajectory::totals) and count; the adjoint, step_problem() and
     /// restore_state() need the records and refuse a simulator that forgot them.
     void forget_records();
+    /// @brief Continues a run whose committed steps are in `stored` (trajectory.h5 read back:
+    /// `simulate --restart`): puts the integrator at stored's last step, with the history
+    /// BDF2 and Newmark need, and the barrier stiffness that step ended with. The records
+    /// are not kept (as after forget_records()); the totals and counts are stored's.
+    /// @throws InputError("restart", ...) before the first step only, and if stored does not
+    ///         start from this scene's initial state or its states have the wrong size
+    void resume(const Trajectory& stored, bool stored_contact);
     /// @brief Puts the integrator (and the barrier stiffness) back at committed step k
     /// (0: the initial state); the next step() recomputes step k + 1.
     /// @throws std::logic_error if a record that this needs does not hold its state.

@@ -123,6 +123,8 @@ std::vector<Malformed> malformed_cases()
         { "solver_unknown_linear_solver", [](json& s) { s["solver"]["linear_solver"] = "pardiso"; },
             "solver.linear_solver" },
         { "output_negative_vtu_every", [](json& s) { s["output"]["vtu_every"] = -1; }, "output.vtu_every" },
+        { "output_zero_flush_interval", [](json& s) { s["output"]["flush_interval"] = 0; }, "output.flush_interval" },
+        { "output_text_flush_interval", [](json& s) { s["output"]["flush_interval"] = "1"; }, "output.flush_interval" },
         { "mass_unknown", [](json& s) { s["mass"] = "heavy"; }, "mass" },
         { "duplicate_body_name", [](json& s) { s["bodies"].push_back(s["bodies"][0]); }, "bodies[1].name" },
         { "region_max_below_min",
