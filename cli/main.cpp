@@ -244,7 +244,8 @@ int main(int argc, char** argv)
     sim_cmd->add_option("--restart", restart_dir,
         "continue the run in this output directory from the last committed step of its trajectory.h5");
     sim_cmd->add_option("-o,--output", out_dir, "output directory (default: the scene's output.directory)");
-    sim_cmd->add_option("--vtu-every", vtu_every, "write a VTU frame every N steps (0: none; default: the scene's)");
+    sim_cmd->add_option("--vtu-every", vtu_every, "write a VTU frame every N steps (0: none; default: the scene's)")
+        ->check(CLI::Range(0, 1 << 30));
     sim_cmd->add_flag("-q,--quiet", quiet, "no progress output");
 
     std::string validate_path;
@@ -266,19 +267,28 @@ int main(int argc, char** argv)
         "--scenes", bench_options.scenes, "scaling suite: any of 50k,200k,contact,adjoint,factor (default: all)");
     bench_cmd->add_option("--source-dir", bench_options.source_dir, "repository root, where studies/ lives");
     bench_cmd->add_option("--friction", bench_options.friction, "contact suite: friction coefficient (0: none)")
-        ->check(CLI::NonNegativeNumber);
+        ->check(CLI::Range(0.0, 10.0));
 
     std::string problem_path;
     int directions = 0;
     auto* grad_cmd = app.add_subcommand(
         "gradcheck", "Adjoint gradient of a problem file against finite differences (Taylor table)");
     grad_cmd->add_option("problem", problem_path, "problem file (JSON)")->required();
-    grad_cmd->add_option("--directions", directions, "random directions (default: the file's, else 2)");
+    grad_cmd->add_option("--directions", directions, "random directions (default: the file's, else 2)")
+        ->check(CLI::Range(1, 1 << 20));
 
     try {
         app.parse(argc, argv);
-    } catch (const CLI::ParseError& e) {
+    } catch (const CLI::CallForHelp& e) {
         return app.exit(e);
+    } catch (const CLI::CallForAllHelp& e) {
+        return app.exit(e);
+    } catch (const CLI::CallForVersion& e) {
+        return app.exit(e);
+    } catch (const CLI::ParseError& e) {
+        // A usage error is bad input like any other: exit 1, one line (and where to look).
+        std::fprintf(stderr, "diffipc: error: %s (see diffipc --help)\n", e.what());
+        return 1;
     }
 
     try {

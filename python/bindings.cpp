@@ -9,6 +9,7 @@
 #include "forward/common/threads.hpp"
 #include "forward/io/output.hpp"
 #include "forward/potentials/elastic_potential.hpp"
+#include "forward/scene/json_input.hpp"
 #include "forward/scene/scene.hpp"
 #include "forward/simulation/simulator.hpp"
 #include "shape_opt/reduced_functional.hpp"
@@ -106,7 +107,7 @@ ReducedFunctional reduced_functional_from_dict(const py::dict& document, const p
     const std::string base = base_directory.is_none()
         ? std::filesystem::current_path().string()
         : py::str(py::module_::import("os").attr("fspath")(base_directory)).cast<std::string>();
-    return ReducedFunctional(nlohmann::json::parse(text), base, "<dict>");
+    return ReducedFunctional(parse_json_text(text, "<dict>"), base, "<dict>");
 }
 
 /// p as a copied vector; a wrong shape is an InputError like a wrong size.

@@ -1,5 +1,7 @@
 #include "shape_opt/reduced_functional.hpp"
 
+#include "forward/scene/json_input.hpp"
+
 #include "forward/common/error.hpp"
 #include "forward/common/threads.hpp"
 #include "forward/common/timer.hpp"
@@ -370,15 +372,7 @@ ReducedFunctional::ReducedFunctional(ReducedFunctional&&) noexcept = default;
 
 ReducedFunctional ReducedFunctional::load(const std::string& path)
 {
-    std::ifstream in(path);
-    if (!in)
-        throw InputError(path, "cannot open the problem file");
-    json doc;
-    try {
-        doc = json::parse(in);
-    } catch (const json::parse_error& e) {
-        throw InputError(path, std::string("invalid JSON: ") + e.what());
-    }
+    const json doc = parse_json_text(read_input_file(path, "problem file"), path);
     return ReducedFunctional(doc, std::filesystem::path(path).parent_path().string(), path);
 }
 

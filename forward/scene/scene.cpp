@@ -2,6 +2,7 @@
 
 #include "forward/mesh/gmsh_reader.hpp"
 #include "forward/scene/json_field.hpp"
+#include "forward/scene/json_input.hpp"
 
 #include <Eigen/Geometry>
 
@@ -532,38 +533,16 @@ Scene parse_scene(const nlohmann::json& document, const std::string& base_direct
 
 Scene parse_scene_text(const std::string& text, const std::string& base_directory, const std::string& source)
 {
-    nlohmann::json document;
-    std::string work = text;
-    for (int attempt = 0;; ++attempt) {
-        try {
-            document = nlohmann::json::parse(work);
-            break;
-        } catch (const nlohmann::json::parse_error& e) {
-            throw InputError(source, std::string("invalid JSON: ") + e.what());
-        } catch (const nlohmann::json::out_of_range& e) {
-            // A number that overflows a double (1e999): mark it so that validation
-            // names the field it stands in, then parse again.
-            const std::string what = e.what();
-            const size_t a = what.find('\''), b = what.rfind('\'');
-            const size_t at = a < b ? work.find(what.substr(a + 1, b - a - 1)) : std::string::npos;
-            if (at == std::string::npos || attempt > 1000)
-                throw InputError(source, std::string("invalid JSON: ") + what);
-            work.replace(at, b - a - 1, "\"" + std::string(NON_FINITE_MARK) + what.substr(a + 1, b - a - 1) + "\"");
-        }
-    }
+    const nlohmann::json document = parse_json_text(text, source);
     return parse_scene(document, base_directory, source);
 }
 
 Scene load_scene(const std::string& path)
 {
-    std::ifstream in(path);
-    if (!in)
-        throw InputError(path, "cannot open scene file");
-    std::stringstream ss;
-    ss << in.rdbuf();
+    const std::string text = read_input_file(path, "scene file");
     const std::string base = fs::path(path).parent_path().string();
     try {
-        return parse_scene_text(ss.str(), base.empty() ? "." : base, path);
+        return parse_scene_text(text, base.empty() ? "." : base, path);
     } catch (const InputError& e) {
         if (e.field() == path)
             throw;

@@ -195,3 +195,46 @@ def test_friction_study_slides_with_the_closed_form_acceleration(cli, tmp_path, 
     expected = 9.81 * (np.sin(np.pi / 6) - 0.2 * np.cos(np.pi / 6))
     assert abs(a / expected - 1) < 0.01, (a, expected)
     assert residual.max() < 1e-6
+
+
+def test_usage_errors_exit_1_with_one_line(cli, tmp_path):
+    # Before: CLI11's own codes (106, 109, ...) and negative counts silently ignored.
+    scene = tmp_path / "scene.json"
+    scene.write_text(json.dumps(box_scene(dim=2, steps=1)))
+    cases = [
+        ["simulate", str(scene), "--bogus", "1"],
+        ["simulate", str(scene), "--vtu-every", "-3"],
+        ["gradcheck", str(scene), "--directions", "-2"],
+        ["simulate", str(scene), "--vtu-every", "many"],
+        [],
+    ]
+    for args in cases:
+        r = run(cli, *args)
+        assert r.returncode == 1, (args, r.returncode, r.stderr)
+        lines = r.stderr.strip().splitlines()
+        assert len(lines) == 1 and lines[0].startswith("diffipc: error:"), (args, r.stderr)
+        assert len(lines[0]) < 200, lines[0]
+    assert run(cli, "--help").returncode == 0
+    assert run(cli, "--version").returncode == 0
+
+
+def test_inputs_that_are_not_json_files_are_refused(cli, tmp_path, root):
+    # Before: /dev/zero was read until memory ran out, a directory gave "invalid JSON", and a
+    # problem file nested two million levels deep crashed gradcheck (exit -11).
+    for path in ("/dev/zero", str(tmp_path)):
+        for command in ("validate", "gradcheck"):
+            r = run(cli, command, path)
+            assert r.returncode == 1, (command, path, r.stderr)
+            assert "not a regular file" in r.stderr and path in r.stderr
+    problem = json.loads((root / "studies" / "302_bar_youngs_markers" / "problem.json").read_text())
+    text = json.dumps(problem)[:-1] + ', "deep": ' + "[" * 2000000 + "]" * 2000000 + "}"
+    deep = tmp_path / "deep.json"
+    deep.write_text(text)
+    r = run(cli, "gradcheck", deep)
+    assert r.returncode == 1 and "nested deeper than" in r.stderr and str(deep) in r.stderr
+    s = box_scene(dim=2, steps=1)
+    text = json.dumps(s)[:-1] + ', "description": ' + "[" * 100 + "]" * 100 + "}"
+    scene = tmp_path / "deep_scene.json"
+    scene.write_text(text)
+    r = run(cli, "validate", scene)
+    assert r.returncode == 1 and "nested deeper than" in r.stderr
