@@ -64,3 +64,17 @@ def test_bad_objective_names_the_field(cli, tmp_path):
     p = write_problem(tmp_path, box_scene(), {"type": "stress_norm", "p": -1}, [{"type": "E"}])
     r = run(cli, "gradcheck", p)
     assert r.returncode == 1 and "objective.p" in r.stderr
+
+
+def test_an_objective_that_does_not_depend_on_the_parameters_is_not_a_pass(cli, tmp_path):
+    # Before: every rate printed as -nan and the check said PASS (exit 0). Without gravity
+    # the bar never moves, so the markers objective does not depend on the density.
+    problem = json.loads((ROOT / "studies" / "302_bar_youngs_markers" / "problem.json").read_text())
+    problem["scene"]["gravity"] = [0, 0, 0]
+    problem["parameters"] = [{"type": "density"}]
+    path = tmp_path / "flat.json"
+    path.write_text(json.dumps(problem))
+    r = run(cli, "gradcheck", path)
+    assert r.returncode == 4, r.stdout + r.stderr
+    assert "nan" not in r.stdout.lower() and "inf " not in r.stdout
+    assert "INCONCLUSIVE" in r.stdout and "PASS" not in r.stdout
