@@ -238,3 +238,12 @@ def test_inputs_that_are_not_json_files_are_refused(cli, tmp_path, root):
     scene.write_text(text)
     r = run(cli, "validate", scene)
     assert r.returncode == 1 and "nested deeper than" in r.stderr
+
+
+def test_readme_documents_every_exit_code(root):
+    readme = (root / "README.md").read_text()
+    section = readme[readme.index("Exit codes:"):]
+    for code in ("0 success", "1 bad input", "2 a time step failed", "3 an internal error", "4 `gradcheck`", "130",
+                 "143"):
+        assert code in section, code
+    assert "in progress" not in readme
