@@ -42,6 +42,11 @@ namespace {
 
     namespace fs = std::filesystem;
 
+    /// Largest Young's modulus and density accepted: beyond, stresses and forces overflow.
+    constexpr double MAX_MATERIAL_VALUE = 1e30;
+    /// Smallest time step accepted (s).
+    constexpr double MIN_TIME_STEP = 1e-12;
+
     MaterialSpec parse_material(const JsonField& f)
     {
         f.require_object({ "model", "E", "nu", "density" });
@@ -50,10 +55,15 @@ namespace {
         m.youngs_modulus = f["E"].number();
         if (!(m.youngs_modulus > 0))
             f["E"].fail("Young's modulus must be positive");
+        if (m.youngs_modulus > MAX_MATERIAL_VALUE)
+            f["E"].fail("Young's modulus above 1e30 Pa: stresses would overflow (are the units consistent?)");
         m.poisson_ratio = f["nu"].number();
         if (!(m.poisson_ratio > -1.0 && m.poisson_ratio < 0.5))
             f["nu"].fail("Poisson's ratio must lie in (-1, 0.5), got " + f["nu"].json().dump());
         m.density = f["density"].positive();
+        if (m.density > MAX_MATERIAL_VALUE)
+            f["density"].fail(
+                "density above 1e30 kg/m^3: masses and forces would overflow (are the units consistent?)");
         return m;
     }
 
@@ -464,6 +474,10 @@ Scene parse_scene(const nlohmann::json& document, const std::string& base_direct
             time["integrator"].fail(
                 "unknown integrator '" + name + "' (expected static, implicit_euler, bdf2 or newmark)");
         scene.time.dt = time["dt"].positive();
+        if (scene.time.dt < MIN_TIME_STEP)
+            time["dt"].fail(
+                "time step below 1e-12 s: the implicit schemes weight the elastic forces by dt^2, which then "
+                "vanish in round-off against inertia");
         scene.time.steps = time["steps"].integer(1);
     }
 

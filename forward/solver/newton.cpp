@@ -58,6 +58,11 @@ NewtonResult NewtonSolver::solve(VectorXd& x, const VectorXd& target, const std:
         }
         const bool lifting = dmax > 0;
         result.residual = gmax / force_scale;
+        if (!std::isfinite(result.residual)) {
+            // A force scale that underflowed or overflowed: no residual can be judged.
+            result.status = StepStatus::NON_FINITE;
+            return result;
+        }
         if (!lifting && result.residual <= m_settings.residual_tolerance
             && (m_settings.step_tolerance <= 0 || it == 0 || result.newton_step <= m_settings.step_tolerance)) {
             result.status = StepStatus::CONVERGED;
