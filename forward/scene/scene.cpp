@@ -47,6 +47,21 @@ namespace {
     /// Smallest time step accepted (s).
     constexpr double MIN_TIME_STEP = 1e-12;
 
+    /// Largest vertex coordinate accepted after placement (m): beyond, the distances that
+    /// contact and the broad phase compute lose all their digits (or overflow).
+    constexpr double MAX_COORDINATE = 1e12;
+
+    /// Vertices of a body or obstacle after its scale, rotation and translation: finite and
+    /// within MAX_COORDINATE, else an InputError naming the body or obstacle.
+    void check_placed_coordinates(const MatrixXd& X, const JsonField& owner)
+    {
+        const double largest = X.size() ? X.cwiseAbs().maxCoeff() : 0.0;
+        if (!X.allFinite() || !(largest <= MAX_COORDINATE))
+            owner.fail("vertex coordinates after scale, rotation and translation are "
+                + std::string(X.allFinite() ? "beyond 1e12 m" : "not finite")
+                + " (contact distances would lose every digit)");
+    }
+
     MaterialSpec parse_material(const JsonField& f)
     {
         f.require_object({ "model", "E", "nu", "density" });
@@ -321,6 +336,7 @@ namespace {
                 for (int a = 0; a < dim; ++a)
                     o.motion.emplace_back(0.0);
             }
+            check_placed_coordinates(mesh.rest_positions, f);
             o.first_vertex = scene.mesh.num_vertices();
             o.num_vertices = mesh.num_vertices();
             append_mesh(scene.mesh, mesh, group);
@@ -384,6 +400,7 @@ Scene parse_scene(const nlohmann::json& document, const std::string& base_direct
             mesh.rest_positions = (mesh.rest_positions * Rd.transpose()).eval();
         }
         mesh.rest_positions.rowwise() += body.translation.transpose();
+        check_placed_coordinates(mesh.rest_positions, bf);
         append_mesh(scene.mesh, mesh, int(b));
         scene.bodies.push_back(std::move(body));
     }

@@ -247,3 +247,18 @@ def test_readme_documents_every_exit_code(root):
                  "143"):
         assert code in section, code
     assert "in progress" not in readme
+
+
+@pytest.mark.parametrize("scale", [1e308, 1e200])
+def test_an_obstacle_scaled_out_of_range_is_refused(cli, tmp_path, root, scale):
+    # Before: validate accepted it and simulate spun forever in the hash-grid broad phase.
+    study = root / "studies" / "205_plate_on_sphere"
+    s = json.loads((study / "scene.json").read_text())
+    s["obstacles"][0]["mesh"]["file"] = str(study / s["obstacles"][0]["mesh"]["file"])
+    s["obstacles"][0]["mesh"]["scale"] = scale
+    scene = tmp_path / "scene.json"
+    scene.write_text(json.dumps(s))
+    for command in ("validate", "simulate"):
+        r = run(cli, command, scene, *(["-o", tmp_path / "out"] if command == "simulate" else []))
+        assert r.returncode == 1, (command, r.stderr)
+        assert "obstacles[0]" in r.stderr and "1e12" in r.stderr

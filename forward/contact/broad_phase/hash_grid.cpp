@@ -84,7 +84,12 @@ void HashGrid::build(const std::vector<AABB>& boxes, int dim)
     };
     const uint64_t max_entries = uint64_t(n) * (dim == 3 ? 27 : 9);
     const int64_t max_dims = int64_t(1) << KEY_BITS;
-    for (;;) {
+    for (int rounds = 0;; ++rounds) {
+        // Doubling from a finite h reaches any finite extent in under 2100 rounds; boxes
+        // with infinite or overflowing coordinates would make this loop endless.
+        if (!std::isfinite(h) || rounds > 2100)
+            throw std::runtime_error("broad phase: coordinates beyond the range a grid can cover (not finite or "
+                                     "near the largest double); the scene places or moves something out of range");
         m_cell_size = h;
         m_inv_cell_size = 1.0 / h;
         bool fits = true;

@@ -125,6 +125,11 @@ std::vector<Malformed> malformed_cases()
         { "output_negative_vtu_every", [](json& s) { s["output"]["vtu_every"] = -1; }, "output.vtu_every" },
         { "output_zero_flush_interval", [](json& s) { s["output"]["flush_interval"] = 0; }, "output.flush_interval" },
         { "time_step_tiny", [](json& s) { s["time"]["dt"] = 1e-300; }, "time.dt" },
+        { "body_translated_far",
+            [](json& s) {
+                s["bodies"][0]["translation"] = { 1e300, 0, 0 };
+            },
+            "bodies[0]" },
         { "youngs_modulus_huge", [](json& s) { s["bodies"][0]["material"]["E"] = 1e308; }, "bodies[0].material.E" },
         { "density_huge", [](json& s) { s["bodies"][0]["material"]["density"] = 1e300; },
             "bodies[0].material.density" },

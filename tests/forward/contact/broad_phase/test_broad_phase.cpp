@@ -667,3 +667,23 @@ TEST(BroadPhase, CandidatesHelpers)
     c.clear();
     EXPECT_TRUE(c.empty());
 }
+
+TEST(BroadPhase, HashGridRefusesBoxesNoGridCanCoverInsteadOfLoopingForever)
+{
+    // Before: a box at +-1e308 (an obstacle scaled past the range of doubles) made the
+    // cell-size search double forever. Now it ends with an error; finite boxes still build.
+    for (double far : { 1.7e308, std::numeric_limits<double>::infinity() }) {
+        std::vector<AABB> boxes(3);
+        for (int i = 0; i < 3; ++i) {
+            boxes[size_t(i)].min = Eigen::Array3d(i, 0, 0);
+            boxes[size_t(i)].max = Eigen::Array3d(i + 0.5, 0.5, 0.5);
+        }
+        boxes[2].min = Eigen::Array3d(-far, 0, 0);
+        boxes[2].max = Eigen::Array3d(far, 0.5, 0.5);
+        HashGrid grid;
+        EXPECT_THROW(grid.build(boxes, 3), std::runtime_error) << far;
+        boxes[2].min = Eigen::Array3d(-1e12, 0, 0);
+        boxes[2].max = Eigen::Array3d(1e12, 0.5, 0.5);
+        EXPECT_NO_THROW(grid.build(boxes, 3));
+    }
+}
