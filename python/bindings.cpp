@@ -23,6 +23,8 @@
 #include <pybind11/stl/filesystem.h>
 
 #include <filesystem>
+#include <mutex>
+#include <unordered_set>
 
 namespace py = pybind11;
 using namespace diffipc;
@@ -110,6 +112,52 @@ ReducedFunctional reduced_functional_from_dict(const py::dict& document, const p
     return ReducedFunctional(parse_json_text(text, "<dict>"), base, "<dict>");
 }
 
+/// A #V by dim array of finite values, else an InputError (ValueError) naming `what`.
+void check_shape(const MatrixXd& x, const Simulator& s, const std::string& what)
+{
+    if (x.rows() != s.mesh().num_vertices() || x.cols() != s.mesh().dim)
+        throw InputError(what,
+            "expected an array of shape (" + std::to_string(s.mesh().num_vertices()) + ", "
+                + std::to_string(s.mesh().dim) + "), got (" + std::to_string(x.rows()) + ", " + std::to_string(x.cols())
+                + ")");
+    if (!x.allFinite())
+        throw InputError(what, "non-finite value");
+}
+
+/// One Python thread at a time per Simulator: run() releases the GIL while it steps, and a
+/// second thread calling into the same Simulator meanwhile would race with it.
+class Exclusive {
+public:
+    explicit Exclusive(const Simulator& s)
+        : m_simulator(&s)
+    {
+        std::lock_guard<std::mutex> lock(mutex());
+        if (!busy().insert(m_simulator).second)
+            throw std::runtime_error("this Simulator is in use by another thread (a run() in progress); use one "
+                                     "Simulator per thread");
+    }
+    ~Exclusive()
+    {
+        std::lock_guard<std::mutex> lock(mutex());
+        busy().erase(m_simulator);
+    }
+    Exclusive(const Exclusive&) = delete;
+    Exclusive& operator=(const Exclusive&) = delete;
+
+private:
+    static std::mutex& mutex()
+    {
+        static std::mutex m;
+        return m;
+    }
+    static std::unordered_set<const Simulator*>& busy()
+    {
+        static std::unordered_set<const Simulator*> b;
+        return b;
+    }
+    const Simulator* m_simulator;
+};
+
 /// p as a copied vector; a wrong shape is an InputError like a wrong size.
 VectorXd parameter_vector(const py::array_t<double, py::array::c_style | py::array::forcecast>& p, Index size)
 {
@@ -166,44 +214,80 @@ PYBIND11_MODULE(_diffipc, m)
     py::class_<Simulator>(m, "Simulator", "Transactional time stepping of a scene.")
         .def(py::init<Scene>(), py::arg("scene"))
         .def(
-            "step", [](Simulator& s) { return to_string(s.step()); },
+            "step",
+            [](Simulator& s) {
+                const Exclusive exclusive(s);
+                return to_string(s.step());
+            },
             "Attempt one time step; returns the status name (only CONVERGED commits).")
         .def(
             "run",
             [](Simulator& s, const std::function<void(int, double)>& progress) {
+                const Exclusive exclusive(s);
                 {
+                    // The GIL is released while stepping and taken back between steps for the
+                    // progress callback and for Ctrl-C: a KeyboardInterrupt stops the run after
+                    // the current step, with every committed step kept.
                     py::gil_scoped_release release;
-                    s.run([&](const StepRecord& r) {
-                        if (progress) {
-                            py::gil_scoped_acquire acquire;
-                            progress(r.index, r.time);
-                        }
-                    });
+                    if (s.current_step() < s.steps_done())
+                        s.recompute_steps(s.steps_done());
+                    while (s.steps_done() < s.scene().time.steps) {
+                        if (s.step() != StepStatus::CONVERGED)
+                            break;
+                        py::gil_scoped_acquire acquire;
+                        if (progress)
+                            progress(s.trajectory().steps.back().index, s.trajectory().steps.back().time);
+                        if (PyErr_CheckSignals() != 0)
+                            throw py::error_already_set();
+                    }
                 }
                 return trajectory_dict(s);
             },
             py::arg("progress") = std::function<void(int, double)>(),
-            "Run the remaining steps; returns the trajectory as a dict of numpy arrays.")
-        .def("trajectory", &trajectory_dict, "The committed trajectory as a dict of numpy arrays.")
+            "Run the remaining steps; returns the trajectory as a dict of numpy arrays. Ctrl-C stops it after "
+            "the current step (KeyboardInterrupt; the committed steps stay).")
+        .def(
+            "trajectory",
+            [](const Simulator& s) {
+                const Exclusive exclusive(s);
+                return trajectory_dict(s);
+            },
+            "The committed trajectory as a dict of numpy arrays.")
         .def_property_readonly("steps_done", &Simulator::steps_done)
         .def_property_readonly("time", &Simulator::time)
-        .def_property_readonly(
-            "positions", [](const Simulator& s) { return MatrixXd(unflatten(s.positions(), s.mesh().dim)); })
-        .def_property_readonly(
-            "velocities", [](const Simulator& s) { return MatrixXd(unflatten(s.velocities(), s.mesh().dim)); })
+        .def_property_readonly("positions",
+            [](const Simulator& s) {
+                const Exclusive exclusive(s);
+                return MatrixXd(unflatten(s.positions(), s.mesh().dim));
+            })
+        .def_property_readonly("velocities",
+            [](const Simulator& s) {
+                const Exclusive exclusive(s);
+                return MatrixXd(unflatten(s.velocities(), s.mesh().dim));
+            })
         .def_property_readonly("force_scale", &Simulator::force_scale)
         .def(
             "energy",
             [](const Simulator& s, const MatrixXd& x) {
+                const Exclusive exclusive(s);
+                check_shape(x, s, "positions");
                 const Positions p = x;
                 return s.problem().energy(flatten(p));
             },
             py::arg("positions"), "Incremental potential of the last prepared step at #V by dim positions.")
-        .def("set_element_materials", &Simulator::set_element_materials, py::arg("E"), py::arg("nu"),
-            "Per-element Young's modulus and Poisson's ratio (before the first step).")
+        .def(
+            "set_element_materials",
+            [](Simulator& s, const VectorXd& E, const VectorXd& nu) {
+                const Exclusive exclusive(s);
+                s.set_element_materials(E, nu);
+            },
+            py::arg("E"), py::arg("nu"), "Per-element Young's modulus and Poisson's ratio (before the first step).")
         .def(
             "set_initial_state",
-            [](Simulator& s, const Positions& x, const Positions& v) {
+            [](Simulator& s, const MatrixXd& x, const MatrixXd& v) {
+                const Exclusive exclusive(s);
+                check_shape(x, s, "positions");
+                check_shape(v, s, "velocities");
                 const Positions xc = x, vc = v;
                 s.set_initial_state(flatten(xc), flatten(vc));
             },
@@ -211,9 +295,13 @@ PYBIND11_MODULE(_diffipc, m)
             "Initial #V by dim positions and velocities (before the first step); prescribed dofs keep theirs.")
         .def("write_hdf5",
             [](const Simulator& s, const std::string& path) {
+                const Exclusive exclusive(s);
                 write_hdf5(path, s.mesh(), s.trajectory(), s.contact() != nullptr);
             })
-        .def("summary", [](const Simulator& s) { return summary_json(s).dump(); });
+        .def("summary", [](const Simulator& s) {
+            const Exclusive exclusive(s);
+            return summary_json(s).dump();
+        });
 
     auto model = [](const std::string& name) { return parse_material_model(name, "model"); };
     m.def(
