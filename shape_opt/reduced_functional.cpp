@@ -380,6 +380,16 @@ ReducedFunctional::ReducedFunctional(const json& doc, const std::string& base_di
 {
     if (!doc.is_object())
         throw InputError(source, "a problem file is a JSON object");
+    // Every key is known and has its kind (docs/problem_format.md); nothing is ignored.
+    const JsonField root(doc, "");
+    root.require_object({ "description", "scene", "objective", "weight", "parameters", "gradcheck", "checkpointing",
+        "threads", "scenes" });
+    if (doc.contains("scenes"))
+        for (const char* k : { "scene", "objective", "weight" })
+            if (doc.contains(k))
+                throw InputError(k, "not allowed beside \"scenes\": each load case in scenes[] has its own");
+    if (root.has("description"))
+        root["description"].string();
     if (doc.contains("threads")) {
         const JsonField t(doc["threads"], "threads");
         set_threads(t.integer(1), ThreadSource::PROBLEM_FILE, "threads of " + source);
@@ -391,6 +401,8 @@ ReducedFunctional::ReducedFunctional(const json& doc, const std::string& base_di
         const std::string field = doc.contains("scenes") ? "scenes[" + std::to_string(c) + "]" : std::string();
         const auto key = [&](const std::string& k) { return field.empty() ? k : field + "." + k; };
         const json& jc = cases[c];
+        if (!field.empty())
+            JsonField(jc, field).require_object({ "scene", "objective", "weight", "description" });
         if (!jc.contains("scene"))
             throw InputError(key("scene"), "missing (a scene file path or an inline scene object)");
         auto lc = std::make_unique<LoadCase>();
@@ -403,9 +415,7 @@ ReducedFunctional::ReducedFunctional(const json& doc, const std::string& base_di
             throw InputError(key("objective"), "missing");
         lc->objective = jc["objective"];
         lc->field = key("objective");
-        lc->weight = jc.value("weight", 1.0);
-        if (!std::isfinite(lc->weight))
-            throw InputError(key("weight"), "must be finite");
+        lc->weight = jc.contains("weight") ? JsonField(jc["weight"], key("weight")).number() : 1.0;
         // The barrier stiffness is fixed during a differentiated run: an adaptive one is
         // chosen by a nominal run first (its largest value, kappa never decreases).
         SimulationParameters nominal;
@@ -507,13 +517,16 @@ ReducedFunctional::ReducedFunctional(const json& doc, const std::string& base_di
             lc->base.lambda.resize(0);
         }
     if (doc.contains("gradcheck")) {
-        const json& g = doc["gradcheck"];
-        m_check.directions = g.value("directions", m_check.directions);
-        m_check.seed = g.value("seed", m_check.seed);
-        m_check.step = g.value("step", m_check.step);
-        m_check.halvings = g.value("halvings", m_check.halvings);
-        if (m_check.directions < 1 || !(m_check.step > 0) || m_check.halvings < 2)
-            throw InputError("gradcheck", "directions >= 1, step > 0 and halvings >= 2 are required");
+        const JsonField g(doc["gradcheck"], "gradcheck");
+        g.require_object({ "directions", "seed", "step", "halvings" });
+        if (g.has("directions"))
+            m_check.directions = g["directions"].integer(1);
+        if (g.has("seed"))
+            m_check.seed = unsigned(g["seed"].integer(0));
+        if (g.has("step"))
+            m_check.step = g["step"].positive();
+        if (g.has("halvings"))
+            m_check.halvings = g["halvings"].integer(2);
     }
     if (doc.contains("checkpointing"))
         m_checkpointing = parse_checkpointing(JsonField(doc["checkpointing"], "checkpointing"));

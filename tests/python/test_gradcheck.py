@@ -78,3 +78,36 @@ def test_an_objective_that_does_not_depend_on_the_parameters_is_not_a_pass(cli, 
     assert r.returncode == 4, r.stdout + r.stderr
     assert "nan" not in r.stdout.lower() and "inf " not in r.stdout
     assert "INCONCLUSIVE" in r.stdout and "PASS" not in r.stdout
+
+
+def _problem():
+    return json.loads((ROOT / "studies" / "302_bar_youngs_markers" / "problem.json").read_text())
+
+
+def _scenes(p):
+    return {"scenes": [{"scene": p["scene"], "objective": p["objective"]}], "parameters": p["parameters"]}
+
+
+# Before: unknown keys were ignored, "scene" beside "scenes" silently dropped, and wrong kinds
+# converted (directions true -> 1, 2.7 -> 2, seed 0.5 -> 0, a string weight a library error).
+BAD_PROBLEMS = [
+    ("unknown_root_key", lambda p: p.update(objectiv=1) or p, "objectiv"),
+    ("unknown_gradcheck_key", lambda p: p["gradcheck"].update(direction=3) or p, "gradcheck.direction"),
+    ("directions_true", lambda p: p["gradcheck"].update(directions=True) or p, "gradcheck.directions"),
+    ("directions_fraction", lambda p: p["gradcheck"].update(directions=2.7) or p, "gradcheck.directions"),
+    ("seed_fraction", lambda p: p["gradcheck"].update(seed=0.5) or p, "gradcheck.seed"),
+    ("gradcheck_not_object", lambda p: p.update(gradcheck=[1, 2]) or p, "gradcheck"),
+    ("weight_string", lambda p: p.update(weight="heavy") or p, "weight"),
+    ("scene_beside_scenes", lambda p: dict(_scenes(p), scene=p["scene"]), "scene"),
+    ("unknown_case_key", lambda p: (lambda q: q["scenes"][0].update(wieght=2) or q)(_scenes(p)), "scenes[0].wieght"),
+]
+
+
+@pytest.mark.parametrize("name,mutate,field", BAD_PROBLEMS, ids=[b[0] for b in BAD_PROBLEMS])
+def test_bad_problem_files_exit_1_naming_the_field(cli, tmp_path, name, mutate, field):
+    path = tmp_path / "problem.json"
+    path.write_text(json.dumps(mutate(_problem())))
+    r = run(cli, "gradcheck", path)
+    assert r.returncode == 1, (name, r.returncode, r.stdout[-300:], r.stderr)
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 1 and field in lines[0], (name, r.stderr)
