@@ -41,9 +41,10 @@ def start_and_watch(cli, tmp_path, min_steps):
         try:
             with h5py.File(out / "trajectory.h5", "r", swmr=True) as f:
                 seen = f["status"].shape[0]
-                # A live file is consistent: the state datasets have one more row than the step ones.
-                assert f["time"].shape[0] == seen + 1 or f["time"].shape[0] == seen
-        except (OSError, KeyError):
+                # A live file: the datasets are written one after the other, so a reader may find
+                # the state datasets (written first) up to a batch ahead, never behind.
+                assert f["time"].shape[0] >= seen + 1
+        except (OSError, KeyError, RuntimeError, ValueError):
             seen = 0
         if seen >= min_steps:
             return proc, out, seen
@@ -53,20 +54,24 @@ def start_and_watch(cli, tmp_path, min_steps):
 
 
 def check_trajectory(path, at_least, swmr=False):
+    """swmr: the writer was killed; it may have stopped between the datasets of a batch, so
+    the steps are those every dataset has (as `simulate --restart` reads them)."""
     with h5py.File(path, "r", swmr=swmr) as f:
-        T = f["status"].shape[0]
+        step_sets = ("status", "newton_iterations", "residual", "min_volume_ratio", "wall_time")
+        state_sets = ("time", "positions", "velocities")
+        T = min(f[n].shape[0] for n in step_sets)
         assert T >= at_least
         N = f["mesh/rest_positions"].shape[0]
-        assert f["time"].shape == (T + 1,)
-        assert f["positions"].shape == (T + 1, N, 2)
-        assert f["velocities"].shape == (T + 1, N, 2)
-        for name in ("newton_iterations", "residual", "min_volume_ratio", "wall_time"):
-            assert f[name].shape == (T,)
-        assert (f["status"][:] == 0).all()
-        t = f["time"][:]
+        for name in step_sets:
+            assert f[name].shape[0] >= T if swmr else f[name].shape == (T,)
+        for name in state_sets:
+            assert f[name].shape[0] >= T + 1 if swmr else f[name].shape[0] == T + 1
+        assert f["positions"].shape[1:] == (N, 2)
+        assert (f["status"][:T] == 0).all()
+        t = f["time"][:T + 1]
         np.testing.assert_allclose(np.diff(t), 1e-3, rtol=1e-9)
-        x = f["positions"][:]
-        assert np.isfinite(x).all() and np.isfinite(f["velocities"][:]).all()
+        x = f["positions"][:T + 1]
+        assert np.isfinite(x).all() and np.isfinite(f["velocities"][:T + 1]).all()
         np.testing.assert_array_equal(x[0], f["mesh/rest_positions"][:])
         # The body falls under gravity: every committed state is a real step, not a copy.
         assert (np.diff(x[:, :, 1].mean(axis=1)) < 0).all()
@@ -131,7 +136,7 @@ def test_restart_after_sigkill_matches_an_uninterrupted_run(cli, tmp_path, integ
         try:
             with h5py.File(part / "trajectory.h5", "r", swmr=True) as f:
                 seen = f["status"].shape[0]
-        except (OSError, KeyError):
+        except (OSError, KeyError, RuntimeError, ValueError):
             pass
         time.sleep(0.05)
     proc.kill()
