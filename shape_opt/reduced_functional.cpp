@@ -13,6 +13,7 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <stdexcept>
 
 namespace diffipc {
@@ -461,6 +462,31 @@ ReducedFunctional::ReducedFunctional(const json& doc, const std::string& base_di
                                                                : "prescribed dofs and number of steps")
                         + " for this parameter");
         }
+    // Every value is driven by one entry at most: a vertex or a block listed twice (in one
+    // parameter or in two) would make the forward use the last entry while the gradient is
+    // split over both.
+    {
+        std::map<std::pair<int, Index>, std::pair<size_t, size_t>> driver; // (kind, target) -> (parameter, entry)
+        const int d = m_cases[0]->scene.dim;
+        for (size_t k = 0; k < m_parameters.size(); ++k) {
+            const ParameterSpec& p = m_parameters[k];
+            for (size_t i = 0; i < p.targets.size(); ++i)
+                for (const Index target : p.targets[i]) {
+                    const auto [at, inserted]
+                        = driver.emplace(std::make_pair(int(p.kind), target), std::make_pair(k, i));
+                    if (inserted)
+                        continue;
+                    const bool per_dof = p.kind == Kind::SHAPE || p.kind == Kind::INITIAL_VELOCITY
+                        || p.kind == Kind::INITIAL_DISPLACEMENT;
+                    const std::string what = per_dof
+                        ? "vertex " + std::to_string(target / d) + " component " + std::to_string(target % d)
+                        : "value " + std::to_string(target);
+                    throw InputError(p.field,
+                        "'" + p.name + "' " + what + " is already a parameter (" + m_parameters[at->second.first].field
+                            + ", entry " + std::to_string(at->second.second) + "): each value may be listed once");
+                }
+        }
+    }
     // E and nu, or mu and lambda: SimulationParameters' mu and lambda override E and nu.
     Moduli moduli = Moduli::NONE;
     std::string moduli_field;

@@ -5,7 +5,7 @@
 
 #include <filesystem>
 #include <fstream>
-#include <sstream>
+#include <vector>
 
 namespace diffipc {
 
@@ -17,23 +17,30 @@ std::string read_input_file(const std::string& path, const std::string& what)
     const fs::file_status status = fs::status(path, ec);
     if (ec || !fs::exists(status))
         throw InputError(path, "cannot open " + what + " (no such file)");
-    if (!fs::is_regular_file(status))
-        throw InputError(path, "cannot read " + what + ": not a regular file (a directory or a device?)");
-    const auto size = fs::file_size(path, ec);
-    if (ec)
-        throw InputError(path, "cannot read " + what);
-    if (size > MAX_INPUT_FILE_BYTES)
-        throw InputError(path,
-            what + " of " + std::to_string(size) + " bytes is larger than the limit of "
-                + std::to_string(MAX_INPUT_FILE_BYTES) + " bytes (meshes belong in .msh or surface files)");
+    if (fs::is_directory(status))
+        throw InputError(path, "cannot read " + what + ": it is a directory");
+    const std::string too_large = what + " is larger than the limit of " + std::to_string(MAX_INPUT_FILE_BYTES)
+        + " bytes (meshes belong in .msh or surface files)";
+    if (fs::is_regular_file(status)) {
+        const auto size = fs::file_size(path, ec);
+        if (!ec && size > MAX_INPUT_FILE_BYTES)
+            throw InputError(path, too_large);
+    }
+    // A pipe (process substitution) or device is read up to the limit: /dev/zero ends there.
     std::ifstream in(path, std::ios::binary);
     if (!in)
         throw InputError(path, "cannot open " + what);
-    std::ostringstream text;
-    text << in.rdbuf();
+    std::string text;
+    std::vector<char> buffer(1 << 16);
+    while (in) {
+        in.read(buffer.data(), std::streamsize(buffer.size()));
+        text.append(buffer.data(), size_t(in.gcount()));
+        if (text.size() > MAX_INPUT_FILE_BYTES)
+            throw InputError(path, too_large);
+    }
     if (in.bad())
         throw InputError(path, "cannot read " + what);
-    return text.str();
+    return text;
 }
 
 nlohmann::json parse_json_text(const std::string& text, const std::string& source)

@@ -15,9 +15,10 @@ inline constexpr std::size_t MAX_INPUT_FILE_BYTES = std::size_t(64) << 20;
 /// Deepest JSON nesting accepted (scenes and problems use fewer than 10 levels).
 inline constexpr int MAX_JSON_DEPTH = 64;
 
-/// @brief The contents of `path`, a regular file of at most MAX_INPUT_FILE_BYTES.
+/// @brief The contents of `path` (a file, or a pipe or device read up to the limit), at most
+/// MAX_INPUT_FILE_BYTES.
 /// @param what what the file is, in words ("scene file", "problem file")
-/// @throws InputError naming the file (missing, a directory or device, too large, unreadable)
+/// @throws InputError naming the file (missing, a directory, too large, unreadable)
 std::string read_input_file(const std::string& path, const std::string& what);
 
 /// @brief Parses JSON text. Nesting deeper than MAX_JSON_DEPTH is refused; a number that

@@ -221,11 +221,11 @@ def test_usage_errors_exit_1_with_one_line(cli, tmp_path):
 def test_inputs_that_are_not_json_files_are_refused(cli, tmp_path, root):
     # Before: /dev/zero was read until memory ran out, a directory gave "invalid JSON", and a
     # problem file nested two million levels deep crashed gradcheck (exit -11).
-    for path in ("/dev/zero", str(tmp_path)):
+    for path, message in (("/dev/zero", "larger than the limit"), (str(tmp_path), "directory")):
         for command in ("validate", "gradcheck"):
             r = run(cli, command, path)
             assert r.returncode == 1, (command, path, r.stderr)
-            assert "not a regular file" in r.stderr and path in r.stderr
+            assert message in r.stderr and path in r.stderr
     problem = json.loads((root / "studies" / "302_bar_youngs_markers" / "problem.json").read_text())
     text = json.dumps(problem)[:-1] + ', "deep": ' + "[" * 2000000 + "]" * 2000000 + "}"
     deep = tmp_path / "deep.json"
@@ -238,6 +238,10 @@ def test_inputs_that_are_not_json_files_are_refused(cli, tmp_path, root):
     scene.write_text(text)
     r = run(cli, "validate", scene)
     assert r.returncode == 1 and "nested deeper than" in r.stderr
+    # A scene through a pipe (as with the shell's process substitution) is still read.
+    r = subprocess.run([cli, "validate", "/dev/stdin"], input=json.dumps(box_scene(dim=2, steps=1)),
+                       capture_output=True, text=True, timeout=60)
+    assert r.returncode == 0 and "valid 2D scene" in r.stdout, r.stderr
 
 
 def test_readme_documents_every_exit_code(root):

@@ -100,6 +100,14 @@ BAD_PROBLEMS = [
     ("weight_string", lambda p: p.update(weight="heavy") or p, "weight"),
     ("scene_beside_scenes", lambda p: dict(_scenes(p), scene=p["scene"]), "scene"),
     ("unknown_case_key", lambda p: (lambda q: q["scenes"][0].update(wieght=2) or q)(_scenes(p)), "scenes[0].wieght"),
+    # Before: accepted, and the gradient was then wrong (the forward used the last entry).
+    ("element_block_twice", lambda p: p.update(parameters=[{"type": "E", "per": "element"}, {"type": "E"}]) or p,
+     "parameters[1]"),
+    ("vertex_listed_twice", lambda p: p.update(parameters=[{"type": "shape", "vertices": [3, 5, 3]}]) or p,
+     "parameters[0]"),
+    ("vertex_in_two_entries", lambda p: p.update(parameters=[{"type": "shape", "vertices": [3, 5]},
+                                                             {"type": "shape", "vertices": [5]}]) or p,
+     "parameters[1]"),
 ]
 
 
