@@ -4,17 +4,34 @@
 /// (for example "bodies[0].material.nu"); the CLI prints it as one line and
 /// exits non-zero, the Python module raises ValueError.
 
+#include <cstddef>
 #include <stdexcept>
 #include <string>
 
 namespace diffipc {
+
+/// Longest message an InputError carries: a message quotes user input (a malformed line,
+/// an expression), which may be megabytes long; the quote is cut, the message stays one line.
+inline constexpr std::size_t MAX_ERROR_MESSAGE = 600;
+
+/// `text` cut to MAX_ERROR_MESSAGE characters (with how much was left out), line breaks as spaces.
+inline std::string clip_message(std::string text)
+{
+    for (char& c : text)
+        if (c == '\n' || c == '\r')
+            c = ' ';
+    if (text.size() <= MAX_ERROR_MESSAGE)
+        return text;
+    const std::size_t omitted = text.size() - MAX_ERROR_MESSAGE;
+    return text.substr(0, MAX_ERROR_MESSAGE) + "... (" + std::to_string(omitted) + " more characters)";
+}
 
 class InputError : public std::runtime_error {
 public:
     /// @param field  JSON path or file name the error is about
     /// @param message what is wrong, in a form the user can act on
     InputError(const std::string& field, const std::string& message)
-        : std::runtime_error(field.empty() ? message : field + ": " + message)
+        : std::runtime_error(clip_message(field.empty() ? message : field + ": " + message))
         , m_field(field)
     {
     }

@@ -578,7 +578,8 @@ Scene load_scene(const std::string& path)
         if (e.field() == path)
             throw;
         const std::string what = e.what();
-        const std::string message = e.field().empty() ? what : what.substr(e.field().size() + 2);
+        const bool prefixed = !e.field().empty() && what.size() >= e.field().size() + 2;
+        const std::string message = prefixed ? what.substr(e.field().size() + 2) : what;
         throw InputError(path + ": " + e.field(), message);
     }
 }

@@ -266,3 +266,16 @@ def test_an_obstacle_scaled_out_of_range_is_refused(cli, tmp_path, root, scale):
         r = run(cli, command, scene, *(["-o", tmp_path / "out"] if command == "simulate" else []))
         assert r.returncode == 1, (command, r.stderr)
         assert "obstacles[0]" in r.stderr and "1e12" in r.stderr
+
+
+def test_errors_quote_at_most_a_line_of_the_input(cli, tmp_path):
+    # Before: a malformed 1 MB .msh line was echoed whole on stderr.
+    s = box_scene(dim=3, steps=1)
+    s["bodies"][0]["mesh"] = {"file": "bad.msh"}
+    (tmp_path / "bad.msh").write_text("$MeshFormat\n4.1 0 8\n$EndMeshFormat\n$Nodes\n" + "x" * 1000000 + "\n")
+    scene = tmp_path / "scene.json"
+    scene.write_text(json.dumps(s))
+    r = run(cli, "validate", scene)
+    assert r.returncode == 1, r.stderr
+    assert len(r.stderr) < 1000 and len(r.stderr.strip().splitlines()) == 1
+    assert "bad.msh" in r.stderr and "more characters" in r.stderr
