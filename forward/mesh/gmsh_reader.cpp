@@ -2,6 +2,7 @@
 
 #include "forward/common/error.hpp"
 
+#include <algorithm>
 #include <array>
 #include <fstream>
 #include <sstream>
@@ -117,9 +118,14 @@ namespace {
                         const long parametric = bh[2], count = bh[3];
                         if (parametric != 0)
                             reader.fail("parametric node coordinates are not supported");
-                        std::vector<long> tags(static_cast<size_t>(count));
+                        if (count < 0)
+                            reader.fail("negative node count " + std::to_string(count) + " in a node block");
+                        // The count is not trusted for an allocation: a block says 2^62 nodes and
+                        // then ends; the lines are read (and the file runs out) one at a time.
+                        std::vector<long> tags;
+                        tags.reserve(size_t(std::min(count, 1L << 16)));
                         for (long i = 0; i < count; ++i)
-                            tags[size_t(i)] = parse_numbers<long>(reader, reader.require("$Nodes"), 1)[0];
+                            tags.push_back(parse_numbers<long>(reader, reader.require("$Nodes"), 1)[0]);
                         for (long i = 0; i < count; ++i) {
                             const auto v = parse_numbers<double>(reader, reader.require("$Nodes"), 3);
                             nodes[tags[size_t(i)]] = Eigen::Vector3d(v[0], v[1], v[2]);

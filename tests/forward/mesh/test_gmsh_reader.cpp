@@ -112,6 +112,19 @@ TEST(GmshReader, ErrorsNameTheFile)
     std::string garbage = V2;
     garbage.replace(garbage.find("20 1 0 0"), 8, "20 1 x 0");
     EXPECT_THROW(read_gmsh(write_temp("garbage.msh", garbage), 3), InputError);
+    // Node block counts of -1 and 2^62 (before: a vector of that size, bad_alloc or
+    // length_error, exit 3): an InputError naming the file, allocating nothing.
+    for (const char* count : { "-1", "4611686018427387904" }) {
+        std::string v4 = V4;
+        v4.replace(v4.find("2 1 0 3"), 7, std::string("2 1 0 ") + count);
+        const std::string path = write_temp(std::string("count") + count + ".msh", v4);
+        try {
+            read_gmsh(path, 2);
+            FAIL() << count;
+        } catch (const InputError& e) {
+            EXPECT_EQ(e.field(), path) << e.what();
+        }
+    }
 }
 
 } // namespace
