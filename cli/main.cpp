@@ -7,9 +7,9 @@
 #include "adjoint/adjoint.hpp"
 #include "cli/bench.hpp"
 #include "cli/gradcheck.hpp"
+#include "cli/simulate.hpp"
 #include "forward/common/error.hpp"
 #include "forward/common/threads.hpp"
-#include "forward/common/timer.hpp"
 #include "forward/io/output.hpp"
 #include "forward/scene/scene.hpp"
 #include "forward/simulation/simulator.hpp"
@@ -17,186 +17,14 @@
 #include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
 
-#include <csignal>
 #include <cstdio>
 #include <filesystem>
 #include <iostream>
-#include <memory>
 
 namespace fs = std::filesystem;
 using namespace diffipc;
 
 namespace {
-
-/// The first SIGINT or SIGTERM asks the run to stop after the current step; the handler
-/// then restores the default action, so a second one ends the process at once (the
-/// trajectory keeps every step up to its last flush).
-volatile std::sig_atomic_t g_stop_signal = 0;
-
-extern "C" void on_stop_signal(int signal)
-{
-    g_stop_signal = signal;
-    std::signal(signal, SIG_DFL);
-}
-
-/// Exit code of a run stopped by `signal`: 128 + the signal number, as shells report it.
-int interrupted_exit_code(int signal) { return 128 + signal; }
-
-int simulate(std::string scene_path, std::string out_dir, int vtu_every, bool quiet, const std::string& restart)
-{
-    // --restart DIR: the run in DIR goes on from its last committed step in trajectory.h5.
-    std::unique_ptr<StoredTrajectory> stored;
-    if (!restart.empty()) {
-        if (!out_dir.empty() && fs::path(out_dir) != fs::path(restart))
-            throw InputError("--restart", "continues the run in its own directory; leave -o out");
-        out_dir = restart;
-        stored = std::make_unique<StoredTrajectory>(read_trajectory((fs::path(restart) / "trajectory.h5").string()));
-        if (scene_path.empty())
-            scene_path = stored->scene;
-        if (scene_path.empty())
-            throw InputError("--restart", "the trajectory does not name its scene: give the scene file");
-    }
-    if (scene_path.empty())
-        throw InputError("scene", "a scene file is required");
-    Scene scene = load_scene(scene_path);
-    if (out_dir.empty())
-        out_dir = scene.output.directory;
-    if (vtu_every >= 0)
-        scene.output.vtu_every = vtu_every;
-    std::error_code ec;
-    fs::create_directories(out_dir, ec);
-    if (ec || !fs::is_directory(out_dir))
-        throw InputError(out_dir, "cannot create output directory");
-
-    Simulator sim(std::move(scene));
-    const Scene& sc = sim.scene();
-    if (stored) {
-        if (!stored->scene.empty() && fs::weakly_canonical(stored->scene, ec) != fs::weakly_canonical(scene_path, ec))
-            std::fprintf(stderr, "diffipc: warning: the trajectory was written for %s, not %s\n", stored->scene.c_str(),
-                scene_path.c_str());
-        sim.resume(stored->trajectory, stored->contact);
-        if (!quiet)
-            std::printf("diffipc: resuming %s at step %d\n", out_dir.c_str(), sim.steps_done());
-    }
-    if (!quiet)
-        std::printf("diffipc: %s: %ld vertices, %ld elements, %d bodies, %s, dt = %g s, %d steps\n", scene_path.c_str(),
-            long(sim.mesh().num_vertices()), long(sim.mesh().num_elements()), int(sc.bodies.size()),
-            to_string(sc.time.integrator).c_str(), sc.time.dt, sc.time.steps);
-
-    const std::string summary_path = (fs::path(out_dir) / "summary.json").string();
-    const std::string pvd_path = (fs::path(out_dir) / "trajectory.pvd").string();
-    std::unique_ptr<TrajectoryWriter> h5;
-    const std::string h5_path = (fs::path(out_dir) / "trajectory.h5").string();
-    if (sc.output.hdf5 || stored) {
-        // A restart copies the stored steps into a new file, which then replaces the old one.
-        const std::string path = stored ? h5_path + ".restart" : h5_path;
-        h5 = std::make_unique<TrajectoryWriter>(path, sim.mesh(), stored ? stored->trajectory : sim.trajectory(),
-            sim.contact() != nullptr,
-            std::vector<std::pair<std::string, std::string>> {
-                { "diffipc_version", DIFFIPC_VERSION }, { "scene", sc.source } });
-        if (stored) {
-            for (const StepRecord& r : stored->trajectory.steps)
-                h5->append(r);
-            h5->flush();
-            if (std::rename(path.c_str(), h5_path.c_str()) != 0)
-                throw InputError(h5_path, "cannot replace the trajectory with its continued copy");
-        }
-    }
-
-    std::vector<std::pair<double, std::string>> vtu_files;
-    if (stored)
-        for (int k = 0; k <= sim.steps_done(); ++k) {
-            const std::string name = "frame_" + std::to_string(k) + ".vtu";
-            if (fs::exists(fs::path(out_dir) / name))
-                vtu_files.emplace_back(
-                    k == 0 ? stored->trajectory.initial_time : stored->trajectory.step(k).time, name);
-        }
-    stored.reset();
-    auto write_frame = [&](int index, double t, const VectorXd& x, const VectorXd& v) {
-        const std::string name = "frame_" + std::to_string(index) + ".vtu";
-        write_vtu((fs::path(out_dir) / name).string(), sim, x, v);
-        vtu_files.emplace_back(t, name);
-    };
-    if (sc.output.vtu_every > 0 && sim.steps_done() == 0)
-        write_frame(0, 0.0, sim.positions(), sim.velocities());
-
-    // Outputs are brought up to date output.flush_interval (1 s) apart: trajectory.h5 flushed,
-    // summary.json (status RUNNING) and the .pvd replaced. A step's record is dropped once
-    // written (its totals stay), so memory does not grow with the number of steps.
-    double output_seconds = 0; // trajectory.h5, VTU frames, summary.json, .pvd
-    auto bring_up_to_date = [&](const char* status) {
-        const Timer timer;
-        if (h5)
-            h5->flush();
-        if (!vtu_files.empty())
-            write_pvd(pvd_path, vtu_files);
-        nlohmann::json summary = summary_json(sim);
-        if (status)
-            summary["status"] = status;
-        summary["wall_time"]["output"] = output_seconds;
-        write_json(summary_path, summary);
-        timer.add_to(output_seconds);
-    };
-    g_stop_signal = 0;
-    std::signal(SIGINT, on_stop_signal);
-    std::signal(SIGTERM, on_stop_signal);
-    bring_up_to_date("RUNNING");
-
-    Timer since_print, since_flush;
-    const int total = sc.time.steps;
-    while (sim.steps_done() < total && !g_stop_signal) {
-        if (sim.step() != StepStatus::CONVERGED)
-            break;
-        const StepRecord& r = sim.trajectory().steps.back();
-        {
-            const Timer timer;
-            if (h5)
-                h5->append(r);
-            if (sc.output.vtu_every > 0 && r.index % sc.output.vtu_every == 0)
-                write_frame(r.index, r.time, r.positions, r.velocities);
-            timer.add_to(output_seconds);
-        }
-        if (!quiet && (total <= 50 || since_print.seconds() > 1.0 || r.index == total)) {
-            std::printf("  step %d/%d  t = %.4g s  newton %d  residual %.2e  %.3f s/step  min volume ratio %.3f\n",
-                r.index, total, r.time, r.newton_iterations, r.residual, r.wall_time, r.min_volume_ratio);
-            std::fflush(stdout);
-            since_print = Timer();
-        }
-        sim.forget_records();
-        if (since_flush.seconds() >= sc.output.flush_interval) {
-            bring_up_to_date("RUNNING");
-            since_flush = Timer();
-        }
-    }
-    const int stop_signal = g_stop_signal;
-    std::signal(SIGINT, SIG_DFL);
-    std::signal(SIGTERM, SIG_DFL);
-
-    const Trajectory& tr = sim.trajectory();
-    const bool interrupted = stop_signal != 0 && tr.final_status == StepStatus::CONVERGED && sim.steps_done() < total;
-    if (h5) {
-        const Timer timer;
-        h5->close();
-        timer.add_to(output_seconds);
-    }
-    bring_up_to_date(interrupted ? "INTERRUPTED" : nullptr);
-
-    if (interrupted) {
-        std::fprintf(stderr, "diffipc: interrupted by %s after %d of %d steps; wrote %s\n",
-            stop_signal == SIGINT ? "SIGINT" : "SIGTERM", sim.steps_done(), total, out_dir.c_str());
-        return interrupted_exit_code(stop_signal);
-    }
-    if (tr.final_status != StepStatus::CONVERGED) {
-        std::fprintf(stderr, "diffipc: %s\n", tr.failure_message.c_str());
-        return 2;
-    }
-    if (!quiet)
-        std::printf("diffipc: %d steps converged in %.2f s (%d Newton iterations); wrote %s (output %.3f s, %.1f%% "
-                    "of the steps' time)\n",
-            tr.committed(), tr.wall_time, tr.newton_iterations, out_dir.c_str(), output_seconds,
-            tr.wall_time > 0 ? 100 * output_seconds / tr.wall_time : 0.0);
-    return 0;
-}
 
 int validate(const std::string& scene_path)
 {

@@ -45,6 +45,16 @@ struct TrajectoryWriter::Impl {
     std::vector<Column> columns;
     // Scalars of the step being appended, converted to the stored types.
     int status = 0;
+    Index state_size = 0; // #V * dim: every state row
+
+    /// The rows copy state_size values from each state vector: they must have that many.
+    void check_state(const StepRecord& r, const std::string& what) const
+    {
+        if (r.positions.size() != state_size || r.velocities.size() != state_size
+            || r.accelerations.size() != state_size)
+            throw std::logic_error("TrajectoryWriter: " + what + " has state vectors of the wrong size (expected "
+                + std::to_string(state_size) + " values each)");
+    }
 
     [[noreturn]] void fail(const std::string& what) const
     {
@@ -226,8 +236,9 @@ TrajectoryWriter::TrajectoryWriter(const std::string& path, const Mesh& mesh, co
         first.time = initial.initial_time;
         first.positions = initial.initial_positions;
         first.velocities = initial.initial_velocities;
-        first.accelerations = initial.initial_accelerations.size() ? initial.initial_accelerations
-                                                                   : VectorXd(VectorXd::Zero(first.positions.size()));
+        first.accelerations = initial.initial_accelerations;
+        m.state_size = Index(N * d);
+        m.check_state(first, "the initial state");
         for (Column& c : m.columns)
             if (c.state)
                 m.append_row(c, c.data(first));
@@ -267,13 +278,10 @@ void TrajectoryWriter::append(const StepRecord& record)
     if (!record.holds_state())
         throw std::logic_error("TrajectoryWriter::append: the record of step " + std::to_string(record.index)
             + " does not hold its state");
-    const Index size = record.positions.size();
-    if (record.velocities.size() != size)
-        throw std::logic_error("TrajectoryWriter::append: velocities of the wrong size");
+    m.check_state(record, "step " + std::to_string(record.index));
     m.status = int(record.status);
-    const VectorXd zero = record.accelerations.size() == size ? VectorXd() : VectorXd(VectorXd::Zero(size));
     for (Column& c : m.columns)
-        m.append_row(c, c.name == "accelerations" && zero.size() ? zero.data() : c.data(record));
+        m.append_row(c, c.data(record));
     ++m.steps;
     if (m.columns.back().pending_rows >= m.batch_rows())
         m.write_all_pending();

@@ -61,7 +61,9 @@ namespace {
     }
 
     struct Workspace {
-        std::vector<int> map; ///< global row -> local row of the supernode being assembled
+        /// factor_supernode: global row -> local row of its supernode (n entries);
+        /// a tile: local rows of the descendant rows it updates
+        std::vector<int> map;
         std::vector<double> c; ///< update matrix
     };
 
@@ -408,12 +410,6 @@ void SupernodalCholesky::Impl::factor_supernode_tiled(int s, const double* a)
     });
     for (int e = assembly_ptr[size_t(s)]; e < assembly_ptr[size_t(s) + 1]; ++e)
         x[assembly_offset[size_t(e)]] = a[assembly_entry[size_t(e)]];
-    // This supernode's own row map: the thread that runs it may run other supernodes
-    // (with the thread-local workspace) while it waits for its tiles.
-    std::unique_ptr<int[]> map(new int[size_t(n)]);
-    for (int i = 0; i < nrow; ++i)
-        map[size_t(r[i])] = i;
-
     // Tiles of the lower trapezoid: column block cb, row block rb with rows >= its first column.
     struct Tile {
         int c1, c2, r1, r2;
@@ -453,11 +449,20 @@ void SupernodalCholesky::Impl::factor_supernode_tiled(int s, const double* a)
                         w.c.resize(size_t(m) * size_t(nn));
                     const double* ld = values(up.d);
                     gemm_nt(m, nn, nscol(up.d), ld + t1, ndrow, ld + q1, ndrow, w.c.data(), m);
+                    // Local rows of d's rows t1..t2 in s: both lists are sorted and every row of
+                    // d below its columns is a row of s, so one merge over the tile's rows finds them.
+                    if (w.map.size() < size_t(m))
+                        w.map.resize(size_t(m));
+                    for (int ii = 0, j = tile.r1; ii < m; ++ii) {
+                        while (r[j] < rd[t1 + ii])
+                            ++j;
+                        w.map[size_t(ii)] = j;
+                    }
                     for (int jj = 0; jj < nn; ++jj) {
                         double* column = x + size_t(rd[q1 + jj] - k1) * size_t(nrow);
                         const double* cj = w.c.data() + size_t(jj) * size_t(m);
                         for (int ii = std::max(0, q1 + jj - t1); ii < m; ++ii)
-                            column[map[size_t(rd[t1 + ii])]] -= cj[ii];
+                            column[w.map[size_t(ii)]] -= cj[ii];
                     }
                 }
             }

@@ -1,0 +1,18 @@
+#pragma once
+/// @file simulate.hpp
+/// `diffipc simulate`.
+
+#include <string>
+
+namespace diffipc {
+
+/// @brief Runs a scene, streaming trajectory.h5, summary.json and VTU frames into out_dir.
+/// @param scene_path the scene file (with `restart`, empty: the one the stored run names)
+/// @param out_dir    output directory (empty: the scene's output.directory)
+/// @param vtu_every  VTU frame interval (-1: the scene's)
+/// @param restart    non-empty: continue the run in this directory from its trajectory.h5
+/// @return the exit code: 0, 2 (a step failed) or 128 + signal (stopped by SIGINT/SIGTERM)
+/// @throws InputError for bad input (exit 1)
+int simulate(std::string scene_path, std::string out_dir, int vtu_every, bool quiet, const std::string& restart);
+
+} // namespace diffipc
