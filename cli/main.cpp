@@ -29,6 +29,13 @@ namespace {
 int validate(const std::string& scene_path)
 {
     const Scene scene = load_scene(scene_path);
+    {
+        // Every check simulate makes before its first step: the simulator's own (contact
+        // settings against the geometry, masses, materials) and the initial state.
+        const std::string problem = open_simulator(scene, scene_path)->state_problem();
+        if (!problem.empty())
+            throw InputError(scene_path, "the initial state is invalid: " + problem);
+    }
     std::printf("%s: valid %dD scene, %zu bodies, %ld vertices, %ld elements, %s, %d steps of %g s\n",
         scene_path.c_str(), scene.dim, scene.bodies.size(), long(scene.mesh.num_vertices()),
         long(scene.mesh.num_elements()), to_string(scene.time.integrator).c_str(), scene.time.steps, scene.time.dt);
@@ -141,8 +148,6 @@ int main(int argc, char** argv)
     } catch (const AdjointError& e) {
         std::fprintf(stderr, "diffipc: %s\n", e.what());
         return 2;
-        std::fprintf(stderr, "diffipc: error: %s\n", e.what());
-        return 1;
     } catch (const std::exception& e) {
         std::fprintf(stderr, "diffipc: internal error: %s\n", e.what());
         return 3;

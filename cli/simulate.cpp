@@ -38,6 +38,15 @@ namespace {
 
 } // namespace
 
+std::unique_ptr<Simulator> open_simulator(Scene scene, const std::string& scene_path)
+{
+    try {
+        return std::make_unique<Simulator>(std::move(scene));
+    } catch (const InputError& e) {
+        throw InputError(scene_path, e.what());
+    }
+}
+
 int simulate(std::string scene_path, std::string out_dir, int vtu_every, bool quiet, const std::string& restart)
 {
     // --restart DIR: the run in DIR goes on from its last committed step in trajectory.h5.
@@ -64,7 +73,8 @@ int simulate(std::string scene_path, std::string out_dir, int vtu_every, bool qu
     if (ec || !fs::is_directory(out_dir))
         throw InputError(out_dir, "cannot create output directory");
 
-    Simulator sim(std::move(scene));
+    const std::unique_ptr<Simulator> simulator = open_simulator(std::move(scene), scene_path);
+    Simulator& sim = *simulator;
     const Scene& sc = sim.scene();
     if (stored) {
         if (!stored->scene.empty() && fs::weakly_canonical(stored->scene, ec) != fs::weakly_canonical(scene_path, ec))

@@ -2,9 +2,16 @@
 /// @file simulate.hpp
 /// `diffipc simulate`.
 
+#include "forward/simulation/simulator.hpp"
+
+#include <memory>
 #include <string>
 
 namespace diffipc {
+
+/// @brief The simulator of a loaded scene; its InputErrors (contact settings against the
+/// geometry, for example) name the scene file like the scene's own.
+std::unique_ptr<Simulator> open_simulator(Scene scene, const std::string& scene_path);
 
 /// @brief Runs a scene, streaming trajectory.h5, summary.json and VTU frames into out_dir.
 /// @param scene_path the scene file (with `restart`, empty: the one the stored run names)

@@ -44,6 +44,14 @@ double WeightedSum::value(const Simulator& sim, const Trajectory& trajectory) co
     return J;
 }
 
+double WeightedSum::round_off(const Simulator& sim, const Trajectory& trajectory) const
+{
+    double total = 0;
+    for (const Term& t : m_terms)
+        total += std::abs(t.weight) * t.objective->round_off(sim, trajectory);
+    return total;
+}
+
 void WeightedSum::add_gradient(const Simulator& sim, const Trajectory& trajectory, const ParameterRequest& request,
     double scale, StateSeed& seed) const
 {
@@ -64,28 +72,36 @@ Power::Power(std::unique_ptr<Objective> objective, double q)
 
 std::string Power::name() const { return "(" + m_objective->name() + ")^" + std::to_string(m_q); }
 
-namespace {
-    void check_power_base(double G, double q)
-    {
-        if (G < 0 && q != std::round(q))
-            throw std::domain_error("power: a non-integer power of a negative value");
+double Power::base(const Simulator& sim, const Trajectory& trajectory) const
+{
+    const double G = m_objective->value(sim, trajectory);
+    if (G < 0 && m_q != std::round(m_q)) {
+        const double round_off = m_objective->round_off(sim, trajectory);
+        if (!(G >= -round_off))
+            throw ObjectiveDomainError("power " + format_number(m_q) + " of " + m_objective->name() + " = "
+                + format_number(G) + ": a non-integer power of a negative value (beyond its round-off of "
+                + format_number(round_off) + ")");
+        return 0.0; // zero up to round-off
     }
-} // namespace
+    if (G == 0 && m_q < 0)
+        throw ObjectiveDomainError("power " + format_number(m_q) + " of " + m_objective->name() + " = 0 is infinite");
+    return G;
+}
 
 double Power::value(const Simulator& sim, const Trajectory& trajectory) const
 {
-    const double G = m_objective->value(sim, trajectory);
-    check_power_base(G, m_q);
-    return std::pow(G, m_q);
+    return std::pow(base(sim, trajectory), m_q);
 }
 
 void Power::add_gradient(const Simulator& sim, const Trajectory& trajectory, const ParameterRequest& request,
     double scale, StateSeed& seed) const
 {
-    const double G = m_objective->value(sim, trajectory);
-    check_power_base(G, m_q);
+    const double G = base(sim, trajectory);
     if (m_q == 0)
         return;
+    if (G == 0 && m_q < 1)
+        throw ObjectiveDomainError("power " + format_number(m_q) + " of " + m_objective->name()
+            + " = 0: the gradient of G^q at G = 0 is infinite for q < 1");
     m_objective->add_gradient(sim, trajectory, request, scale * m_q * std::pow(G, m_q - 1), seed);
 }
 

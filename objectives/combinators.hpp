@@ -26,6 +26,8 @@ public:
         StateSeed& seed) const override;
     /// Those of every term.
     std::vector<int> states_read(int steps) const override;
+    /// sum_i |w_i| round_off_i.
+    double round_off(const Simulator& sim, const Trajectory& trajectory) const override;
 
     const std::vector<Term>& terms() const { return m_terms; }
 
@@ -34,8 +36,9 @@ private:
 };
 
 /// @brief J = G^q with dJ = q G^{q-1} dG.
-/// For a non-integer q, G must be >= 0 (std::domain_error otherwise); for q < 1 the gradient
-/// at G = 0 is infinite.
+/// For a non-integer q, G must be >= 0 up to its round-off (a G in [-round_off, 0) counts as 0);
+/// otherwise, and for the infinite gradient at G = 0 when q < 1 (or the value there, q < 0),
+/// ObjectiveDomainError.
 class Power : public Objective {
 public:
     Power(std::unique_ptr<Objective> objective, double q);
@@ -47,6 +50,9 @@ public:
     std::vector<int> states_read(int steps) const override { return m_objective->states_read(steps); }
 
 private:
+    /// G, or 0 for a G within its round-off below 0 when q is not an integer.
+    double base(const Simulator& sim, const Trajectory& trajectory) const;
+
     std::unique_ptr<Objective> m_objective;
     double m_q;
 };

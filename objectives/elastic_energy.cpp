@@ -4,6 +4,8 @@
 #include "objectives/objective.hpp"
 
 #include <array>
+#include <cmath>
+#include <limits>
 #include <memory>
 #include <stdexcept>
 
@@ -59,6 +61,35 @@ double ElasticEnergy::value(const Simulator& sim, const StateRef& state) const
 {
     return sim.mesh().dim == 2 ? elastic_energy<2>(m_elements, sim, state.positions, nullptr, 0.0, nullptr, nullptr)
                                : elastic_energy<3>(m_elements, sim, state.positions, nullptr, 0.0, nullptr, nullptr);
+}
+
+namespace {
+    template <int dim>
+    double elastic_round_off(const std::vector<Index>& selected, const Simulator& sim, const VectorXd& x)
+    {
+        const Mesh& mesh = sim.mesh();
+        const FESpace& space = sim.space();
+        const ElasticPotential& elastic = sim.elastic();
+        double magnitude = 0;
+        const auto add = [&](Index e) {
+            const Mat<dim> F = deformation_gradient<dim>(mesh, shape_gradients<dim>(space, e), e, x);
+            magnitude
+                += space.rest_volume(e) * (elastic.mu()[e] + std::abs(elastic.lambda()[e])) * (1 + F.squaredNorm());
+        };
+        if (selected.empty())
+            for (Index e = 0; e < mesh.num_elements(); ++e)
+                add(e);
+        else
+            for (Index e : selected)
+                add(e);
+        return 64 * std::numeric_limits<double>::epsilon() * magnitude;
+    }
+} // namespace
+
+double ElasticEnergy::round_off(const Simulator& sim, const StateRef& state) const
+{
+    return sim.mesh().dim == 2 ? elastic_round_off<2>(m_elements, sim, state.positions)
+                               : elastic_round_off<3>(m_elements, sim, state.positions);
 }
 
 void ElasticEnergy::add_gradient(const Simulator& sim, const StateRef& state, const ParameterRequest& request,

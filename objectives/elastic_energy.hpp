@@ -25,6 +25,9 @@ public:
     double value(const Simulator& sim, const StateRef& state) const override;
     void add_gradient(const Simulator& sim, const StateRef& state, const ParameterRequest& request, double scale,
         VectorXd& d_positions, VectorXd& d_velocities, ParameterGradient& partials) const override;
+    /// 64 eps sum_e |e| (mu_e + |lambda_e|) (1 + |F_e|^2): the size of the terms that cancel in
+    /// psi (a rigidly moving body's energy comes out as -8e-17 J, not 0).
+    double round_off(const Simulator& sim, const StateRef& state) const override;
 
 private:
     std::vector<Index> m_elements;

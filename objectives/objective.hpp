@@ -13,12 +13,23 @@
 /// sim.elastic().mu(), .lambda() and densities sim.inertia().density().
 
 #include "adjoint/sensitivity.hpp"
+#include "forward/common/error.hpp"
 #include "forward/simulation/simulator.hpp"
 
 #include <string>
 #include <vector>
 
 namespace diffipc {
+
+/// An objective that is not defined at this run (a max_p of a negative value, a non-integer
+/// power of one): an InputError about the field "objective" (the CLI's exit 1, Python's ValueError).
+class ObjectiveDomainError : public InputError {
+public:
+    explicit ObjectiveDomainError(const std::string& message)
+        : InputError("objective", message)
+    {
+    }
+};
 
 class Objective {
 public:
@@ -37,6 +48,9 @@ public:
     /// @param steps T
     /// @return by default every state 0..T
     virtual std::vector<int> states_read(int steps) const;
+    /// @brief The absolute round-off of value(): a value in [-round_off, 0) is zero up to
+    /// round-off (docs/objectives.md). By default 0 (no allowance).
+    virtual double round_off(const Simulator& /*sim*/, const Trajectory& /*trajectory*/) const { return 0.0; }
 };
 
 /// @name The states of a trajectory by index k = 0..T.

@@ -31,6 +31,10 @@ public:
     ///        allocates one (gradient_block()) only when it adds to it
     virtual void add_gradient(const Simulator& sim, const StateRef& state, const ParameterRequest& request,
         double scale, VectorXd& d_positions, VectorXd& d_velocities, ParameterGradient& partials) const = 0;
+    /// @brief The absolute round-off of value() at this state: a value in [-round_off, 0) is
+    /// zero up to round-off (docs/objectives.md, "Values within round-off of zero"). Zero for a
+    /// functional whose evaluation cannot come out negative when its exact value is not.
+    virtual double round_off(const Simulator& /*sim*/, const StateRef& /*state*/) const { return 0.0; }
 };
 
 } // namespace diffipc

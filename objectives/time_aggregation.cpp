@@ -103,10 +103,17 @@ double TimeAggregation::max_p(
     f.resize(k.size());
     double f_max = 0;
     for (size_t i = 0; i < k.size(); ++i) {
-        f[i] = m_functional->value(sim, state_ref(trajectory, k[i]));
-        if (f[i] < 0)
-            throw std::domain_error("max_p time aggregation needs nonnegative values; " + m_functional->name() + " is "
-                + std::to_string(f[i]) + " at state " + std::to_string(k[i]));
+        const StateRef state = state_ref(trajectory, k[i]);
+        f[i] = m_functional->value(sim, state);
+        if (f[i] < 0) {
+            // Zero up to round-off counts as zero; below, the value is truly negative.
+            const double round_off = m_functional->round_off(sim, state);
+            if (!(f[i] >= -round_off))
+                throw ObjectiveDomainError("max_p time aggregation needs nonnegative values; " + m_functional->name()
+                    + " is " + format_number(f[i]) + " at state " + std::to_string(k[i]) + ", beyond its round-off of "
+                    + format_number(round_off));
+            f[i] = 0;
+        }
         f_max = std::max(f_max, f[i]);
     }
     if (f_max == 0)
@@ -115,6 +122,19 @@ double TimeAggregation::max_p(
     for (double fi : f)
         sum += std::pow(fi / f_max, m_p);
     return f_max * std::pow(sum, 1.0 / m_p);
+}
+
+double TimeAggregation::round_off(const Simulator& sim, const Trajectory& trajectory) const
+{
+    std::vector<int> k;
+    std::vector<double> weight;
+    states(trajectory, k, weight);
+    double total = 0;
+    for (size_t i = 0; i < k.size(); ++i) {
+        const double r = m_functional->round_off(sim, state_ref(trajectory, k[i]));
+        total = m_mode == TimeMode::MAX_P ? std::max(total, r) : total + std::abs(weight[i]) * r;
+    }
+    return total;
 }
 
 double TimeAggregation::value(const Simulator& sim, const Trajectory& trajectory) const

@@ -37,8 +37,10 @@ public:
         std::unique_ptr<StateFunctional> functional, TimeMode mode, double p = 8, bool include_initial = false);
 
     std::string name() const override;
-    /// @throws std::domain_error for MAX_P when some aggregated f_k is negative.
+    /// @throws ObjectiveDomainError for MAX_P when some aggregated f_k is negative beyond its round-off.
     double value(const Simulator& sim, const Trajectory& trajectory) const override;
+    /// The weighted sum of the states' round-offs (max_p: the largest).
+    double round_off(const Simulator& sim, const Trajectory& trajectory) const override;
     void add_gradient(const Simulator& sim, const Trajectory& trajectory, const ParameterRequest& request, double scale,
         StateSeed& seed) const override;
     /// {T} for FINAL, every state otherwise.

@@ -14,6 +14,7 @@
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <set>
 #include <stdexcept>
 
 namespace diffipc {
@@ -59,6 +60,7 @@ namespace {
         }
         const json& v = spec["vertices"];
         if (v.is_object() && v.contains("body")) {
+            JsonField(v, field + ".vertices").require_object({ "body" });
             const int b = body_index(scene, v["body"], field + ".vertices.body");
             for (Index i = 0; i < scene.body_vertices; ++i)
                 if (mesh.vertex_body[i] == b)
@@ -293,17 +295,38 @@ namespace {
                         vertices.push_back(v);
             } else
                 vertices = select_vertices(scene, spec, field);
+            // A prescribed dof (Dirichlet or obstacle) keeps its prescribed initial state: a value
+            // there would be dead. Whole-body selections skip those dofs; a listed vertex, or a
+            // body component with no free dof left, is refused.
+            const std::vector<Index> prescribed_list = sim.prescribed_dofs();
+            const std::set<Index> prescribed(prescribed_list.begin(), prescribed_list.end());
+            const bool listed = spec.contains("vertices") && spec["vertices"].is_array();
+            for (Index v : vertices)
+                for (int c = 0; listed && c < d; ++c)
+                    if (prescribed.count(v * d + c))
+                        throw InputError(field + ".vertices",
+                            "vertex " + std::to_string(v) + " is prescribed in component " + std::to_string(c)
+                                + " (Dirichlet or obstacle): its initial state is the prescription's");
             if (mode == "body") {
                 for (int c = 0; c < d; ++c) {
                     std::vector<Index> dofs;
                     for (Index v : vertices)
-                        dofs.push_back(v * d + c);
+                        if (!prescribed.count(v * d + c))
+                            dofs.push_back(v * d + c);
+                    if (dofs.empty())
+                        throw InputError(field,
+                            "component " + std::to_string(c)
+                                + " of the selected vertices is prescribed everywhere (Dirichlet or obstacle): "
+                                  "an initial state there has no effect");
                     p.targets.push_back(dofs);
                 }
             } else
                 for (Index v : vertices)
                     for (int c = 0; c < d; ++c)
-                        p.targets.push_back({ v * d + c });
+                        if (!prescribed.count(v * d + c))
+                            p.targets.push_back({ v * d + c });
+            if (p.targets.empty())
+                throw InputError(field, "every selected dof is prescribed: an initial state there has no effect");
             break;
         }
         case Selection::PRESCRIBED: {
@@ -407,11 +430,28 @@ ReducedFunctional::ReducedFunctional(const json& doc, const std::string& base_di
         if (!jc.contains("scene"))
             throw InputError(key("scene"), "missing (a scene file path or an inline scene object)");
         auto lc = std::make_unique<LoadCase>();
-        if (jc["scene"].is_string()) {
-            const std::filesystem::path p = std::filesystem::path(base_directory) / jc["scene"].get<std::string>();
-            lc->scene = load_scene(p.string());
-        } else
-            lc->scene = parse_scene(jc["scene"], base_directory, source);
+        // A scene file's errors name the file; an inline scene's name its place in the problem
+        // ("scenes[1].scene.bodies[0].material.E"), and so do the simulator's checks of either.
+        const bool inline_scene = !jc["scene"].is_string();
+        std::string scene_file;
+        const auto in_case = [&](const InputError& e) {
+            if (!inline_scene)
+                return InputError(scene_file + (e.field().empty() ? "" : ": " + e.field()), e.message());
+            return InputError(key("scene") + (e.field().empty() ? "" : "." + e.field()), e.message());
+        };
+        try {
+            if (inline_scene)
+                lc->scene = parse_scene(jc["scene"], base_directory, "");
+            else {
+                scene_file
+                    = (std::filesystem::path(base_directory) / JsonField(jc["scene"], key("scene")).string()).string();
+                lc->scene = load_scene(scene_file);
+            }
+        } catch (const InputError& e) {
+            if (!inline_scene)
+                throw;
+            throw in_case(e);
+        }
         if (!jc.contains("objective"))
             throw InputError(key("objective"), "missing");
         lc->objective = jc["objective"];
@@ -420,12 +460,21 @@ ReducedFunctional::ReducedFunctional(const json& doc, const std::string& base_di
         // The barrier stiffness is fixed during a differentiated run: an adaptive one is
         // chosen by a nominal run first (its largest value, kappa never decreases).
         SimulationParameters nominal;
-        if (lc->scene.contact.enabled && lc->scene.contact.adaptive_kappa) {
-            Simulator probe(lc->scene);
-            probe.run();
-            nominal.kappa = probe.contact()->kappa();
+        std::unique_ptr<Simulator> simulator;
+        try {
+            if (lc->scene.contact.enabled && lc->scene.contact.adaptive_kappa) {
+                Simulator probe(lc->scene);
+                probe.run();
+                nominal.kappa = probe.contact()->kappa();
+            }
+            simulator = std::make_unique<Simulator>(lc->scene, nominal);
+        } catch (const InputError& e) {
+            throw in_case(e);
         }
-        Simulator sim(lc->scene, nominal);
+        Simulator& sim = *simulator;
+        if (sim.friction() && lc->scene.friction.iterations > 1)
+            throw in_case(InputError("friction.iterations",
+                "must be 1 in a problem: the adjoint differentiates friction lagged once at the start of each step"));
         parse_objective(lc->objective, lc->field, sim); // validates against the scene
         lc->base = sim.parameters();
         lc->base.kappa = nominal.kappa > 0 ? nominal.kappa : lc->base.kappa;

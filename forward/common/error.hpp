@@ -5,6 +5,7 @@
 /// exits non-zero, the Python module raises ValueError.
 
 #include <cstddef>
+#include <cstdio>
 #include <stdexcept>
 #include <string>
 
@@ -26,6 +27,15 @@ inline std::string clip_message(std::string text)
     return text.substr(0, MAX_ERROR_MESSAGE) + "... (" + std::to_string(omitted) + " more characters)";
 }
 
+/// `value` for a message: at most 7 significant digits ("1e+300", "0.001", "-nan", "inf"),
+/// never the 300 digits std::to_string prints for a huge double or the "0.000000" of a tiny one.
+inline std::string format_number(double value)
+{
+    char buffer[32];
+    std::snprintf(buffer, sizeof buffer, "%.7g", value);
+    return buffer;
+}
+
 class InputError : public std::runtime_error {
 public:
     /// @param field  JSON path or file name the error is about
@@ -33,12 +43,16 @@ public:
     InputError(const std::string& field, const std::string& message)
         : std::runtime_error(clip_message(field.empty() ? message : field + ": " + message))
         , m_field(field)
+        , m_message(clip_message(message))
     {
     }
     const std::string& field() const { return m_field; }
+    /// What is wrong, without the field (to name the field within a larger input).
+    const std::string& message() const { return m_message; }
 
 private:
     std::string m_field;
+    std::string m_message;
 };
 
 } // namespace diffipc

@@ -25,6 +25,16 @@ namespace {
         hsize_t rows = 0; // rows in the file
         std::vector<unsigned char> pending; // rows appended since the last write, not yet in the file
         hsize_t pending_rows = 0;
+
+        Column(std::string name_, hid_t type_, std::vector<hsize_t> row_, bool state_,
+            std::function<const void*(const StepRecord&)> data_)
+            : name(std::move(name_))
+            , type(type_)
+            , row(std::move(row_))
+            , state(state_)
+            , data(std::move(data_))
+        {
+        }
     };
 
     hsize_t row_size(const std::vector<hsize_t>& row)

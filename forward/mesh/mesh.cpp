@@ -171,10 +171,10 @@ void validate_mesh(const Mesh& mesh, const std::string& field)
         const double v = signed_volume(mesh.rest_positions, mesh.elements, e);
         if (v < -tiny)
             throw InputError(
-                field, "element " + std::to_string(e) + " is inverted (signed volume " + std::to_string(v) + ")");
+                field, "element " + std::to_string(e) + " is inverted (signed volume " + format_number(v) + ")");
         if (v <= tiny)
             throw InputError(
-                field, "element " + std::to_string(e) + " is degenerate (volume " + std::to_string(v) + ")");
+                field, "element " + std::to_string(e) + " is degenerate (volume " + format_number(v) + ")");
     }
 }
 

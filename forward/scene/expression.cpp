@@ -9,6 +9,29 @@
 
 namespace diffipc {
 
+namespace {
+
+    /// Position of an '=' that assigns (muparser's "=", "+=", "-=", "*=", "/="), or npos: only the
+    /// comparisons "==", "!=", "<=" and ">=" may contain one. Expressions must not change t, x, y or z.
+    std::size_t assignment_position(const std::string& text)
+    {
+        for (std::size_t i = 0; i < text.size(); ++i) {
+            if (text[i] != '=')
+                continue;
+            const char before = i > 0 ? text[i - 1] : ' ';
+            if (before == '!' || before == '<' || before == '>')
+                continue;
+            if (i + 1 < text.size() && text[i + 1] == '=') {
+                ++i; // "==": skip its second '='
+                continue;
+            }
+            return i;
+        }
+        return std::string::npos;
+    }
+
+} // namespace
+
 struct Expression::Impl {
     mu::Parser parser;
     double t = 0, x = 0, y = 0, z = 0;
@@ -28,12 +51,24 @@ Expression::Expression(const std::string& text, const std::string& field)
     , m_field(field)
     , m_constant(false)
 {
+    if (text.find('\0') != std::string::npos)
+        throw InputError(field, "expression contains a NUL character");
+    if (const std::size_t at = assignment_position(text); at != std::string::npos)
+        throw InputError(field,
+            "invalid expression '" + text + "': '=' at position " + std::to_string(at + 1)
+                + " assigns a variable (compare with ==)");
+    int results = 0;
     try {
         m_impl = std::make_unique<Impl>(text);
         m_impl->parser.Eval();
+        results = m_impl->parser.GetNumResults();
     } catch (const mu::Parser::exception_type& e) {
         throw InputError(field, "invalid expression '" + text + "': " + e.GetMsg());
     }
+    if (results != 1)
+        throw InputError(field,
+            "invalid expression '" + text + "': it has " + std::to_string(results)
+                + " comma-separated values, expected one (write decimals with a point)");
     (*this)(0.0);
 }
 
@@ -86,7 +121,7 @@ double Expression::operator()(double t, double x, double y, double z) const
         }
     }
     if (!std::isfinite(value))
-        throw InputError(m_field, "expression '" + m_text + "' is not finite at t = " + std::to_string(t));
+        throw InputError(m_field, "expression '" + m_text + "' is not finite at t = " + format_number(t));
     return value;
 }
 

@@ -1,5 +1,6 @@
 #include "forward/scene/scene.hpp"
 
+#include "forward/common/error.hpp"
 #include "forward/mesh/gmsh_reader.hpp"
 #include "forward/scene/json_field.hpp"
 #include "forward/scene/json_input.hpp"
@@ -60,6 +61,42 @@ namespace {
             owner.fail("vertex coordinates after scale, rotation and translation are "
                 + std::string(X.allFinite() ? "beyond 1e12 m" : "not finite")
                 + " (contact distances would lose every digit)");
+    }
+
+    /// Relative change of an element's (or obstacle facet's) size that translation and rotation
+    /// may cause by round-off: beyond, the placed geometry has lost more than 6 of its digits.
+    constexpr double MAX_PLACEMENT_DISTORTION = 1e-6;
+
+    /// Length, area or volume of the simplex of `cells` row c (k + 1 vertices, k <= dimension),
+    /// from the Gram determinant of its edge vectors.
+    double simplex_measure(const MatrixXd& X, const MatrixXi& cells, Index c)
+    {
+        const Index k = cells.cols() - 1;
+        MatrixXd edges(X.cols(), k);
+        for (Index j = 0; j < k; ++j)
+            edges.col(j) = (X.row(cells(c, j + 1)) - X.row(cells(c, 0))).transpose();
+        double factorial = 1;
+        for (Index j = 2; j <= k; ++j)
+            factorial *= double(j);
+        return std::sqrt(std::abs((edges.transpose() * edges).determinant())) / factorial;
+    }
+
+    /// A rigid placement (rotation, translation) of a mesh with vertices `before` to `after`
+    /// keeps every cell's size to MAX_PLACEMENT_DISTORTION; a translation far from the origin
+    /// does not (coordinates 1e11 m on a 1 cm element keep 5 digits), and is refused here,
+    /// where validate sees it, instead of simulating elements that round-off has deformed.
+    void check_placement_keeps_cells(
+        const MatrixXd& before, const MatrixXd& after, const MatrixXi& cells, const JsonField& owner)
+    {
+        for (Index c = 0; c < cells.rows(); ++c) {
+            const double m0 = simplex_measure(before, cells, c);
+            const double m1 = simplex_measure(after, cells, c);
+            if (!(std::abs(m1 - m0) <= MAX_PLACEMENT_DISTORTION * m0))
+                owner.fail("its translation or rotation changes the size of "
+                    + std::string(cells.cols() > before.cols() ? "element " : "facet ") + std::to_string(c)
+                    + " by a relative " + format_number(std::abs(m1 - m0) / m0)
+                    + " (round-off: the coordinates are too large for the cell size; move the origin closer)");
+        }
     }
 
     MaterialSpec parse_material(const JsonField& f)
@@ -251,8 +288,12 @@ namespace {
         f.require_object(
             { "enabled", "dhat", "kappa", "self_contact", "min_distance", "ccd_max_iterations", "ccd_rescaling" });
         c.enabled = f.has("enabled") ? f["enabled"].boolean() : true;
-        if (f.has("dhat"))
+        if (f.has("dhat")) {
             c.dhat = f["dhat"].positive();
+            if (!(c.dhat <= MAX_COORDINATE))
+                f["dhat"].fail(
+                    "must be at most 1e12 m (the largest coordinate accepted), got " + format_number(c.dhat));
+        }
         if (f.has("kappa")) {
             const JsonField k = f["kappa"];
             if (k.json().is_string()) {
@@ -297,6 +338,13 @@ namespace {
             if (f.has("friction"))
                 o.friction_coefficient = parse_local_friction(f["friction"]);
             o.name = f.has("name") ? f["name"].string() : "obstacle" + std::to_string(i);
+            // Bodies and obstacles are contact groups, named in friction parameters: names are unique.
+            for (const BodySpec& body : scene.bodies)
+                if (body.name == o.name)
+                    (f.has("name") ? f["name"] : f).fail("obstacle name '" + o.name + "' is already a body's name");
+            for (const ObstacleSpec& other : scene.obstacles)
+                if (other.name == o.name)
+                    (f.has("name") ? f["name"] : f).fail("duplicate obstacle name '" + o.name + "'");
             const int group = int(scene.bodies.size() + i);
             Mesh mesh;
             JsonField g = f.has("plane") ? f["plane"] : f["mesh"];
@@ -326,8 +374,12 @@ namespace {
                 mesh = read_surface_mesh(o.file, dim);
                 if (g.has("scale"))
                     mesh.rest_positions *= g["scale"].positive();
-                if (g.has("translation"))
+                if (g.has("translation")) {
+                    const MatrixXd unplaced = mesh.rest_positions;
                     mesh.rest_positions.rowwise() += g["translation"].vector(dim).transpose();
+                    check_placed_coordinates(mesh.rest_positions, f);
+                    check_placement_keeps_cells(unplaced, mesh.rest_positions, mesh.boundary_facets, f);
+                }
             }
             if (g.has("motion")) {
                 for (auto& c : parse_components(g["motion"], dim, false))
@@ -385,6 +437,7 @@ Scene parse_scene(const nlohmann::json& document, const std::string& base_direct
         self_contact_fields.push_back(
             bf.has("self_contact") ? std::optional<bool>(bf["self_contact"].boolean()) : std::nullopt);
         Mesh mesh = parse_mesh(bf["mesh"], dim, base_directory, body.mesh_source);
+        const MatrixXd unplaced = mesh.rest_positions;
         if (bf.has("rotation")) {
             // Degrees; 2D: one angle; 3D: about x, then y, then z (R = Rz Ry Rx), about the mesh origin.
             const VectorXd angles = bf["rotation"].vector(dim == 2 ? 1 : 3) * (M_PI / 180.0);
@@ -401,6 +454,7 @@ Scene parse_scene(const nlohmann::json& document, const std::string& base_direct
         }
         mesh.rest_positions.rowwise() += body.translation.transpose();
         check_placed_coordinates(mesh.rest_positions, bf);
+        check_placement_keeps_cells(unplaced, mesh.rest_positions, mesh.elements, bf);
         append_mesh(scene.mesh, mesh, int(b));
         scene.bodies.push_back(std::move(body));
     }
@@ -577,10 +631,7 @@ Scene load_scene(const std::string& path)
     } catch (const InputError& e) {
         if (e.field() == path)
             throw;
-        const std::string what = e.what();
-        const bool prefixed = !e.field().empty() && what.size() >= e.field().size() + 2;
-        const std::string message = prefixed ? what.substr(e.field().size() + 2) : what;
-        throw InputError(path + ": " + e.field(), message);
+        throw InputError(path + ": " + e.field(), e.message());
     }
 }
 

@@ -310,7 +310,7 @@ void Simulator::setup_contact()
             throw InputError("contact.dhat",
                 "too small for the adaptive barrier stiffness (it must exceed 1e-8 of the bodies' bounding-box "
                 "diagonal, "
-                    + std::to_string(1e-8 * m_bbox_diagonal) + " m); give a fixed \"kappa\" or a larger dhat");
+                    + format_number(1e-8 * m_bbox_diagonal) + " m); give a fixed \"kappa\" or a larger dhat");
         settings.kappa = m_kappa_min;
     }
     m_kappa_initial = settings.kappa;
@@ -391,6 +391,20 @@ std::string Simulator::check_contact_state(const VectorXd& x) const
         return inside + " (group k is body k, then obstacles in order)";
     if (!std::isfinite(m_contact->value(x)))
         return "a contact pair is at or below the minimum distance, or a vertex lies behind a plane obstacle";
+    return "";
+}
+
+std::string Simulator::state_problem() const
+{
+    const VectorXd& x = positions();
+    if (m_contact) {
+        const std::string problem = check_contact_state(x);
+        if (!problem.empty())
+            return problem;
+    }
+    const double ratio = m_space->min_volume_ratio(x);
+    if (!(ratio > 0))
+        return "an element is inverted or degenerate (minimum volume ratio " + format_number(ratio) + ")";
     return "";
 }
 
@@ -524,7 +538,9 @@ StepStatus Simulator::step()
                 m_last_attempt = record;
                 m_trajectory.final_status = record.status;
                 m_trajectory.failed_step = index;
-                m_trajectory.failure_message = "step 1 (t = 0): the initial state is invalid for contact: " + problem;
+                m_trajectory.failure_message
+                    = "step 1 (t = 0) failed: INVALID_INITIAL_STATE: the initial state is invalid for contact: "
+                    + problem;
             }
             return record.status;
         }
@@ -612,9 +628,15 @@ StepStatus Simulator::step()
             return result.status;
         m_trajectory.final_status = result.status;
         m_trajectory.failed_step = index;
-        m_trajectory.failure_message = "step " + std::to_string(index) + " (t = " + std::to_string(t_next)
+        m_trajectory.failure_message = "step " + std::to_string(index) + " (t = " + format_number(t_next)
             + " s) failed: " + to_string(result.status) + " after " + std::to_string(result.iterations)
-            + " Newton iterations, residual " + std::to_string(result.residual);
+            + " Newton iterations, residual " + format_number(result.residual);
+        if (result.status == StepStatus::INVALID_INITIAL_STATE) {
+            const std::string problem = state_problem();
+            m_trajectory.failure_message += ": the incremental potential is not finite at the step's start"
+                + (problem.empty() ? std::string(" (an energy term overflows: check E, density and loads)")
+                                   : " (" + problem + ")");
+        }
     }
     record.wall_time = wall.seconds();
     if (recompute) {

@@ -52,6 +52,11 @@ public:
     /// @param progress called after every committed step
     const Trajectory& run(const std::function<void(const StepRecord&)>& progress = {});
 
+    /// @brief Why the current committed state cannot start a step, or "" when it can: for
+    /// contact, intersecting or nested surfaces, or a pair at or below the minimum distance;
+    /// an inverted or degenerate element. `validate` runs it on the initial state.
+    std::string state_problem() const;
+
     const Trajectory& trajectory() const { return m_trajectory; }
     const StepRecord& last_attempt() const { return m_last_attempt; }
     int steps_done() const { return m_trajectory.committed(); }

@@ -106,6 +106,12 @@ BAD = [
     ("obstacles[0].plane.motion[1]", _set(["obstacles"], [{"plane": {"point": [0, 0], "normal": [0, 1], "motion": [0, "t +"]}}])),
     ("bodies[0].mesh.annulus.outer_radius", _set(["bodies", 0, "mesh"], {"annulus": {"inner_radius": 0.5, "outer_radius": 0.4, "segments": 8}})),
     ("bodies[0].self_contact", _set(["bodies", 0, "self_contact"], "yes")),
+    # Checks that run after placement or in the simulator: validate makes them too.
+    ("contact.dhat", _set(["contact"], {"dhat": 1e300})),
+    ("contact.dhat", _set(["contact"], {"dhat": 1e-12, "kappa": "adaptive"})),
+    ("bodies[0]", _set(["bodies", 0, "translation"], [0, 1e11])),
+    ("neumann[0].traction[0]", _set(["neumann"], [{"body": 0, "region": {"min": [0.5, -1], "max": [1, 1]}, "traction": ["t=5", 0]}])),
+    ("neumann[0].traction[0]", _set(["neumann"], [{"body": 0, "region": {"min": [0.5, -1], "max": [1, 1]}, "traction": ["1,5", 0]}])),
 ]
 
 
@@ -145,6 +151,19 @@ def test_failed_step_exits_2_and_keeps_committed_steps(cli, tmp_path):
     summary = json.loads((tmp_path / "o" / "summary.json").read_text())
     assert summary["status"] == "NEWTON_EXHAUSTED"
     assert summary["failed_step"] == 1
+
+
+def test_validate_refuses_an_initial_state_that_simulate_cannot_start(cli, tmp_path):
+    s = box_scene(dim=2, steps=2)
+    s["obstacles"] = [{"name": "cutter", "plane": {"point": [0, 0.1], "normal": [0, 1]}}]  # through the box
+    scene = tmp_path / "s.json"
+    scene.write_text(json.dumps(s))
+    r = run(cli, "validate", scene)
+    assert r.returncode == 1
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 1 and str(scene) in lines[0] and "initial state is invalid" in lines[0], r.stderr
+    r = run(cli, "simulate", scene, "-o", tmp_path / "o", "-q")
+    assert r.returncode == 2 and "INVALID_INITIAL_STATE" in r.stderr and "behind a plane" in r.stderr, r.stderr
 
 
 def test_contact_scene_writes_contact_datasets(cli, tmp_path, root):

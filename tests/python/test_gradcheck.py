@@ -108,6 +108,22 @@ BAD_PROBLEMS = [
     ("vertex_in_two_entries", lambda p: p.update(parameters=[{"type": "shape", "vertices": [3, 5]},
                                                              {"type": "shape", "vertices": [5]}]) or p,
      "parameters[1]"),
+    # Before: errors in an inline scene named no load case.
+    ("inline_scene_error", lambda p: p["scene"]["bodies"][0]["material"].update(nu=0.7) or p,
+     "scene.bodies[0].material.nu"),
+    ("case_scene_error", lambda p: (lambda q: q["scenes"][0]["scene"].update(dimension=4) or q)(_scenes(p)),
+     "scenes[0].scene.dimension"),
+    # Before: unknown keys inside a vertex selection were ignored.
+    ("vertices_unknown_key", lambda p: p.update(parameters=[{"type": "shape", "vertices": {"body": "bar", "bdy": 1}}]) or p,
+     "parameters[0].vertices"),
+    # Before: accepted, and the parameter was dead (prescribed dofs keep the prescription).
+    ("initial_velocity_on_dirichlet_vertex",
+     lambda p: p.update(parameters=[{"type": "initial_velocity", "per": "vertex", "vertices": [0, 11]}]) or p,
+     "parameters[0].vertices"),
+    # Before: accepted, then exit 2 when the gradient was asked for.
+    ("friction_iterations", lambda p: p["scene"].update(
+        obstacles=[{"plane": {"point": [0, -1, 0], "normal": [0, 1, 0]}}], contact={"kappa": 1e6},
+        friction={"coefficient": 0.3, "iterations": 2}) or p, "scene.friction.iterations"),
 ]
 
 

@@ -77,3 +77,14 @@ def test_a_second_thread_is_refused_while_run_is_going():
     assert not errors
     assert refused > 0
     assert sim.steps_done >= 3000
+
+
+def test_an_inverted_initial_state_fails_with_its_reason():
+    # No contact: before, the failure said INVALID_INITIAL_STATE and nothing about why.
+    sim = diffipc.Simulator(diffipc.scene(box_scene(dim=2, steps=2)))
+    x = sim.positions.copy()
+    x[:, 0] *= -1.0  # mirrored: every element inverted
+    sim.set_initial_state(x, np.zeros_like(x))
+    assert sim.step() == "INVALID_INITIAL_STATE"
+    message = sim.trajectory()["failure_message"]
+    assert "INVALID_INITIAL_STATE" in message and "inverted" in message, message

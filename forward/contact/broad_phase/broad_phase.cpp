@@ -1,5 +1,6 @@
 #include "forward/contact/broad_phase/broad_phase.hpp"
 
+#include "forward/common/error.hpp"
 #include "forward/contact/broad_phase/aabb.hpp"
 #include "forward/contact/broad_phase/bvh.hpp"
 #include "forward/contact/broad_phase/hash_grid.hpp"
@@ -44,7 +45,7 @@ namespace {
         if (!in_range(mesh.vertices) || !in_range(mesh.edges) || !in_range(mesh.faces))
             fail("collision-mesh vertex index out of range [0, #V)");
         if (!(inflation >= 0) || !std::isfinite(inflation))
-            fail("inflation must be finite and >= 0, got " + std::to_string(inflation));
+            fail("inflation must be finite and >= 0, got " + format_number(inflation));
     }
 
     void check_finite(const std::vector<AABB>& boxes, const char* what)

@@ -18,15 +18,15 @@ namespace {
     void check_settings(const CCDSettings& s)
     {
         if (!(s.min_distance >= 0) || !std::isfinite(s.min_distance))
-            throw InputError("ccd.min_distance", "must be finite and >= 0, got " + std::to_string(s.min_distance));
+            throw InputError("ccd.min_distance", "must be finite and >= 0, got " + format_number(s.min_distance));
         if (!(s.conservative_rescaling > 0 && s.conservative_rescaling < 1))
             throw InputError("ccd.conservative_rescaling",
-                "must be in (0, 1) (0.9 is usual), got " + std::to_string(s.conservative_rescaling));
+                "must be in (0, 1) (0.9 is usual), got " + format_number(s.conservative_rescaling));
         if (!(s.t_max >= 0) || !std::isfinite(s.t_max))
-            throw InputError("ccd.t_max", "must be finite and >= 0, got " + std::to_string(s.t_max));
+            throw InputError("ccd.t_max", "must be finite and >= 0, got " + format_number(s.t_max));
         if (!(s.refine_tolerance > 0) || !std::isfinite(s.refine_tolerance))
             throw InputError(
-                "ccd.refine_tolerance", "must be finite and > 0, got " + std::to_string(s.refine_tolerance));
+                "ccd.refine_tolerance", "must be finite and > 0, got " + format_number(s.refine_tolerance));
         if (s.max_iterations < 1)
             throw InputError("ccd.max_iterations", "must be >= 1, got " + std::to_string(s.max_iterations));
     }

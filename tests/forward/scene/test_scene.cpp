@@ -108,6 +108,26 @@ std::vector<Malformed> malformed_cases()
             "dirichlet[0].displacement" },
         { "dirichlet_nonfinite_expression", [](json& s) { s["dirichlet"][0]["displacement"][0] = "1/t"; },
             "dirichlet[0].displacement[0]" },
+        { "expression_assigns_time", [](json& s) { s["neumann"][0]["traction"][0] = "t=5"; },
+            "neumann[0].traction[0]" },
+        { "expression_adds_to_x", [](json& s) { s["dirichlet"][0]["displacement"][0] = "x+=1"; },
+            "dirichlet[0].displacement[0]" },
+        { "expression_two_values", [](json& s) { s["neumann"][0]["traction"][0] = "1,2"; }, "neumann[0].traction[0]" },
+        { "expression_nul_character", [](json& s) { s["neumann"][0]["traction"][0] = std::string("1\0+t", 4); },
+            "neumann[0].traction[0]" },
+        { "obstacle_named_like_body",
+            [](json& s) {
+                s["obstacles"]
+                    = { { { "name", "body" }, { "plane", { { "point", { 0, -1, 0 } }, { "normal", { 0, 1, 0 } } } } } };
+            },
+            "obstacles[0].name" },
+        { "obstacle_name_twice",
+            [](json& s) {
+                const json plane
+                    = { { "name", "floor" }, { "plane", { { "point", { 0, -1, 0 } }, { "normal", { 0, 1, 0 } } } } };
+                s["obstacles"] = { plane, plane };
+            },
+            "obstacles[1].name" },
         { "neumann_wrong_length",
             [](json& s) {
                 s["neumann"][0]["traction"] = { 1, 2 };
@@ -130,6 +150,16 @@ std::vector<Malformed> malformed_cases()
                 s["bodies"][0]["translation"] = { 1e300, 0, 0 };
             },
             "bodies[0]" },
+        { "body_translation_loses_digits",
+            [](json& s) {
+                s["bodies"][0]["translation"] = { 0, 1e11, 0 }; // y = 0.2 is not a binary fraction
+            },
+            "bodies[0]" },
+        { "dhat_huge",
+            [](json& s) {
+                s["contact"] = { { "dhat", 1e300 } };
+            },
+            "contact.dhat" },
         { "youngs_modulus_huge", [](json& s) { s["bodies"][0]["material"]["E"] = 1e308; }, "bodies[0].material.E" },
         { "density_huge", [](json& s) { s["bodies"][0]["material"]["density"] = 1e300; },
             "bodies[0].material.density" },
@@ -170,6 +200,16 @@ TEST(Scene, ValidSceneLoads)
     EXPECT_EQ(s.dirichlet.size(), 1u);
     EXPECT_FALSE(s.dirichlet[0].displacement[2].has_value());
     EXPECT_EQ(s.output.vtu_every, 2);
+}
+
+// Comparisons contain '=' and are not assignments; the conditional operator is one value.
+TEST(Scene, ExpressionComparisonsAreAccepted)
+{
+    for (const char* text : { "t>=1", "t<=1", "t==0", "t!=0", "(t>1) ? 1e3 : 0" }) {
+        json s = valid_scene();
+        s["neumann"][0]["traction"][0] = text;
+        EXPECT_NO_THROW(parse_scene(s, DIFFIPC_SOURCE_DIR, "<test>")) << text;
+    }
 }
 
 TEST(Scene, InvalidJsonTextNamesTheSource)
