@@ -3,6 +3,7 @@
 
 #include "forward/common/error.hpp"
 #include "forward/io/replace_file.hpp"
+#include "tests/forward/test_utils.hpp"
 
 #include <gtest/gtest.h>
 
@@ -11,7 +12,6 @@
 #include <csignal>
 #include <filesystem>
 #include <fstream>
-#include <sstream>
 #include <stdexcept>
 
 using namespace diffipc;
@@ -19,13 +19,7 @@ namespace fs = std::filesystem;
 
 namespace {
 
-std::string read(const fs::path& path)
-{
-    std::ifstream in(path, std::ios::binary);
-    std::stringstream s;
-    s << in.rdbuf();
-    return s.str();
-}
+std::string read(const fs::path& path) { return test::read_file(path.string()); }
 
 /// Limits the size of files this process writes (RLIMIT_FSIZE) for its lifetime: writes
 /// beyond it fail with EFBIG, as on a full disk (SIGXFSZ ignored meanwhile).

@@ -3,6 +3,7 @@
 // values). tests/python/test_vtu.py reads the same files with meshio, an independent reader.
 
 #include "forward/io/vtu_writer.hpp"
+#include "tests/forward/test_utils.hpp"
 
 #include <gtest/gtest.h>
 
@@ -10,7 +11,6 @@
 #include <filesystem>
 #include <fstream>
 #include <regex>
-#include <sstream>
 #include <stdexcept>
 
 using namespace diffipc;
@@ -18,13 +18,7 @@ namespace fs = std::filesystem;
 
 namespace {
 
-std::string read(const fs::path& path)
-{
-    std::ifstream in(path, std::ios::binary);
-    std::stringstream s;
-    s << in.rdbuf();
-    return s.str();
-}
+std::string read(const fs::path& path) { return test::read_file(path.string()); }
 
 /// Two triangles and a vertex cell on four points, with a point and two cell arrays.
 VtuGrid small_grid()
