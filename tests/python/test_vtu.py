@@ -281,3 +281,19 @@ def test_vtk_reads_what_meshio_reads(cli, tmp_path, encoding):
             expected = np.concatenate([np.asarray(b).reshape(len(b), -1) for b in blocks])
             got = vtk_to_numpy(cd.GetArray(key))
             np.testing.assert_array_equal(got.reshape(len(got), -1), expected)
+
+
+def test_python_forces_are_the_written_ones(cli, tmp_path):
+    diffipc = pytest.importorskip("diffipc")
+    path = block_on_plane_scene(tmp_path, 20, 0.5, "implicit_euler", 5)
+    sim = diffipc.Simulator(diffipc.scene(str(path)))
+    assert np.abs(sim.friction_forces).max() == 0  # no step yet
+    for _ in range(5):
+        sim.step()
+    out = tmp_path / "out"
+    assert run(cli, "simulate", path, "-o", out, "-q").returncode == 0
+    m = meshio.read(out / "frame_5.vtu")
+    nb = len(m.points)
+    np.testing.assert_array_equal(m.point_data["contact_force"][:, :2], sim.contact_forces[:nb])
+    np.testing.assert_array_equal(m.point_data["friction_force"][:, :2], sim.friction_forces[:nb])
+    assert sim.contact_forces.shape == sim.positions.shape
