@@ -445,10 +445,15 @@ VectorXd Simulator::friction_forces() const
     if (!m_friction || !m_friction_at_last_step)
         return f;
     const int k = steps_done();
-    const std::vector<FrictionContact>& lagged
-        = m_trajectory.has_record(k) ? m_trajectory.step(k).friction : m_last_attempt.friction;
+    const std::vector<FrictionContact>* lagged = nullptr;
+    if (m_trajectory.has_record(k) && m_trajectory.step(k).holds_state())
+        lagged = &m_trajectory.step(k).friction;
+    else if (m_last_attempt.index == k && m_last_attempt.status == StepStatus::CONVERGED)
+        lagged = &m_last_attempt.friction; // the record was forgotten or released
+    if (!lagged)
+        return f;
     FrictionPotential used = *m_friction;
-    used.set_lagged(lagged);
+    used.set_lagged(*lagged);
     used.add_gradient(positions(), -1.0, f);
     return f;
 }

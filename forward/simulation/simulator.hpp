@@ -78,8 +78,8 @@ public:
     VectorXd contact_forces() const;
     /// -dD/dx at positions() with the lagged normal forces, tangents and start positions that
     /// the last committed step's final Newton solve used (the forces that step balanced).
-    /// All zero without friction, before the first step, and after resume(), restore_state()
-    /// or step_problem() until the last step is taken again.
+    /// All zero without friction, before the first step, after a failed step, and after
+    /// resume(), restore_state() or step_problem() until the last step is taken again.
     VectorXd friction_forces() const;
     /// @}
 

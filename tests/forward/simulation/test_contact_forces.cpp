@@ -146,3 +146,15 @@ TEST(ContactForces, ZeroWithoutContact)
     EXPECT_EQ(sim.contact_forces().norm(), 0.0);
     EXPECT_EQ(sim.friction_forces().norm(), 0.0);
 }
+
+TEST(ContactForces, FrictionForcesSurviveForgottenRecords)
+{
+    // The CLI drops every record once written (forget_records): the forces stay those of the last step.
+    Simulator sim(test::make_scene(block_on_plane(2, 20, 0.5, "implicit_euler", 5)));
+    run(sim);
+    const VectorXd friction = sim.friction_forces(), contact = sim.contact_forces();
+    EXPECT_GT(friction.norm(), 0.0);
+    sim.forget_records();
+    EXPECT_EQ(sim.friction_forces(), friction);
+    EXPECT_EQ(sim.contact_forces(), contact);
+}
