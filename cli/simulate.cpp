@@ -6,6 +6,7 @@
 #include "forward/common/error.hpp"
 #include "forward/common/timer.hpp"
 #include "forward/io/output.hpp"
+#include "forward/io/vtu_frame.hpp"
 #include "forward/scene/scene.hpp"
 #include "forward/simulation/simulator.hpp"
 
@@ -109,22 +110,25 @@ int simulate(std::string scene_path, std::string out_dir, int vtu_every, bool qu
         }
     }
 
-    std::vector<std::pair<double, std::string>> vtu_files;
+    // The .pvd lists every frame's bodies (part 0) and obstacles (part 1); a restart keeps
+    // the frames already written up to its step.
+    std::vector<PvdEntry> vtu_files;
     if (stored)
         for (int k = 0; k <= sim.steps_done(); ++k) {
-            const std::string name = "frame_" + std::to_string(k) + ".vtu";
-            if (fs::exists(fs::path(out_dir) / name))
-                vtu_files.emplace_back(
-                    k == 0 ? stored->trajectory.initial_time : stored->trajectory.step(k).time, name);
+            const double t = k == 0 ? stored->trajectory.initial_time : stored->trajectory.step(k).time;
+            const std::string parts[2] = { body_frame_name(k), obstacle_frame_name(k) };
+            for (int part = 0; part < 2; ++part)
+                if (fs::exists(fs::path(out_dir) / parts[part]))
+                    vtu_files.push_back({ t, part, parts[part] });
         }
     stored.reset();
-    auto write_frame = [&](int index, double t, const VectorXd& x, const VectorXd& v) {
-        const std::string name = "frame_" + std::to_string(index) + ".vtu";
-        write_vtu((fs::path(out_dir) / name).string(), sim, x, v);
-        vtu_files.emplace_back(t, name);
+    // A frame shows the simulator's committed state (the contact and friction forces are those at it).
+    auto write_frame = [&](int index, double t) {
+        for (PvdEntry& e : write_vtu_frame(out_dir, index, t, sim, sc.output.vtu_encoding))
+            vtu_files.push_back(std::move(e));
     };
     if (sc.output.vtu_every > 0 && sim.steps_done() == 0)
-        write_frame(0, 0.0, sim.positions(), sim.velocities());
+        write_frame(0, 0.0);
 
     // Outputs are brought up to date output.flush_interval (1 s) apart: trajectory.h5 flushed,
     // summary.json (status RUNNING) and the .pvd replaced. A step's record is dropped once
@@ -159,7 +163,7 @@ int simulate(std::string scene_path, std::string out_dir, int vtu_every, bool qu
             if (h5)
                 h5->append(r);
             if (sc.output.vtu_every > 0 && r.index % sc.output.vtu_every == 0)
-                write_frame(r.index, r.time, r.positions, r.velocities);
+                write_frame(r.index, r.time);
             timer.add_to(output_seconds);
         }
         if (!quiet && (total <= 50 || since_print.seconds() > 1.0 || r.index == total)) {

@@ -66,13 +66,8 @@ namespace {
                     ElementState<dim>& st = states[i];
                     st.F = deformation_gradient<dim>(mesh, shape_gradients<dim>(space, e), e, x);
                     st.P = materials(elastic.models()[size_t(e)]).stress(st.F, elastic.mu()[e], elastic.lambda()[e]);
-                    st.S = o.stress == StressMeasure::CAUCHY ? Mat<dim>(st.P * st.F.transpose() / st.F.determinant())
-                                                             : st.P;
-                    const double trace = st.S.trace();
-                    const double s2 = o.norm == StressNormType::FROBENIUS
-                        ? st.S.squaredNorm()
-                        : 1.5 * st.S.squaredNorm() - 0.5 * trace * trace;
-                    st.s = std::sqrt(std::max(s2, 0.0));
+                    st.S = o.stress == StressMeasure::CAUCHY ? cauchy_stress(st.P, st.F) : st.P;
+                    st.s = o.norm == StressNormType::FROBENIUS ? std::sqrt(st.S.squaredNorm()) : von_mises_stress(st.S);
                 }
             });
         const double total_volume

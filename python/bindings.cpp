@@ -265,6 +265,21 @@ PYBIND11_MODULE(_diffipc, m)
                 const Exclusive exclusive(s);
                 return MatrixXd(unflatten(s.velocities(), s.mesh().dim));
             })
+        .def_property_readonly(
+            "contact_forces",
+            [](const Simulator& s) {
+                const Exclusive exclusive(s);
+                return MatrixXd(unflatten(s.contact_forces(), s.mesh().dim));
+            },
+            "#V by dim contact forces (N), -dB/dx at the committed state; zero without contact.")
+        .def_property_readonly(
+            "friction_forces",
+            [](const Simulator& s) {
+                const Exclusive exclusive(s);
+                return MatrixXd(unflatten(s.friction_forces(), s.mesh().dim));
+            },
+            "#V by dim friction forces (N), -dD/dx at the committed state with the lagged data of the last "
+            "step; zero without friction and before the first step.")
         .def_property_readonly("force_scale", &Simulator::force_scale)
         .def(
             "energy",

@@ -1,7 +1,7 @@
 #pragma once
 /// @file output.hpp
-/// Writers for a simulated trajectory: HDF5 (docs/output_format.md), VTU
-/// files with a .pvd index for ParaView, and summary.json.
+/// The run's summary.json (docs/output_format.md); trajectory.h5 is written by
+/// trajectory_writer.hpp, the VTU frames by vtu_frame.hpp.
 
 #include "forward/io/trajectory_writer.hpp"
 #include "forward/simulation/simulator.hpp"
@@ -12,15 +12,10 @@
 
 namespace diffipc {
 
-/// @brief One VTU (XML, ASCII) file of the mesh at positions x with point data
-/// displacement and velocity and cell data body, volume_ratio and von_mises.
-void write_vtu(const std::string& path, const Simulator& simulator, const VectorXd& x, const VectorXd& v);
-
-/// @brief ParaView collection index of (time, file) pairs.
-void write_pvd(const std::string& path, const std::vector<std::pair<double, std::string>>& entries);
-
 /// @brief The run's summary: status, counts, per-phase wall times.
 nlohmann::json summary_json(const Simulator& simulator);
+/// @brief Writes `value` to `path` (replaced whole, forward/io/replace_file.hpp).
+/// @throws InputError naming `path` if it cannot be written
 void write_json(const std::string& path, const nlohmann::json& value);
 
 } // namespace diffipc

@@ -4,6 +4,7 @@
 
 #include <Eigen/Dense>
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 
@@ -258,5 +259,25 @@ template Eigen::Matrix<double, 6, 6> project_psd<6>(const Eigen::Matrix<double, 
 template Eigen::Matrix<double, 12, 12> project_psd<12>(const Eigen::Matrix<double, 12, 12>&);
 
 Eigen::MatrixXd project_psd(const Eigen::MatrixXd& A) { return project_psd_impl(A); }
+
+Eigen::Matrix2d cauchy_stress(const Eigen::Matrix2d& P, const Eigen::Matrix2d& F)
+{
+    return P * F.transpose() / F.determinant();
+}
+Eigen::Matrix3d cauchy_stress(const Eigen::Matrix3d& P, const Eigen::Matrix3d& F)
+{
+    return P * F.transpose() / F.determinant();
+}
+
+namespace {
+    template <typename Matrix> double von_mises_impl(const Matrix& S)
+    {
+        const double trace = S.trace();
+        return std::sqrt(std::max(1.5 * S.squaredNorm() - 0.5 * trace * trace, 0.0));
+    }
+} // namespace
+
+double von_mises_stress(const Eigen::Matrix2d& S) { return von_mises_impl(S); }
+double von_mises_stress(const Eigen::Matrix3d& S) { return von_mises_impl(S); }
 
 } // namespace diffipc

@@ -44,6 +44,18 @@ public:
 
 template <int dim> std::unique_ptr<Material<dim>> make_material(MaterialModel model);
 
+/// @brief Cauchy stress \sigma = P F^T / \det F (Pa): the true stress in the deformed
+/// configuration, from the first Piola-Kirchhoff stress P (Pa) and the deformation gradient F.
+Eigen::Matrix2d cauchy_stress(const Eigen::Matrix2d& P, const Eigen::Matrix2d& F);
+Eigen::Matrix3d cauchy_stress(const Eigen::Matrix3d& P, const Eigen::Matrix3d& F);
+
+/// @brief von Mises measure s = \sqrt{\tfrac32 S : S - \tfrac12 (\operatorname{tr} S)^2} (Pa).
+/// In 3D this is \sqrt{\tfrac32 \operatorname{dev} S : \operatorname{dev} S}; a 2 by 2 S is
+/// taken as the 3D stress with S_{zz} = 0 (the in-plane measure; plane strain's out-of-plane
+/// stress is not included). Clamped at 0 against round-off.
+double von_mises_stress(const Eigen::Matrix2d& S);
+double von_mises_stress(const Eigen::Matrix3d& S);
+
 /// @brief Replaces a symmetric matrix by its closest positive semi-definite
 /// matrix (negative eigenvalues set to zero). Matrices that already admit a
 /// Cholesky factorization are returned unchanged without an eigen-decomposition.

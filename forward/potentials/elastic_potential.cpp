@@ -82,6 +82,20 @@ namespace {
         return m;
     }
 
+    template <int dim> typename Kernel<dim>::Grad gather(const Mesh& mesh, Index e, const VectorXd& x)
+    {
+        typename Kernel<dim>::Grad xe;
+        for (int a = 0; a <= dim; ++a)
+            for (int i = 0; i < dim; ++i)
+                xe(a, i) = x[mesh.elements(e, a) * dim + i];
+        return xe;
+    }
+
+    template <int dim> typename Kernel<dim>::Grad shape(const FESpace& space, Index e)
+    {
+        return Eigen::Map<const typename Kernel<dim>::Grad>(space.shape_gradients(e));
+    }
+
 } // namespace
 
 struct ElasticPotential::Impl {
@@ -100,6 +114,19 @@ struct ElasticPotential::Impl {
             return *materials2[int(m)];
         else
             return *materials3[int(m)];
+    }
+    /// Calls visit(e, F, P) with the deformation gradient and first Piola-Kirchhoff stress of
+    /// every element at x (serially, in element order).
+    template <int dim, typename Visit>
+    void for_each_stress(const FESpace& space, const std::vector<MaterialModel>& models, const VectorXd& mu,
+        const VectorXd& lambda, const VectorXd& x, Visit visit) const
+    {
+        for (Index e = 0; e < space.num_elements(); ++e) {
+            const Eigen::Matrix<double, dim, dim> F
+                = Kernel<dim>::deformation(shape<dim>(space, e), gather<dim>(space.mesh(), e, x));
+            const Eigen::Matrix<double, dim, dim> P = material<dim>(models[size_t(e)]).stress(F, mu[e], lambda[e]);
+            visit(e, F, P);
+        }
     }
 };
 
@@ -127,20 +154,6 @@ void ElasticPotential::set_lame_parameters(const VectorXd& mu, const VectorXd& l
 }
 
 namespace {
-
-    template <int dim> typename Kernel<dim>::Grad gather(const Mesh& mesh, Index e, const VectorXd& x)
-    {
-        typename Kernel<dim>::Grad xe;
-        for (int a = 0; a <= dim; ++a)
-            for (int i = 0; i < dim; ++i)
-                xe(a, i) = x[mesh.elements(e, a) * dim + i];
-        return xe;
-    }
-
-    template <int dim> typename Kernel<dim>::Grad shape(const FESpace& space, Index e)
-    {
-        return Eigen::Map<const typename Kernel<dim>::Grad>(space.shape_gradients(e));
-    }
 
     // Fixed grain and deterministic reduce: the sum order does not depend on scheduling.
     constexpr Index GRAIN = 256;
@@ -247,19 +260,33 @@ MatrixXd ElasticPotential::element_stresses(const VectorXd& x) const
 {
     const int d = m_space.dim();
     MatrixXd S(m_space.num_elements(), d * d);
-    for (Index e = 0; e < m_space.num_elements(); ++e) {
-        if (d == 2) {
-            const auto F = Kernel<2>::deformation(shape<2>(m_space, e), gather<2>(m_space.mesh(), e, x));
-            const Eigen::Matrix2d P = m_impl->material<2>(m_models[size_t(e)]).stress(F, m_mu[e], m_lambda[e]);
-            S.row(e)
-                = Eigen::Map<const Eigen::Matrix<double, 1, 4>>(Eigen::Matrix<double, 2, 2, Eigen::RowMajor>(P).data());
-        } else {
-            const auto F = Kernel<3>::deformation(shape<3>(m_space, e), gather<3>(m_space.mesh(), e, x));
-            const Eigen::Matrix3d P = m_impl->material<3>(m_models[size_t(e)]).stress(F, m_mu[e], m_lambda[e]);
-            S.row(e)
-                = Eigen::Map<const Eigen::Matrix<double, 1, 9>>(Eigen::Matrix<double, 3, 3, Eigen::RowMajor>(P).data());
-        }
-    }
+    auto store = [&](Index e, const auto& F, const auto& P) {
+        (void)F;
+        for (int i = 0; i < d; ++i)
+            for (int j = 0; j < d; ++j)
+                S(e, i * d + j) = P(i, j);
+    };
+    if (d == 2)
+        m_impl->for_each_stress<2>(m_space, m_models, m_mu, m_lambda, x, store);
+    else
+        m_impl->for_each_stress<3>(m_space, m_models, m_mu, m_lambda, x, store);
+    return S;
+}
+
+MatrixXd ElasticPotential::element_cauchy_stresses(const VectorXd& x) const
+{
+    const int d = m_space.dim();
+    MatrixXd S = MatrixXd::Zero(m_space.num_elements(), 9);
+    auto store = [&](Index e, const auto& F, const auto& P) {
+        const auto sigma = cauchy_stress(P, F);
+        for (int i = 0; i < d; ++i)
+            for (int j = 0; j < d; ++j)
+                S(e, i * 3 + j) = sigma(i, j);
+    };
+    if (d == 2)
+        m_impl->for_each_stress<2>(m_space, m_models, m_mu, m_lambda, x, store);
+    else
+        m_impl->for_each_stress<3>(m_space, m_models, m_mu, m_lambda, x, store);
     return S;
 }
 

@@ -47,6 +47,10 @@ public:
 
     /// @brief #E by dim*dim first Piola-Kirchhoff stress per element (row-major flattening).
     MatrixXd element_stresses(const VectorXd& x) const;
+    /// @brief #E by 9 Cauchy stress \sigma = P F^T / \det F per element (Pa), the 3 by 3 tensor
+    /// flattened row-major (xx, xy, xz, yx, ...); in 2D the in-plane 2 by 2 stress padded with
+    /// zeros (the plane-strain \sigma_{zz} is not included).
+    MatrixXd element_cauchy_stresses(const VectorXd& x) const;
 
 private:
     struct Impl;

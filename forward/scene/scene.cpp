@@ -603,7 +603,7 @@ Scene parse_scene(const nlohmann::json& document, const std::string& base_direct
 
     if (root.has("output")) {
         const JsonField o = root["output"];
-        o.require_object({ "directory", "vtu_every", "hdf5", "flush_interval" });
+        o.require_object({ "directory", "vtu_every", "vtu_encoding", "hdf5", "flush_interval" });
         if (o.has("directory"))
             scene.output.directory = o["directory"].string();
         if (o.has("vtu_every"))
@@ -612,6 +612,15 @@ Scene parse_scene(const nlohmann::json& document, const std::string& base_direct
             scene.output.hdf5 = o["hdf5"].boolean();
         if (o.has("flush_interval"))
             scene.output.flush_interval = o["flush_interval"].positive();
+        if (o.has("vtu_encoding")) {
+            const std::string encoding = o["vtu_encoding"].string();
+            if (encoding == "binary")
+                scene.output.vtu_encoding = VtuEncoding::BINARY;
+            else if (encoding == "ascii")
+                scene.output.vtu_encoding = VtuEncoding::ASCII;
+            else
+                o["vtu_encoding"].fail("expected \"binary\" or \"ascii\", got \"" + encoding + "\"");
+        }
     }
     return scene;
 }

@@ -4,6 +4,7 @@
 /// load_scene() checks every field and throws InputError naming the first bad one.
 
 #include "forward/common/types.hpp"
+#include "forward/io/vtu_encoding.hpp"
 #include "forward/materials/material.hpp"
 #include "forward/mesh/mesh.hpp"
 #include "forward/scene/expression.hpp"
@@ -121,6 +122,8 @@ struct OutputSpec {
     /// Seconds (wall time) between flushes of trajectory.h5, summary.json and the .pvd during a run.
     double flush_interval = 1.0;
     bool hdf5 = true;
+    /// "vtu_encoding": "binary" (appended raw, the default) or "ascii".
+    VtuEncoding vtu_encoding = VtuEncoding::BINARY;
 };
 
 struct Scene {

@@ -444,6 +444,34 @@ VectorXd Simulator::external_forces(double t) const
     return f;
 }
 
+VectorXd Simulator::contact_forces() const
+{
+    if (!m_contact)
+        return VectorXd::Zero(m_scene.mesh.num_dofs());
+    return -m_contact->kappa() * m_contact->barrier_gradient(positions());
+}
+
+VectorXd Simulator::friction_forces() const
+{
+    VectorXd f = VectorXd::Zero(m_scene.mesh.num_dofs());
+    // m_friction has the last step's start positions, but has been re-lagged at its converged
+    // state since; the lagged data its final solve used is in the step's record.
+    if (!m_friction || !m_friction_at_last_step)
+        return f;
+    const int k = steps_done();
+    const std::vector<FrictionContact>* lagged = nullptr;
+    if (m_trajectory.has_record(k) && m_trajectory.step(k).holds_state())
+        lagged = &m_trajectory.step(k).friction;
+    else if (m_last_attempt.index == k && m_last_attempt.status == StepStatus::CONVERGED)
+        lagged = &m_last_attempt.friction; // the record was forgotten or released
+    if (!lagged)
+        return f;
+    FrictionPotential used = *m_friction;
+    used.set_lagged(*lagged);
+    used.add_gradient(positions(), -1.0, f);
+    return f;
+}
+
 void Simulator::set_initial_state(const VectorXd& positions, const VectorXd& velocities)
 {
     const Index n = m_scene.mesh.num_dofs();
@@ -486,6 +514,7 @@ void Simulator::set_element_materials(const VectorXd& youngs_modulus, const Vect
 
 StepStatus Simulator::step()
 {
+    m_friction_at_last_step = false;
     Timer wall;
     const int index = current_step() + 1;
     // After restore_state(): a step committed before, recomputed to refill its record.
@@ -650,6 +679,7 @@ StepStatus Simulator::step()
         kept.accelerations = std::move(record.accelerations);
         kept.contacts = std::move(record.contacts);
         kept.friction = std::move(record.friction);
+        m_friction_at_last_step = result.status == StepStatus::CONVERGED && index == steps_done();
         return result.status;
     }
     m_trajectory.wall_time += record.wall_time;
@@ -657,6 +687,7 @@ StepStatus Simulator::step()
     if (result.status == StepStatus::CONVERGED) {
         m_trajectory.totals.add(record);
         m_trajectory.steps.push_back(std::move(record));
+        m_friction_at_last_step = true;
     }
     return result.status;
 }
@@ -732,6 +763,7 @@ void Simulator::release_state(int k)
 
 void Simulator::restore_state(int k)
 {
+    m_friction_at_last_step = false;
     if (k < 0 || k > steps_done())
         throw std::out_of_range("Simulator::restore_state: step " + std::to_string(k) + " was not committed");
     const auto held = [this](int j) {
@@ -826,6 +858,7 @@ SimulationParameters Simulator::parameters() const
 
 const Problem& Simulator::step_problem(int k)
 {
+    m_friction_at_last_step = false;
     if (k < 1 || k > steps_done())
         throw std::out_of_range("Simulator::step_problem: step " + std::to_string(k) + " was not committed");
     const StepScheme s = m_integrator->scheme(k);

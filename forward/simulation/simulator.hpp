@@ -73,6 +73,21 @@ public:
     /// Dirichlet flags per dof.
     const std::vector<char>& constrained() const { return m_constrained; }
 
+    /// @name Contact and friction forces at the committed state (for output)
+    /// Nodal forces in newtons, flattened #V*dim: the barrier and friction terms enter the
+    /// incremental potential with the same weight as the elastic energy, so their negative
+    /// gradients are forces (docs/math.md). Obstacle vertices receive the reactions.
+    /// @{
+    /// -dB/dx at positions() with the current barrier stiffness; zero on vertices in no
+    /// contact, all zero without contact.
+    VectorXd contact_forces() const;
+    /// -dD/dx at positions() with the lagged normal forces, tangents and start positions that
+    /// the last committed step's final Newton solve used (the forces that step balanced).
+    /// All zero without friction, before the first step, after a failed step, and after
+    /// resume(), restore_state() or step_problem() until the last step is taken again.
+    VectorXd friction_forces() const;
+    /// @}
+
     /// @brief Replaces the initial state (before the first step): positions and
     /// velocities of all #V*dim dofs; prescribed dofs (Dirichlet, obstacles) keep
     /// their own values. Newmark's a0 is not recomputed (it stays the scene's).
@@ -193,6 +208,8 @@ private:
 
     Trajectory m_trajectory;
     StepRecord m_last_attempt;
+    /// m_friction holds the start positions of committed step steps_done() (friction_forces())
+    bool m_friction_at_last_step = false;
 };
 
 } // namespace diffipc

@@ -6,7 +6,9 @@
 
 #include <nlohmann/json.hpp>
 
+#include <fstream>
 #include <random>
+#include <sstream>
 #include <string>
 #include <vector>
 
@@ -38,6 +40,15 @@ inline nlohmann::json box_body(
 inline nlohmann::json region(std::vector<double> lo, std::vector<double> hi)
 {
     return { { "min", lo }, { "max", hi } };
+}
+
+/// The bytes of a file ("" if it cannot be read).
+inline std::string read_file(const std::string& path)
+{
+    std::ifstream in(path, std::ios::binary);
+    std::stringstream s;
+    s << in.rdbuf();
+    return s.str();
 }
 
 inline Scene make_scene(const nlohmann::json& j) { return parse_scene(j, ".", "<test>"); }

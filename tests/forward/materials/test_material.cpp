@@ -214,3 +214,24 @@ TEST(Material, UnknownModelNamesTheField)
 }
 
 } // namespace
+
+TEST(Material, CauchyAndVonMisesStress)
+{
+    // sigma = P F^T / det F: a uniaxial stretch F = diag(2, 1, 1) with P = diag(p, 0, 0) gives sigma_xx = p.
+    const Eigen::Matrix3d F = Eigen::Vector3d(2, 1, 1).asDiagonal(), P = Eigen::Vector3d(3, 0, 0).asDiagonal();
+    const Eigen::Matrix3d sigma = cauchy_stress(P, F);
+    EXPECT_DOUBLE_EQ(sigma(0, 0), 3.0);
+    EXPECT_DOUBLE_EQ(sigma.norm(), 3.0);
+    EXPECT_DOUBLE_EQ(von_mises_stress(sigma), 3.0); // uniaxial: |sigma_xx|
+    EXPECT_DOUBLE_EQ(von_mises_stress(Eigen::Matrix3d(5 * Eigen::Matrix3d::Identity())), 0.0); // hydrostatic
+    Eigen::Matrix3d shear = Eigen::Matrix3d::Zero();
+    shear(0, 1) = shear(1, 0) = 2;
+    EXPECT_DOUBLE_EQ(von_mises_stress(shear), std::sqrt(3.0) * 2); // pure shear: sqrt(3) tau
+    // 2D: the 3D measure of the stress padded with zeros.
+    Eigen::Matrix2d s2;
+    s2 << 1, 0.5, 0.5, -2;
+    Eigen::Matrix3d s3 = Eigen::Matrix3d::Zero();
+    s3.topLeftCorner<2, 2>() = s2;
+    EXPECT_NEAR(von_mises_stress(s2), von_mises_stress(s3), 1e-15);
+    EXPECT_NEAR(von_mises_stress(s2), std::sqrt(1 + 2 + 4 + 3 * 0.25), 1e-15);
+}

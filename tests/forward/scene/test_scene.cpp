@@ -164,6 +164,11 @@ std::vector<Malformed> malformed_cases()
         { "density_huge", [](json& s) { s["bodies"][0]["material"]["density"] = 1e300; },
             "bodies[0].material.density" },
         { "output_text_flush_interval", [](json& s) { s["output"]["flush_interval"] = "1"; }, "output.flush_interval" },
+        { "output_unknown_vtu_encoding", [](json& s) { s["output"]["vtu_encoding"] = "base64"; },
+            "output.vtu_encoding: expected \"binary\" or \"ascii\", got \"base64\"" },
+        { "output_numeric_vtu_encoding", [](json& s) { s["output"]["vtu_encoding"] = 1; },
+            "output.vtu_encoding: expected a string" },
+        { "output_misspelled_vtu_key", [](json& s) { s["output"]["vtu_encode"] = "ascii"; }, "vtu_encode" },
         { "mass_unknown", [](json& s) { s["mass"] = "heavy"; }, "mass" },
         { "duplicate_body_name", [](json& s) { s["bodies"].push_back(s["bodies"][0]); }, "bodies[1].name" },
         { "region_max_below_min",
@@ -200,6 +205,16 @@ TEST(Scene, ValidSceneLoads)
     EXPECT_EQ(s.dirichlet.size(), 1u);
     EXPECT_FALSE(s.dirichlet[0].displacement[2].has_value());
     EXPECT_EQ(s.output.vtu_every, 2);
+    EXPECT_EQ(s.output.vtu_encoding, VtuEncoding::BINARY); // the default
+}
+
+TEST(Scene, VtuEncodingIsRead)
+{
+    json j = valid_scene();
+    j["output"]["vtu_encoding"] = "ascii";
+    EXPECT_EQ(parse_scene(j, ".", "<test>").output.vtu_encoding, VtuEncoding::ASCII);
+    j["output"]["vtu_encoding"] = "binary";
+    EXPECT_EQ(parse_scene(j, ".", "<test>").output.vtu_encoding, VtuEncoding::BINARY);
 }
 
 // Comparisons contain '=' and are not assignments; the conditional operator is one value.

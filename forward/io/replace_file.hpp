@@ -1,0 +1,20 @@
+#pragma once
+/// @file replace_file.hpp
+/// Output files replaced whole: written to a temporary file next to the target and
+/// renamed over it once complete, so that a reader (ParaView following a run, or a
+/// run killed meanwhile) finds the old file or the new one, never half of one.
+
+#include <functional>
+#include <ostream>
+#include <string>
+
+namespace diffipc {
+
+/// @brief Writes `path` through `path + ".tmp"` (binary mode), renamed over `path` once
+/// `write` returned and every byte reached the file system.
+/// @param write fills the stream; exceptions it throws propagate (the temporary is removed)
+/// @throws InputError naming `path` if the file cannot be created, written (a full disk)
+///         or renamed; the temporary is removed and an existing `path` is left as it was
+void write_replacing(const std::string& path, const std::function<void(std::ostream&)>& write);
+
+} // namespace diffipc
