@@ -118,7 +118,7 @@ int simulate(std::string scene_path, std::string out_dir, int vtu_every, bool qu
             const double t = k == 0 ? stored->trajectory.initial_time : stored->trajectory.step(k).time;
             const std::string parts[2] = { body_frame_name(k), obstacle_frame_name(k) };
             for (int part = 0; part < 2; ++part)
-                if (fs::exists(fs::path(out_dir) / parts[part]))
+                if (std::error_code ec; fs::exists(fs::path(out_dir) / parts[part], ec))
                     vtu_files.push_back({ t, part, parts[part] });
         }
     stored.reset();
@@ -127,7 +127,9 @@ int simulate(std::string scene_path, std::string out_dir, int vtu_every, bool qu
         for (PvdEntry& e : write_vtu_frame(out_dir, index, t, sim, sc.output.vtu_encoding))
             vtu_files.push_back(std::move(e));
     };
-    if (sc.output.vtu_every > 0 && sim.steps_done() == 0)
+    // An initial state that cannot start a step (an inverted element, intersecting bodies) has
+    // no finite stresses to show: no frame 0; step 1 fails with INVALID_INITIAL_STATE and why.
+    if (sc.output.vtu_every > 0 && sim.steps_done() == 0 && sim.state_problem().empty())
         write_frame(0, 0.0);
 
     // Outputs are brought up to date output.flush_interval (1 s) apart: trajectory.h5 flushed,

@@ -433,6 +433,11 @@ ReducedFunctional::ReducedFunctional(const json& doc, const std::string& base_di
         // A scene file's errors name the file; an inline scene's name its place in the problem
         // ("scenes[1].scene.bodies[0].material.E"), and so do the simulator's checks of either.
         const bool inline_scene = !jc["scene"].is_string();
+        if (!jc["scene"].is_string() && !jc["scene"].is_object())
+            throw InputError(key("scene"),
+                "expected a scene file path or an inline scene object, got " + std::string(jc["scene"].type_name()));
+        if (jc["scene"].is_string() && jc["scene"].get<std::string>().empty())
+            throw InputError(key("scene"), "an empty path (give a scene file path or an inline scene object)");
         std::string scene_file;
         const auto in_case = [&](const InputError& e) {
             if (!inline_scene)
@@ -674,6 +679,9 @@ Evaluation ReducedFunctional::evaluate(const VectorXd& p, bool gradient) const
                     out.gradient[m_offsets[k] + Index(i)] += gradient_entry(dJ, t, target);
         }
     }
+    if (!std::isfinite(out.value))
+        throw ObjectiveDomainError(
+            "J = " + format_number(out.value) + ": the objective overflows (check its targets, weights and exponents)");
     if (gradient && !out.gradient.allFinite())
         throw AdjointError("no gradient: a non-finite derivative (check the objective's parameters)");
     return out;

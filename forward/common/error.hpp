@@ -15,12 +15,22 @@ namespace diffipc {
 /// an expression), which may be megabytes long; the quote is cut, the message stays one line.
 inline constexpr std::size_t MAX_ERROR_MESSAGE = 600;
 
-/// `text` cut to MAX_ERROR_MESSAGE characters (with how much was left out), line breaks as spaces.
+/// `text` cut to MAX_ERROR_MESSAGE characters (with how much was left out), line breaks as spaces,
+/// a NUL character as "\0" (a C string, printed with %s, would end there) and other control
+/// characters as '?'.
 inline std::string clip_message(std::string text)
 {
+    if (text.find('\0') != std::string::npos) {
+        std::string shown;
+        for (char c : text)
+            shown += c == '\0' ? std::string("\\0") : std::string(1, c);
+        text = std::move(shown);
+    }
     for (char& c : text)
         if (c == '\n' || c == '\r')
             c = ' ';
+        else if ((static_cast<unsigned char>(c) < 0x20 && c != '\t') || c == 0x7f)
+            c = '?';
     if (text.size() <= MAX_ERROR_MESSAGE)
         return text;
     const std::size_t omitted = text.size() - MAX_ERROR_MESSAGE;

@@ -35,9 +35,10 @@ void JsonField::require_object(std::initializer_list<const char*> allowed) const
             known = known || it.key() == a;
             list += list.empty() ? a : std::string(", ") + a;
         }
-        if (!known)
-            throw InputError(
-                m_path.empty() ? it.key() : m_path + "." + it.key(), "unknown field (allowed here: " + list + ")");
+        if (!known) {
+            const std::string key = it.key().empty() ? "\"\"" : it.key(); // an empty key, shown as such
+            throw InputError(m_path.empty() ? key : m_path + "." + key, "unknown field (allowed here: " + list + ")");
+        }
     }
 }
 
@@ -92,7 +93,11 @@ std::string JsonField::string() const
 {
     if (!m_value.is_string())
         fail("expected a string, got " + type_name(m_value));
-    return m_value.get<std::string>();
+    std::string text = m_value.get<std::string>();
+    // No name, path, expression or keyword has one; a path would end there for the system.
+    if (text.find('\0') != std::string::npos)
+        fail("contains a NUL character (\\u0000)");
+    return text;
 }
 
 VectorXd JsonField::vector(int size) const

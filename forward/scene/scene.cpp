@@ -170,8 +170,9 @@ namespace {
             fs::path p(f["file"].string());
             if (p.is_relative())
                 p = fs::path(base_directory) / p;
-            if (!fs::is_regular_file(p))
-                f["file"].fail("cannot open mesh file '" + p.string() + "'");
+            if (std::error_code ec; !fs::is_regular_file(p, ec))
+                f["file"].fail(
+                    "cannot open mesh file '" + p.string() + "'" + (ec ? " (" + ec.message() + ")" : std::string()));
             const std::string ext = p.extension().string();
             if (ext != ".msh")
                 f["file"].fail("unsupported mesh format '" + ext + "' (expected a gmsh .msh file)");
@@ -368,8 +369,9 @@ namespace {
                 fs::path p(g["file"].string());
                 if (p.is_relative())
                     p = fs::path(base_directory) / p;
-                if (!fs::is_regular_file(p))
-                    g["file"].fail("cannot open obstacle mesh file '" + p.string() + "'");
+                if (std::error_code ec; !fs::is_regular_file(p, ec))
+                    g["file"].fail("cannot open obstacle mesh file '" + p.string() + "'"
+                        + (ec ? " (" + ec.message() + ")" : std::string()));
                 o.file = p.string();
                 mesh = read_surface_mesh(o.file, dim);
                 if (g.has("scale"))

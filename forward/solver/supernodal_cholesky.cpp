@@ -6,6 +6,7 @@
 #include <tbb/blocked_range.h>
 #include <tbb/enumerable_thread_specific.h>
 #include <tbb/parallel_for.h>
+#include <tbb/task_group.h>
 
 #include <algorithm>
 #include <atomic>
@@ -293,29 +294,26 @@ template <typename F> void SupernodalCholesky::Impl::bottom_up(const F& f) const
 
 template <typename F> void SupernodalCholesky::Impl::top_down(const F& f) const
 {
-    // Recursion depth is the height of the supernodal tree: a chain of one child each is
-    // followed in a loop, so only branching nodes nest.
-    auto visit = [&](auto&& self, int s) -> void {
+    // No recursion: a tree of 31,000 levels (a long thin mesh) overflowed the stack when
+    // every branching node nested a parallel loop. A task follows its first child in a loop
+    // and hands the others to the task group; tasks do not nest.
+    tbb::task_group group;
+    const auto visit = [&](const auto& self, int s) -> void {
         while (true) {
             f(s);
-            const int first = children_ptr[size_t(s)], count = children_ptr[size_t(s) + 1] - first;
-            if (count == 0)
+            const int first = children_ptr[size_t(s)], end = children_ptr[size_t(s) + 1];
+            if (first == end)
                 return;
-            if (count == 1) {
-                s = children[size_t(first)];
-                continue;
+            for (int c = first + 1; c < end; ++c) {
+                const int child = children[size_t(c)];
+                group.run([&self, child] { self(self, child); });
             }
-            tbb::parallel_for(tbb::blocked_range<int>(first, first + count, 1), [&](const tbb::blocked_range<int>& r) {
-                for (int c = r.begin(); c < r.end(); ++c)
-                    self(self, children[size_t(c)]);
-            });
-            return;
+            s = children[size_t(first)];
         }
     };
-    tbb::parallel_for(tbb::blocked_range<size_t>(0, roots.size(), 1), [&](const tbb::blocked_range<size_t>& r) {
-        for (size_t i = r.begin(); i < r.end(); ++i)
-            visit(visit, roots[i]);
-    });
+    for (const int root : roots)
+        group.run([&visit, root] { visit(visit, root); });
+    group.wait();
 }
 
 void SupernodalCholesky::Impl::build_assembly(const SparseMatrixd& lower)

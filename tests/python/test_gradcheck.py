@@ -124,6 +124,18 @@ BAD_PROBLEMS = [
     ("friction_iterations", lambda p: p["scene"].update(
         obstacles=[{"plane": {"point": [0, -1, 0], "normal": [0, 1, 0]}}], contact={"kappa": 1e6},
         friction={"coefficient": 0.3, "iterations": 2}) or p, "scene.friction.iterations"),
+    # Found by the fuzz test: messages that named no field, or ended at a NUL character.
+    ("scene_null", lambda p: p.update(scene=None) or p, "scene: expected a scene file path"),
+    ("scene_number", lambda p: p.update(scene=3) or p, "scene: expected a scene file path"),
+    ("scene_empty_path", lambda p: p.update(scene="") or p, "scene: an empty path"),
+    ("case_scene_null", lambda p: (lambda q: q["scenes"][0].update(scene=None) or q)(_scenes(p)), "scenes[0].scene"),
+    ("empty_key", lambda p: p.update({"": 1}) or p, '"": unknown field'),
+    ("nul_in_key", lambda p: p["gradcheck"].update({"seed\u0000x": 1}) or p, "gradcheck.seed\\0x: unknown field"),
+    ("nul_in_scene_path", lambda p: p.update(scene="scene\u0000.json") or p, "scene: contains a NUL"),
+    # Before: J = inf, a table of nan and exit 4 (Python returned inf).
+    ("objective_overflows", lambda p: p["objective"].update(targets=[[[1e300, 0, 0], [1, 0.09, 0.1]],
+                                                                       [[0.99, -0.04, 0], [0.99, 0.06, 0.1]]]) or p,
+     "objective: J = inf"),
 ]
 
 
