@@ -32,6 +32,8 @@ namespace {
 
     using json = nlohmann::json;
 
+    constexpr int MAX_GRADCHECK_HALVINGS = 60;
+
     int body_index(const Scene& scene, const json& j, const std::string& field)
     {
         if (j.is_number_integer()) {
@@ -605,8 +607,13 @@ ReducedFunctional::ReducedFunctional(const json& doc, const std::string& base_di
             m_check.seed = unsigned(g["seed"].integer(0));
         if (g.has("step"))
             m_check.step = g["step"].positive();
-        if (g.has("halvings"))
+        if (g.has("halvings")) {
+            // Past 60 halvings the step is below a double's resolution of any parameter.
             m_check.halvings = g["halvings"].integer(2);
+            if (m_check.halvings > MAX_GRADCHECK_HALVINGS)
+                g["halvings"].fail("must be at most " + std::to_string(MAX_GRADCHECK_HALVINGS) + ", got "
+                    + std::to_string(m_check.halvings));
+        }
     }
     if (doc.contains("checkpointing"))
         m_checkpointing = parse_checkpointing(JsonField(doc["checkpointing"], "checkpointing"));

@@ -555,6 +555,7 @@ StepStatus Simulator::step()
     settings.line_search_max_halvings = m_scene.solver.line_search_max_halvings;
     settings.armijo = m_scene.solver.armijo;
     settings.adaptive_projection = m_scene.solver.adaptive_projection;
+    settings.max_displacement = m_contact ? m_bbox_diagonal : 0.0;
     const NewtonSolver newton(m_problem, m_assembler, *m_linear, settings);
 
     VectorXd x = m_integrator->positions();

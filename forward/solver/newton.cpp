@@ -190,7 +190,14 @@ NewtonResult NewtonSolver::solve(VectorXd& x, const VectorXd& target, const std:
         }
 
         Timer ls;
-        double alpha = std::min(1.0, m_problem.max_step(x, p));
+        double alpha;
+        if (const double length = p.lpNorm<Eigen::Infinity>();
+            m_settings.max_displacement > 0 && length > m_settings.max_displacement) {
+            const double cap = m_settings.max_displacement / length;
+            trial = cap * p; // the line search starts at the capped step
+            alpha = cap * std::min(1.0, m_problem.max_step(x, trial));
+        } else
+            alpha = std::min(1.0, m_problem.max_step(x, p));
         if (!(alpha > 0) && m_problem.step_unresolved()) {
             ls.add_to(result.times.line_search);
             result.status = StepStatus::CCD_UNRESOLVED;

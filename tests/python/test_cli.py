@@ -320,6 +320,32 @@ def test_a_long_thin_mesh_solves(cli, tmp_path):
     assert json.loads((tmp_path / "o" / "summary.json").read_text())["steps_committed"] == 1
 
 
+def test_a_huge_newton_step_fails_the_step_instead_of_hanging(cli, root, tmp_path):
+    # Before: the first step ran for 7 minutes (timeout(1) sent SIGTERM at 60 s; the step
+    # finished long after) and then failed with CCD_UNRESOLVED. A static scene with a free
+    # body (found by the fuzz test) has a rigid mode, so the Newton step is ~1e15 m long; CCD
+    # swept every pair of the obstacle mesh across the whole scene. The step is now capped at
+    # the bodies' bounding-box diagonal, and the solve runs out of Newton iterations in seconds.
+    s = {
+        "dimension": 3,
+        "bodies": [{"name": "plate",
+                    "mesh": {"box": {"min": [-0.6, 0.35, -0.6], "max": [0.6, 0.37, 0.6], "cells": [4, 1, 4]}},
+                    "material": {"model": "neo_hookean", "E": 1e5, "nu": 0.3, "density": 1000}}],
+        "obstacles": [{"name": "sphere", "mesh": {"file": str(root / "studies" / "205_plate_on_sphere" / "sphere.obj"),
+                                                  "scale": 0.3}}],
+        "contact": {"dhat": 1e-3, "kappa": "adaptive"},
+        "gravity": [0, -9.81, 0],
+        "time": {"integrator": "static", "dt": 0.05, "steps": 2},
+    }
+    scene = tmp_path / "s.json"
+    scene.write_text(json.dumps(s))
+    r = subprocess.run([cli, "simulate", scene, "-o", tmp_path / "o", "-q"], capture_output=True, text=True,
+                       timeout=120)
+    assert r.returncode == 2 and "NEWTON_EXHAUSTED" in r.stderr, r.stderr
+    summary = json.loads((tmp_path / "o" / "summary.json").read_text())
+    assert summary["status"] == "NEWTON_EXHAUSTED" and summary["steps_committed"] == 0
+
+
 def test_an_initial_state_with_inverted_elements_writes_no_nan(cli, tmp_path):
     # Before: validate passed and frame_0.vtu held NaN stresses (a Dirichlet displacement that
     # moves the clamped end past the rest of the body inverts its elements at t = 0).

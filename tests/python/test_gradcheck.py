@@ -96,6 +96,8 @@ BAD_PROBLEMS = [
     ("directions_true", lambda p: p["gradcheck"].update(directions=True) or p, "gradcheck.directions"),
     ("directions_fraction", lambda p: p["gradcheck"].update(directions=2.7) or p, "gradcheck.directions"),
     ("seed_fraction", lambda p: p["gradcheck"].update(seed=0.5) or p, "gradcheck.seed"),
+    # Before: accepted, and gradcheck ran a forward solve per halving (2e9 of them).
+    ("halvings_huge", lambda p: p["gradcheck"].update(halvings=2000000000) or p, "gradcheck.halvings"),
     ("gradcheck_not_object", lambda p: p.update(gradcheck=[1, 2]) or p, "gradcheck"),
     ("weight_string", lambda p: p.update(weight="heavy") or p, "weight"),
     ("scene_beside_scenes", lambda p: dict(_scenes(p), scene=p["scene"]), "scene"),
