@@ -7,6 +7,9 @@
 
 #include <Eigen/Geometry>
 
+#include <sys/resource.h>
+#include <unistd.h>
+
 #include <cmath>
 #include <optional>
 
@@ -47,6 +50,38 @@ namespace {
     constexpr double MAX_MATERIAL_VALUE = 1e30;
     /// Smallest time step accepted (s).
     constexpr double MIN_TIME_STEP = 1e-12;
+
+    /// Memory that setting up a simulation takes per element (mesh, FE space, Hessian pattern
+    /// and assembly buffers), measured by `diffipc validate` on boxes: about 700 bytes per
+    /// triangle and 1,200 per tetrahedron (docs/scene_format.md "Limits"). Slightly below the
+    /// measurements, so that no scene that fits is refused; the first factorization needs more.
+    double setup_bytes_per_element(int dim) { return dim == 2 ? 600.0 : 1000.0; }
+
+    /// Memory this process may use: the machine's physical memory, or less under a limit on
+    /// its address space (ulimit -v).
+    double usable_memory_bytes()
+    {
+        double bytes = double(sysconf(_SC_PHYS_PAGES)) * double(sysconf(_SC_PAGE_SIZE));
+        if (struct rlimit limit; getrlimit(RLIMIT_AS, &limit) == 0 && limit.rlim_cur != RLIM_INFINITY)
+            bytes = std::min(bytes, double(limit.rlim_cur));
+        return bytes;
+    }
+
+    /// Refuses, naming `field`, a mesh whose elements (with those of the bodies before it)
+    /// cannot be set up in this process's memory: before, a 7000 x 7000 box was allocated
+    /// until the process died, even in validate.
+    void check_memory(const JsonField& field, int dim, double elements, double elements_before)
+    {
+        const double need = (elements + elements_before) * setup_bytes_per_element(dim);
+        const double have = usable_memory_bytes();
+        if (have > 0 && need > have) {
+            char text[256];
+            std::snprintf(text, sizeof text,
+                "%.4g elements%s need about %.3g GB to set up, more than the %.3g GB this process may use", elements,
+                elements_before > 0 ? " (with the bodies before it)" : "", need * 1e-9, have * 1e-9);
+            field.fail(text);
+        }
+    }
 
     /// Largest vertex coordinate accepted after placement (m): beyond, the distances that
     /// contact and the broad phase compute lose all their digits (or overflow).
@@ -119,7 +154,9 @@ namespace {
         return m;
     }
 
-    Mesh parse_mesh(const JsonField& f, int dim, const std::string& base_directory, std::string& source)
+    /// `elements_before`: the elements of the bodies already read (for the memory estimate).
+    Mesh parse_mesh(
+        const JsonField& f, int dim, const std::string& base_directory, std::string& source, double elements_before)
     {
         f.require_object({ "box", "file", "annulus", "torus" });
         if (int(f.has("box")) + int(f.has("file")) + int(f.has("annulus")) + int(f.has("torus")) != 1)
@@ -137,6 +174,7 @@ namespace {
             const int segments = a["segments"].integer(3);
             if (double(across) * across * segments > 1e7)
                 a["segments"].fail("too many cells");
+            check_memory(a["segments"], dim, 6.0 * across * across * segments, elements_before);
             source = "torus";
             mesh = torus_mesh(R, w, across, segments);
         } else if (f.has("annulus")) {
@@ -152,6 +190,7 @@ namespace {
             const int layers = a.has("layers") ? a["layers"].integer(1) : 1;
             if (double(segments) * layers > 1e7)
                 a["segments"].fail("too many cells");
+            check_memory(a["segments"], dim, 2.0 * segments * layers, elements_before);
             source = "annulus";
             mesh = annulus_mesh(center, r0, r1, segments, layers);
         } else if (f.has("box")) {
@@ -164,6 +203,7 @@ namespace {
                     box["max"].fail("must exceed \"min\" in every component");
             if (cells.cast<double>().prod() > 5e7)
                 box["cells"].fail("too many cells");
+            check_memory(box["cells"], dim, (dim == 2 ? 2.0 : 6.0) * cells.cast<double>().prod(), elements_before);
             source = "box";
             mesh = box_mesh(dim, lower, upper, cells);
         } else {
@@ -178,6 +218,7 @@ namespace {
                 f["file"].fail("unsupported mesh format '" + ext + "' (expected a gmsh .msh file)");
             source = p.string();
             mesh = read_gmsh(p.string(), dim);
+            check_memory(f["file"], dim, double(mesh.num_elements()), elements_before);
         }
         validate_mesh(mesh, f.path());
         return mesh;
@@ -438,7 +479,7 @@ Scene parse_scene(const nlohmann::json& document, const std::string& base_direct
             body.friction_coefficient = parse_local_friction(bf["friction"]);
         self_contact_fields.push_back(
             bf.has("self_contact") ? std::optional<bool>(bf["self_contact"].boolean()) : std::nullopt);
-        Mesh mesh = parse_mesh(bf["mesh"], dim, base_directory, body.mesh_source);
+        Mesh mesh = parse_mesh(bf["mesh"], dim, base_directory, body.mesh_source, double(scene.mesh.num_elements()));
         const MatrixXd unplaced = mesh.rest_positions;
         if (bf.has("rotation")) {
             // Degrees; 2D: one angle; 3D: about x, then y, then z (R = Rz Ry Rx), about the mesh origin.

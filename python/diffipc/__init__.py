@@ -65,8 +65,11 @@ def scene(source, base_directory=None):
     """Return a validated Scene from a path to a JSON file or from a dict.
 
     Relative mesh paths in a dict are resolved against ``base_directory``
-    (default: the current directory).
+    (default: the current directory); a file's are relative to the file, so
+    ``base_directory`` with a path or a Scene is a TypeError.
     """
+    if base_directory is not None and not isinstance(source, dict):
+        raise TypeError("base_directory applies to a scene dict; a file's mesh paths are relative to the file")
     if isinstance(source, Scene):
         return source
     if isinstance(source, (str, os.PathLike)):
@@ -82,9 +85,10 @@ def scene(source, base_directory=None):
     raise TypeError("scene source must be a path, a dict or a Scene")
 
 
-def simulate(source, progress=None):
-    """Run a scene to its end (or its first failed step); returns (simulator, trajectory dict)."""
-    sim = Simulator(scene(source))
+def simulate(source, progress=None, base_directory=None):
+    """Run a scene (a path, a dict or a Scene) to its end (or its first failed step); returns
+    (simulator, trajectory dict). ``base_directory``: as in :func:`scene`, for a dict."""
+    sim = Simulator(scene(source, base_directory))
     trajectory = sim.run(progress) if progress else sim.run()
     return sim, trajectory
 

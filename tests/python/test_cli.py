@@ -320,6 +320,27 @@ def test_a_long_thin_mesh_solves(cli, tmp_path):
     assert json.loads((tmp_path / "o" / "summary.json").read_text())["steps_committed"] == 1
 
 
+def test_a_mesh_larger_than_memory_is_refused_before_allocation(cli, tmp_path):
+    # Before: validate allocated the mesh and its simulator until std::bad_alloc (exit 3) or the
+    # kernel killed it (a 7000 x 7000 box on a 24 GB machine). Under a 2 GB address-space limit,
+    # a 1500 x 1500 box (4.5 million triangles, about 3 GB to set up) is now refused at once.
+    import resource
+
+    def limit_memory():
+        resource.setrlimit(resource.RLIMIT_AS, (2 << 30, 2 << 30))
+
+    s = box_scene(dim=2, steps=1)
+    s["bodies"][0]["mesh"]["box"] = {"min": [0, 0], "max": [1, 1], "cells": [1500, 1500]}
+    scene = tmp_path / "big.json"
+    scene.write_text(json.dumps(s))
+    for command in (["validate", scene], ["simulate", scene, "-o", tmp_path / "o", "-q"]):
+        r = subprocess.run([cli, *map(str, command)], capture_output=True, text=True, timeout=120,
+                           preexec_fn=limit_memory)
+        assert r.returncode == 1, (command[0], r.returncode, r.stderr)
+        lines = r.stderr.strip().splitlines()
+        assert len(lines) == 1 and "bodies[0].mesh.box.cells" in lines[0] and "GB" in lines[0], r.stderr
+
+
 def test_a_huge_newton_step_fails_the_step_instead_of_hanging(cli, root, tmp_path):
     # Before: the first step ran for 7 minutes (timeout(1) sent SIGTERM at 60 s; the step
     # finished long after) and then failed with CCD_UNRESOLVED. A static scene with a free

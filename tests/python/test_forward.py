@@ -33,6 +33,23 @@ def test_scene_from_path(root):
     assert sc.elements.shape == (sc.num_elements, 3)
 
 
+def test_simulate_a_dict_with_relative_mesh_paths(root):
+    # Before: diffipc.simulate(dict) had no base_directory (a TypeError), so a dict scene with
+    # a relative obstacle mesh could only run from the mesh's own directory; and
+    # scene(path, base_directory=...) ignored the argument without a word.
+    study = root / "studies" / "205_plate_on_sphere"
+    s = json.loads((study / "scene.json").read_text())
+    s["time"]["steps"] = 1
+    s["bodies"][0]["mesh"]["box"]["cells"] = [4, 1, 4]
+    del s["output"]
+    with pytest.raises(ValueError, match="obstacles\\[0\\].mesh.file"):
+        diffipc.simulate(s, base_directory=root)
+    sim, tr = diffipc.simulate(s, base_directory=study)
+    assert tr["final_status"] == "CONVERGED" and tr["positions"].shape[0] == 2
+    with pytest.raises(TypeError, match="base_directory"):
+        diffipc.scene(study / "scene.json", base_directory=study)
+
+
 def test_step_by_step_and_trajectory():
     sim = diffipc.Simulator(diffipc.scene(box_scene(steps=2)))
     assert sim.step() == "CONVERGED"
