@@ -191,8 +191,11 @@ NewtonResult NewtonSolver::solve(VectorXd& x, const VectorXd& target, const std:
 
         Timer ls;
         double alpha;
-        if (const double length = p.lpNorm<Eigen::Infinity>();
-            m_settings.max_displacement > 0 && length > m_settings.max_displacement) {
+        double length = 0; // of the free dofs' step: lifting moves prescribed dofs as far as it must
+        for (Index i = 0; i < n; ++i)
+            if (!constrained[size_t(i)])
+                length = std::max(length, std::abs(p[i]));
+        if (m_settings.max_displacement > 0 && length > m_settings.max_displacement) {
             const double cap = m_settings.max_displacement / length;
             trial = cap * p; // the line search starts at the capped step
             alpha = cap * std::min(1.0, m_problem.max_step(x, trial));

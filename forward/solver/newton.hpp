@@ -20,11 +20,12 @@ struct NewtonSettings {
     /// Use the true Hessian once a full step was accepted, as long as it is
     /// positive definite (docs/math.md "Newton"); false: always project.
     bool adaptive_projection = true;
-    /// Largest displacement (m, max norm) one line search tries; a longer Newton step is
-    /// shortened to it before CCD sweeps it. 0: unbounded. The simulator sets the bodies'
-    /// bounding-box diagonal for contact scenes: a step of 1e15 m (a rigid mode of a static
-    /// scene, a huge load or dt) otherwise sweeps every pair across the scene and CCD spends
-    /// its whole iteration budget on each.
+    /// Largest displacement (m, max norm over the free dofs) one line search tries; a longer
+    /// Newton step is shortened to it before CCD sweeps it (prescribed dofs do not count:
+    /// lifting moves them as far as the prescription says). 0: unbounded. The simulator sets
+    /// the bodies' bounding-box diagonal plus the step's inertial drift for contact scenes: a
+    /// step of 1e15 m (a rigid mode of a static scene, a huge load or dt) otherwise sweeps
+    /// every pair across the scene and CCD spends its whole iteration budget on each.
     double max_displacement = 0;
 };
 

@@ -320,6 +320,22 @@ def test_a_long_thin_mesh_solves(cli, tmp_path):
     assert json.loads((tmp_path / "o" / "summary.json").read_text())["steps_committed"] == 1
 
 
+def test_an_inverted_start_fails_step_1_with_its_reason_for_every_material(cli, tmp_path):
+    # Before: validate said "inverted" but simulate failed with LINE_SEARCH_EXHAUSTED and no
+    # reason: StVK and linear elasticity have a finite energy at an inverted element, so Newton
+    # started and its volume-bounded line search found no step (found by the fuzz test).
+    for model in ("stvk", "linear"):
+        s = box_scene(dim=2, model=model, steps=1)
+        s["time"]["integrator"] = "static"
+        s["dirichlet"] = [{"body": 0, "region": {"min": [-1, -1], "max": [1e-6, 1]}, "displacement": [2, 0]}]
+        scene = tmp_path / f"{model}.json"
+        scene.write_text(json.dumps(s))
+        r = run(cli, "validate", scene)
+        assert r.returncode == 1 and "inverted" in r.stderr, r.stderr
+        r = run(cli, "simulate", scene, "-o", tmp_path / model, "-q")
+        assert r.returncode == 2 and "INVALID_INITIAL_STATE" in r.stderr and "inverted" in r.stderr, r.stderr
+
+
 def test_a_mesh_larger_than_memory_is_refused_before_allocation(cli, tmp_path):
     # Before: validate allocated the mesh and its simulator until std::bad_alloc (exit 3) or the
     # kernel killed it (a 7000 x 7000 box on a 24 GB machine). Under a 2 GB address-space limit,
@@ -365,6 +381,18 @@ def test_a_huge_newton_step_fails_the_step_instead_of_hanging(cli, root, tmp_pat
     assert r.returncode == 2 and "NEWTON_EXHAUSTED" in r.stderr, r.stderr
     summary = json.loads((tmp_path / "o" / "summary.json").read_text())
     assert summary["status"] == "NEWTON_EXHAUSTED" and summary["steps_committed"] == 0
+
+    # The cap counts free dofs only, and allows the inertial drift: an obstacle that moves
+    # 10 km per step (prescribed: lifted in one iteration) and a plate falling freely beside it
+    # still take one Newton iteration per step (a cap on every dof took 100 and failed).
+    s["time"] = {"integrator": "implicit_euler", "dt": 0.01, "steps": 3}
+    s["obstacles"][0]["mesh"]["motion"] = ["1e6*t", "0", "0"]
+    scene.write_text(json.dumps(s))
+    r = subprocess.run([cli, "simulate", scene, "-o", tmp_path / "fast", "-q"], capture_output=True, text=True,
+                       timeout=120)
+    assert r.returncode == 0, r.stderr
+    summary = json.loads((tmp_path / "fast" / "summary.json").read_text())
+    assert summary["steps_committed"] == 3 and summary["counts"]["newton_iterations"] <= 6, summary
 
 
 def test_an_initial_state_with_inverted_elements_writes_no_nan(cli, tmp_path):

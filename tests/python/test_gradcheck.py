@@ -141,6 +141,20 @@ BAD_PROBLEMS = [
 ]
 
 
+def test_a_difference_lost_to_round_off_prints_a_finite_relative_error(cli, tmp_path):
+    # Before: "relative error inf" (found by the fuzz test). A marker target 1e15 m away makes
+    # J = 5e29, so J(p + h dp) - J(p) rounds to 0 while the adjoint's dJ.dp is -1.7e10.
+    problem = _problem()
+    problem["objective"]["targets"][1][1][0] = -1e15
+    path = tmp_path / "far.json"
+    path.write_text(json.dumps(problem))
+    r = run(cli, "gradcheck", path, "--directions", "1")
+    assert r.returncode == 4, r.stdout + r.stderr
+    line = next(x for x in r.stdout.splitlines() if "relative error" in x)
+    assert float(line.rsplit(" ", 1)[1]) <= 2, line
+    assert "nan" not in r.stdout.lower() and "inf" not in r.stdout.lower().replace("inconclusive", "")
+
+
 @pytest.mark.parametrize("name,mutate,field", BAD_PROBLEMS, ids=[b[0] for b in BAD_PROBLEMS])
 def test_bad_problem_files_exit_1_naming_the_field(cli, tmp_path, name, mutate, field):
     path = tmp_path / "problem.json"
