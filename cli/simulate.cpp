@@ -6,12 +6,14 @@
 #include "forward/common/error.hpp"
 #include "forward/common/timer.hpp"
 #include "forward/io/output.hpp"
+#include "forward/io/trajectory_reader.hpp"
 #include "forward/io/vtu_frame.hpp"
 #include "forward/scene/scene.hpp"
 #include "forward/simulation/simulator.hpp"
 
 #include <nlohmann/json.hpp>
 
+#include <algorithm>
 #include <csignal>
 #include <cstdio>
 #include <filesystem>
@@ -37,6 +39,29 @@ namespace {
     /// Exit code of a run stopped by `signal`: 128 + the signal number, as shells report it.
     int interrupted_exit_code(int signal) { return 128 + signal; }
 
+    /// States read for a resumed run: the integrators' history (BDF2 needs two).
+    constexpr int RESUME_STATES = 2;
+    /// Steps whose states are read at once while a restart copies the stored trajectory.
+    constexpr int COPY_BLOCK = 256;
+
+    /// Appends every stored step to `h5`, reading the states in blocks and dropping each
+    /// block once written, so that memory does not grow with the stored run's length.
+    void copy_steps(StoredTrajectory& stored, TrajectoryWriter& h5)
+    {
+        Trajectory& tr = stored.trajectory;
+        const int total = tr.committed(), kept_from = std::max(1, total - RESUME_STATES + 1);
+        for (int first = 1; first <= total; first += COPY_BLOCK) {
+            const int last = std::min(total, first + COPY_BLOCK - 1);
+            if (first < kept_from)
+                read_states(stored, first, std::min(last, kept_from - 1));
+            for (int k = first; k <= last; ++k) {
+                h5.append(tr.step(k));
+                if (k < kept_from)
+                    tr.step(k).release_state();
+            }
+        }
+    }
+
 } // namespace
 
 std::unique_ptr<Simulator> open_simulator(Scene scene, const std::string& scene_path)
@@ -56,7 +81,9 @@ int simulate(std::string scene_path, std::string out_dir, int vtu_every, bool qu
         if (!out_dir.empty() && fs::path(out_dir) != fs::path(restart))
             throw InputError("--restart", "continues the run in its own directory; leave -o out");
         out_dir = restart;
-        stored = std::make_unique<StoredTrajectory>(read_trajectory((fs::path(restart) / "trajectory.h5").string()));
+        // The last two states (the integrators' history); the others are copied in blocks below.
+        stored = std::make_unique<StoredTrajectory>(
+            read_trajectory((fs::path(restart) / "trajectory.h5").string(), RESUME_STATES));
         if (scene_path.empty())
             scene_path = stored->scene;
         if (scene_path.empty())
@@ -102,9 +129,14 @@ int simulate(std::string scene_path, std::string out_dir, int vtu_every, bool qu
             std::vector<std::pair<std::string, std::string>> {
                 { "diffipc_version", DIFFIPC_VERSION }, { "scene", sc.source } });
         if (stored) {
-            for (const StepRecord& r : stored->trajectory.steps)
-                h5->append(r);
-            h5->flush();
+            try {
+                copy_steps(*stored, *h5);
+                h5->flush();
+            } catch (...) {
+                h5.reset();
+                std::remove(path.c_str());
+                throw;
+            }
             if (std::rename(path.c_str(), h5_path.c_str()) != 0)
                 throw InputError(h5_path, "cannot replace the trajectory with its continued copy");
         }

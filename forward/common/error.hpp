@@ -15,11 +15,57 @@ namespace diffipc {
 /// an expression), which may be megabytes long; the quote is cut, the message stays one line.
 inline constexpr std::size_t MAX_ERROR_MESSAGE = 600;
 
+/// Length of the valid UTF-8 sequence at text[i] (1 to 4), or 0 if the bytes there are not
+/// one (a stray continuation byte, a truncated sequence, an overlong form, a surrogate).
+inline std::size_t utf8_sequence_length(const std::string& text, std::size_t i)
+{
+    const auto byte = [&](std::size_t k) { return k < text.size() ? static_cast<unsigned char>(text[k]) : 0u; };
+    const unsigned lead = byte(i);
+    if (lead < 0x80)
+        return 1;
+    std::size_t length = 0;
+    unsigned low = 0x80, high = 0xbf; // allowed range of the second byte
+    if (lead >= 0xc2 && lead <= 0xdf)
+        length = 2;
+    else if (lead >= 0xe0 && lead <= 0xef) {
+        length = 3;
+        low = lead == 0xe0 ? 0xa0 : 0x80;
+        high = lead == 0xed ? 0x9f : 0xbf;
+    } else if (lead >= 0xf0 && lead <= 0xf4) {
+        length = 4;
+        low = lead == 0xf0 ? 0x90 : 0x80;
+        high = lead == 0xf4 ? 0x8f : 0xbf;
+    } else
+        return 0;
+    if (byte(i + 1) < low || byte(i + 1) > high)
+        return 0;
+    for (std::size_t k = 2; k < length; ++k)
+        if (byte(i + k) < 0x80 || byte(i + k) > 0xbf)
+            return 0;
+    return length;
+}
+
 /// `text` cut to MAX_ERROR_MESSAGE characters (with how much was left out), line breaks as spaces,
-/// a NUL character as "\0" (a C string, printed with %s, would end there) and other control
-/// characters as '?'.
+/// a NUL character as "\0" (a C string, printed with %s, would end there), other control
+/// characters and bytes that are not UTF-8 as '?' (the message is valid UTF-8: Python turns it
+/// into a str, a terminal shows it).
 inline std::string clip_message(std::string text)
 {
+    {
+        std::string valid;
+        valid.reserve(text.size());
+        for (std::size_t i = 0; i < text.size();) {
+            const std::size_t length = utf8_sequence_length(text, i);
+            if (length == 0) {
+                valid += '?';
+                ++i;
+            } else {
+                valid.append(text, i, length);
+                i += length;
+            }
+        }
+        text = std::move(valid);
+    }
     if (text.find('\0') != std::string::npos) {
         std::string shown;
         for (char c : text)
@@ -33,8 +79,11 @@ inline std::string clip_message(std::string text)
             c = '?';
     if (text.size() <= MAX_ERROR_MESSAGE)
         return text;
-    const std::size_t omitted = text.size() - MAX_ERROR_MESSAGE;
-    return text.substr(0, MAX_ERROR_MESSAGE) + "... (" + std::to_string(omitted) + " more characters)";
+    std::size_t cut = MAX_ERROR_MESSAGE; // not inside a multi-byte character
+    while (cut > 0 && (static_cast<unsigned char>(text[cut]) & 0xc0) == 0x80)
+        --cut;
+    const std::size_t omitted = text.size() - cut;
+    return text.substr(0, cut) + "... (" + std::to_string(omitted) + " more characters)";
 }
 
 /// `value` for a message: at most 7 significant digits ("1e+300", "0.001", "-nan", "inf"),

@@ -47,20 +47,6 @@ private:
     std::unique_ptr<Impl> m_impl;
 };
 
-/// A trajectory.h5 read back (for `simulate --restart`): the initial state and every step
-/// in it, as records (state and the diagnostics the file keeps).
-struct StoredTrajectory {
-    Index vertices = 0;
-    int dim = 0;
-    bool contact = false;
-    std::string scene; ///< the root attribute "scene" ("" if absent)
-    Trajectory trajectory; ///< initial state and steps 1 .. T, first_index 1
-};
-
-/// @brief Reads `path`, also a file whose writer was killed (it is opened in SWMR mode).
-/// @throws InputError naming the file if it is missing, unreadable or not a diffipc trajectory
-StoredTrajectory read_trajectory(const std::string& path);
-
 /// @brief Writes a whole trajectory at once (TrajectoryWriter over every step).
 void write_hdf5(const std::string& path, const Mesh& mesh, const Trajectory& trajectory, bool contact = false);
 

@@ -11,6 +11,17 @@ namespace diffipc {
 
 namespace fs = std::filesystem;
 
+namespace {
+    /// nlohmann's message without its "[json.exception.parse_error.101] " tag.
+    std::string without_library_tag(const std::string& what)
+    {
+        if (what.rfind("[json.exception.", 0) == 0)
+            if (const std::size_t end = what.find("] "); end != std::string::npos)
+                return what.substr(end + 2);
+        return what;
+    }
+} // namespace
+
 std::string read_input_file(const std::string& path, const std::string& what)
 {
     std::error_code ec;
@@ -61,7 +72,7 @@ nlohmann::json parse_json_text(const std::string& text, const std::string& sourc
         } catch (const TooDeep&) {
             throw InputError(source, "JSON nested deeper than " + std::to_string(MAX_JSON_DEPTH) + " levels");
         } catch (const nlohmann::json::parse_error& e) {
-            throw InputError(source, std::string("invalid JSON: ") + e.what());
+            throw InputError(source, "invalid JSON: " + without_library_tag(e.what()));
         } catch (const nlohmann::json::out_of_range& e) {
             // A number that overflows a double (1e999): mark it so that validation
             // names the field it stands in, then parse again.
@@ -69,7 +80,7 @@ nlohmann::json parse_json_text(const std::string& text, const std::string& sourc
             const size_t a = what.find('\''), b = what.rfind('\'');
             const size_t at = a < b ? work.find(what.substr(a + 1, b - a - 1)) : std::string::npos;
             if (at == std::string::npos || attempt > 1000)
-                throw InputError(source, std::string("invalid JSON: ") + what);
+                throw InputError(source, "invalid JSON: " + without_library_tag(what));
             work.replace(at, b - a - 1, "\"" + std::string(NON_FINITE_MARK) + what.substr(a + 1, b - a - 1) + "\"");
         }
     }

@@ -88,3 +88,20 @@ def test_an_inverted_initial_state_fails_with_its_reason():
     assert sim.step() == "INVALID_INITIAL_STATE"
     message = sim.trajectory()["failure_message"]
     assert "INVALID_INITIAL_STATE" in message and "inverted" in message, message
+
+
+def test_a_file_with_bytes_that_are_not_utf8_gives_a_message(root, tmp_path):
+    # Before: ValueError("") (found by the fuzz test): the parser's message quoted the invalid
+    # byte, and the text could not become a Python str. The CLI printed the raw byte and
+    # nlohmann's "[json.exception.parse_error.101]" tag.
+    text = (root / "studies" / "302_bar_youngs_markers" / "problem.json").read_bytes()
+    at = text.index(b'"objective"') + 1
+    bad = tmp_path / "problem.json"
+    bad.write_bytes(text[:at] + b"\xc3" + text[at:])  # a key with an ill-formed UTF-8 byte
+    with pytest.raises(ValueError) as info:
+        diffipc.ReducedFunctional(str(bad))
+    message = str(info.value)
+    assert message.startswith(str(bad) + ": invalid JSON: ") and "?" in message, message
+    assert "json.exception" not in message
+    with pytest.raises(ValueError, match="invalid JSON"):
+        diffipc.scene(str(bad))

@@ -1,8 +1,10 @@
-// trajectory.h5 written step by step and read back (forward/io/trajectory_writer.hpp):
+// trajectory.h5 written step by step and read back (forward/io/trajectory_writer.hpp,
+// forward/io/trajectory_reader.hpp):
 // the stored states are the simulator's to the bit, and a run resumed from the file
 // (simulate --restart) continues exactly as the uninterrupted run, for every integrator.
 
 #include "forward/common/error.hpp"
+#include "forward/io/trajectory_reader.hpp"
 #include "forward/io/trajectory_writer.hpp"
 #include "forward/simulation/simulator.hpp"
 #include "tests/forward/test_utils.hpp"
@@ -51,8 +53,27 @@ TEST_P(TrajectoryIO, ResumedRunMatchesUninterruptedOne)
         EXPECT_EQ(stored.trajectory.step(k).accelerations, part.trajectory().step(k).accelerations);
         EXPECT_EQ(stored.trajectory.step(k).newton_iterations, part.trajectory().step(k).newton_iterations);
     }
+    // The restart's reading: the diagnostics of every step, the states of the last two only
+    // (memory does not grow with the stored run); the others read on demand, the same bits.
+    StoredTrajectory tail = read_trajectory(path, 2);
+    ASSERT_EQ(tail.trajectory.committed(), first);
+    for (int k = 1; k <= first; ++k) {
+        EXPECT_EQ(tail.trajectory.step(k).holds_state(), k > first - 2) << k;
+        EXPECT_EQ(tail.trajectory.step(k).newton_iterations, part.trajectory().step(k).newton_iterations);
+    }
+    EXPECT_EQ(tail.trajectory.initial_positions, part.trajectory().initial_positions);
+    read_states(tail, 3, 9);
+    for (int k = 1; k <= first; ++k)
+        if (k >= 3 && k <= 9)
+            EXPECT_EQ(tail.trajectory.step(k).positions, part.trajectory().step(k).positions) << k;
+        else
+            EXPECT_EQ(tail.trajectory.step(k).holds_state(), k > first - 2) << k;
+    EXPECT_EQ(tail.trajectory.step(9).accelerations, part.trajectory().step(9).accelerations);
+    EXPECT_THROW(read_states(tail, 0, 3), std::out_of_range);
+    EXPECT_THROW(read_states(tail, 5, first + 1), std::out_of_range);
+
     Simulator resumed(test::make_scene(scene));
-    resumed.resume(stored.trajectory, stored.contact);
+    resumed.resume(tail.trajectory, tail.contact);
     EXPECT_EQ(resumed.steps_done(), first);
     EXPECT_EQ(resumed.positions(), part.positions());
     EXPECT_EQ(resumed.velocities(), part.velocities());
