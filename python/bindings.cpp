@@ -441,4 +441,8 @@ PYBIND11_MODULE(_diffipc, m)
             },
             py::arg("p"), py::arg("gradient") = true,
             "(J, dJ/dp) with dJ/dp a numpy array, or None if gradient=False; raises like evaluation().");
+    {
+        void bind_minimize(py::module_&);
+        bind_minimize(m);
+    } // _minimize (minimize_bindings.cpp)
 }

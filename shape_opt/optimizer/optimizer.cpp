@@ -1,0 +1,355 @@
+#include "shape_opt/optimizer/optimizer.hpp"
+
+#include "forward/common/error.hpp"
+#include "shape_opt/optimizer/ipopt_driver.hpp"
+#include "shape_opt/optimizer/lbfgsb.hpp"
+#include "shape_opt/optimizer/nlopt_driver.hpp"
+
+#include <algorithm>
+#include <cctype>
+#include <chrono>
+#include <cmath>
+#include <limits>
+
+namespace diffipc {
+
+namespace {
+
+    constexpr double INF = std::numeric_limits<double>::infinity();
+
+    double now_seconds()
+    {
+        return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
+    }
+
+    const std::pair<OptimizerAlgorithm, const char*> ALGORITHM_NAMES[] = {
+        { OptimizerAlgorithm::LBFGS, "lbfgs" },
+        { OptimizerAlgorithm::LBFGSB, "lbfgsb" },
+        { OptimizerAlgorithm::IPOPT, "ipopt" },
+        { OptimizerAlgorithm::MMA, "mma" },
+        { OptimizerAlgorithm::CCSAQ, "ccsaq" },
+        { OptimizerAlgorithm::SLSQP, "slsqp" },
+    };
+
+    /// x[i] for a message: "x0[3] = 2.5".
+    std::string entry(const std::string& name, Index i, double value)
+    {
+        return name + "[" + std::to_string(i) + "] = " + format_number(value);
+    }
+
+    void check_bound_vector(const VectorXd& bound, Index n, const std::string& field)
+    {
+        if (bound.size() != 0 && bound.size() != n)
+            throw InputError(field,
+                "has " + std::to_string(bound.size()) + " entries, the problem has " + std::to_string(n)
+                    + " variables (give one bound per variable, or none)");
+        for (Index i = 0; i < bound.size(); ++i)
+            if (std::isnan(bound[i]))
+                throw InputError(field, entry("bound", i, bound[i]) + " is NaN (use -inf / +inf for a free side)");
+    }
+
+    void check_tolerance(double value, const std::string& field)
+    {
+        if (!(value >= 0) || std::isinf(value))
+            throw InputError(field, format_number(value) + " must be a finite number >= 0 (0: off)");
+    }
+
+} // namespace
+
+std::string to_string(OptimizerAlgorithm algorithm)
+{
+    for (const auto& [a, name] : ALGORITHM_NAMES)
+        if (a == algorithm)
+            return name;
+    return "unknown";
+}
+
+OptimizerAlgorithm parse_optimizer_algorithm(const std::string& name, const std::string& field)
+{
+    std::string lower = name;
+    std::transform(lower.begin(), lower.end(), lower.begin(), [](unsigned char c) { return char(std::tolower(c)); });
+    std::string known;
+    for (const auto& [a, known_name] : ALGORITHM_NAMES) {
+        if (lower == known_name)
+            return a;
+        known += std::string(known.empty() ? "" : ", ") + "\"" + known_name + "\"";
+    }
+    throw InputError(field, "unknown optimizer \"" + name + "\" (known: " + known + ")");
+}
+
+std::string to_string(StopReason reason)
+{
+    switch (reason) {
+    case StopReason::GRADIENT_TOLERANCE:
+        return "gradient_tolerance";
+    case StopReason::X_TOLERANCE:
+        return "x_tolerance";
+    case StopReason::F_TOLERANCE:
+        return "f_tolerance";
+    case StopReason::ITERATION_BUDGET:
+        return "iteration_budget";
+    case StopReason::TIME_BUDGET:
+        return "time_budget";
+    case StopReason::LINE_SEARCH_STALLED:
+        return "line_search_stalled";
+    case StopReason::USER_STOP:
+        return "user_stop";
+    case StopReason::INFEASIBLE:
+        return "infeasible";
+    case StopReason::INVALID_START:
+        return "invalid_start";
+    case StopReason::FAILED:
+        return "failed";
+    }
+    return "unknown";
+}
+
+namespace optimizer_detail {
+
+    void validate(const OptimizationProblem& problem, const VectorXd& x0, const OptimizerSettings& settings)
+    {
+        const Index n = problem.size();
+        if (x0.size() != n)
+            throw InputError("optimizer.x0",
+                "has " + std::to_string(x0.size()) + " entries, the problem has " + std::to_string(n) + " variables");
+        for (Index i = 0; i < n; ++i)
+            if (!std::isfinite(x0[i]))
+                throw InputError("optimizer.x0", entry("x0", i, x0[i]) + " is not a finite number");
+        check_bound_vector(settings.lower, n, "optimizer.lower");
+        check_bound_vector(settings.upper, n, "optimizer.upper");
+        for (Index i = 0; i < n; ++i) {
+            const double lo = settings.lower.size() ? settings.lower[i] : -INF;
+            const double hi = settings.upper.size() ? settings.upper[i] : INF;
+            if (lo > hi)
+                throw InputError("optimizer.lower",
+                    entry("lower", i, lo) + " is above " + entry("upper", i, hi) + " (an empty box)");
+            if (lo == INF || hi == -INF)
+                throw InputError(lo == INF ? "optimizer.lower" : "optimizer.upper",
+                    "variable " + std::to_string(i) + " has no admissible value (lower = +inf or upper = -inf)");
+            if (x0[i] < lo || x0[i] > hi)
+                throw InputError("optimizer.x0",
+                    entry("x0", i, x0[i]) + " is outside its bounds [" + format_number(lo) + ", " + format_number(hi)
+                        + "]; start inside the box (the optimizers do not move the start for you)");
+        }
+        check_tolerance(settings.gradient_tolerance, "optimizer.gradient_tolerance");
+        check_tolerance(settings.relative_gradient_tolerance, "optimizer.relative_gradient_tolerance");
+        check_tolerance(settings.x_tolerance, "optimizer.x_tolerance");
+        check_tolerance(settings.f_tolerance, "optimizer.f_tolerance");
+        check_tolerance(settings.constraint_tolerance, "optimizer.constraint_tolerance");
+        if (std::isnan(settings.max_seconds) || std::isinf(settings.max_seconds))
+            throw InputError("optimizer.max_seconds",
+                format_number(settings.max_seconds) + " must be a finite number (<= 0: no budget)");
+        if (settings.lbfgs_memory < 1)
+            throw InputError("optimizer.lbfgs_memory",
+                std::to_string(settings.lbfgs_memory) + " must be at least 1 correction pair");
+        if (problem.inequalities() < 0 || problem.equalities() < 0)
+            throw InputError("optimizer.problem", "negative number of constraints");
+
+        const OptimizerAlgorithm a = settings.algorithm;
+        const bool constrained = problem.inequalities() > 0 || problem.equalities() > 0;
+        if ((a == OptimizerAlgorithm::LBFGS || a == OptimizerAlgorithm::LBFGSB) && constrained)
+            throw InputError("optimizer.algorithm",
+                "\"" + to_string(a) + "\" takes no constraints (the problem has "
+                    + std::to_string(problem.inequalities()) + " inequalities and "
+                    + std::to_string(problem.equalities())
+                    + " equalities): use ipopt, mma, ccsaq or slsqp, or a penalty in the objective");
+        if (a == OptimizerAlgorithm::LBFGS)
+            for (Index i = 0; i < n; ++i)
+                if ((settings.lower.size() && std::isfinite(settings.lower[i]))
+                    || (settings.upper.size() && std::isfinite(settings.upper[i])))
+                    throw InputError("optimizer.algorithm",
+                        "\"lbfgs\" takes no bounds (variable " + std::to_string(i) + " has a finite one): use lbfgsb");
+        if ((a == OptimizerAlgorithm::MMA || a == OptimizerAlgorithm::CCSAQ) && problem.equalities() > 0)
+            throw InputError("optimizer.algorithm",
+                "\"" + to_string(a) + "\" takes no equality constraints (the problem has "
+                    + std::to_string(problem.equalities())
+                    + "): use ipopt or slsqp, or write h(x) = 0 as two inequalities");
+        if ((a == OptimizerAlgorithm::LBFGS || a == OptimizerAlgorithm::LBFGSB) && !settings.options.empty())
+            throw InputError("optimizer.options." + settings.options.begin()->first,
+                "\"" + to_string(a) + "\" takes no library options (its settings are the optimizer's own fields)");
+        if (a == OptimizerAlgorithm::IPOPT)
+            check_ipopt_options(settings);
+        if (a == OptimizerAlgorithm::MMA || a == OptimizerAlgorithm::CCSAQ || a == OptimizerAlgorithm::SLSQP)
+            check_nlopt_options(settings);
+    }
+
+    double projected_gradient_norm(
+        const VectorXd& x, const VectorXd& gradient, const VectorXd& lower, const VectorXd& upper)
+    {
+        double norm = 0;
+        for (Index i = 0; i < x.size(); ++i) {
+            const double g = gradient[i];
+            if ((x[i] <= lower[i] && g > 0) || (x[i] >= upper[i] && g < 0))
+                continue;
+            norm = std::max(norm, std::abs(g));
+        }
+        return norm;
+    }
+
+    double relative_change(double f0, double f1)
+    {
+        return std::abs(f1 - f0) / std::max({ std::abs(f0), std::abs(f1), 1e-300 });
+    }
+
+    Run::Run(OptimizationProblem& problem, const OptimizerSettings& settings)
+        : m_problem(problem)
+        , m_settings(settings)
+        , m_start(now_seconds())
+        , m_best_f(INF)
+    {
+        const Index n = problem.size();
+        m_lower = settings.lower.size() ? settings.lower : VectorXd::Constant(n, -INF);
+        m_upper = settings.upper.size() ? settings.upper : VectorXd::Constant(n, INF);
+    }
+
+    bool Run::evaluate(const VectorXd& x, OptimizationValues& out)
+    {
+        const double t0 = now_seconds();
+        bool valid = m_problem.evaluate(x, out);
+        m_evaluation_seconds += now_seconds() - t0;
+        ++m_evaluations;
+        if (m_first_x.size() == 0)
+            m_first_x = x;
+        if (valid) {
+            const Index n = x.size();
+            const int mc = m_problem.inequalities(), mh = m_problem.equalities();
+            const auto size_error = [](const std::string& what, Index rows, Index cols, Index want_rows,
+                                        Index want_cols) {
+                return InputError("optimizer.problem",
+                    "evaluate() returned " + what + " of size " + std::to_string(rows) + " x " + std::to_string(cols)
+                        + ", expected " + std::to_string(want_rows) + " x " + std::to_string(want_cols));
+            };
+            if (out.gradient.size() != n)
+                throw size_error("a gradient", out.gradient.size(), 1, n, 1);
+            if (out.inequality.size() != mc)
+                throw size_error("inequality values", out.inequality.size(), 1, mc, 1);
+            if (out.equality.size() != mh)
+                throw size_error("equality values", out.equality.size(), 1, mh, 1);
+            if (mc > 0 && (out.inequality_jacobian.rows() != mc || out.inequality_jacobian.cols() != n))
+                throw size_error(
+                    "an inequality Jacobian", out.inequality_jacobian.rows(), out.inequality_jacobian.cols(), mc, n);
+            if (mh > 0 && (out.equality_jacobian.rows() != mh || out.equality_jacobian.cols() != n))
+                throw size_error(
+                    "an equality Jacobian", out.equality_jacobian.rows(), out.equality_jacobian.cols(), mh, n);
+            // A NaN or inf is treated as a failed evaluation: no optimizer here can use it.
+            valid = std::isfinite(out.f) && out.gradient.allFinite() && out.inequality.allFinite()
+                && out.equality.allFinite() && (mc == 0 || out.inequality_jacobian.allFinite())
+                && (mh == 0 || out.equality_jacobian.allFinite());
+        }
+        if (!valid) {
+            ++m_rejected;
+            return false;
+        }
+        if (feasible(x, out) && out.f < m_best_f) {
+            m_has_best = true;
+            m_best_f = out.f;
+            m_best_x = x;
+            m_best_values = out;
+        }
+        return true;
+    }
+
+    double Run::max_valid_step(const VectorXd& x, const VectorXd& dx)
+    {
+        const double t0 = now_seconds();
+        const double t = m_problem.max_valid_step(x, dx);
+        m_evaluation_seconds += now_seconds() - t0;
+        if (!(t > 0))
+            return 0;
+        return std::min(t, 1.0);
+    }
+
+    double Run::violation(const VectorXd& x, const OptimizationValues& values) const
+    {
+        double v = 0;
+        for (Index i = 0; i < values.inequality.size(); ++i)
+            v = std::max(v, values.inequality[i]);
+        for (Index i = 0; i < values.equality.size(); ++i)
+            v = std::max(v, std::abs(values.equality[i]));
+        for (Index i = 0; i < x.size(); ++i)
+            v = std::max({ v, m_lower[i] - x[i], x[i] - m_upper[i] });
+        return v;
+    }
+
+    bool Run::iteration(
+        int iteration, const VectorXd& x, const OptimizationValues& values, double gradient_norm, double step_norm)
+    {
+        m_has_accepted = true;
+        m_accepted_x = x;
+        m_accepted_values = values;
+        IterationInfo info;
+        info.iteration = iteration;
+        info.x = &x;
+        info.values = &values;
+        info.gradient_norm = gradient_norm;
+        info.step_norm = step_norm;
+        info.evaluations = m_evaluations;
+        info.rejected = m_rejected;
+        info.evaluation_seconds = m_evaluation_seconds;
+        const double t0 = now_seconds();
+        info.optimizer_seconds = std::max(0.0, t0 - m_start - m_evaluation_seconds - m_callback_seconds);
+        const bool go_on = m_problem.iteration(info);
+        m_callback_seconds += now_seconds() - t0;
+        return go_on;
+    }
+
+    bool Run::out_of_time() const { return m_settings.max_seconds > 0 && elapsed() >= m_settings.max_seconds; }
+
+    double Run::elapsed() const { return now_seconds() - m_start; }
+
+    OptimizerResult Run::finish(StopReason reason, const std::string& message, int iterations)
+    {
+        OptimizerResult result;
+        result.reason = reason;
+        result.message = message;
+        if (m_has_best) {
+            result.x = m_best_x;
+            result.values = m_best_values;
+        } else if (m_has_accepted) {
+            result.x = m_accepted_x;
+            result.values = m_accepted_values;
+        } else {
+            result.x = m_first_x;
+        }
+        if (m_has_best || m_has_accepted)
+            result.max_violation = violation(result.x, result.values);
+        if (!m_has_best && reason != StopReason::INVALID_START) {
+            if (reason == StopReason::GRADIENT_TOLERANCE || reason == StopReason::X_TOLERANCE
+                || reason == StopReason::F_TOLERANCE)
+                result.reason = StopReason::INFEASIBLE;
+            result.message += "; no point within constraint_tolerance " + format_number(m_settings.constraint_tolerance)
+                + " of the constraints was found (largest violation at x: " + format_number(result.max_violation) + ")";
+        }
+        result.iterations = iterations;
+        result.evaluations = m_evaluations;
+        result.rejected = m_rejected;
+        result.evaluation_seconds = m_evaluation_seconds;
+        result.optimizer_seconds = std::max(0.0, elapsed() - m_evaluation_seconds - m_callback_seconds);
+        return result;
+    }
+
+} // namespace optimizer_detail
+
+OptimizerResult minimize(OptimizationProblem& problem, const VectorXd& x0, const OptimizerSettings& settings)
+{
+    optimizer_detail::validate(problem, x0, settings);
+    optimizer_detail::Run run(problem, settings);
+    OptimizationValues values0;
+    if (!run.evaluate(x0, values0))
+        return run.finish(StopReason::INVALID_START,
+            "the initial point is invalid: evaluate() returned false or a non-finite value there", 0);
+    switch (settings.algorithm) {
+    case OptimizerAlgorithm::LBFGS:
+    case OptimizerAlgorithm::LBFGSB:
+        return minimize_lbfgsb(run, x0, values0);
+    case OptimizerAlgorithm::IPOPT:
+        return minimize_ipopt(run, x0, values0);
+    case OptimizerAlgorithm::MMA:
+    case OptimizerAlgorithm::CCSAQ:
+    case OptimizerAlgorithm::SLSQP:
+        return minimize_nlopt(run, x0, values0);
+    }
+    throw InputError("optimizer.algorithm", "unknown algorithm");
+}
+
+} // namespace diffipc
