@@ -27,27 +27,7 @@
 
 namespace diffipc {
 
-/// One entry of the problem's "parameters" list.
-struct ParameterSpec {
-    enum class Kind {
-        SHAPE,
-        YOUNGS_MODULUS,
-        POISSON_RATIO,
-        LAME_MU,
-        LAME_LAMBDA,
-        DENSITY,
-        INITIAL_VELOCITY,
-        INITIAL_DISPLACEMENT,
-        PRESCRIBED,
-        FRICTION
-    };
-    Kind kind = Kind::SHAPE;
-    std::string name; ///< as in the file ("shape", "E", "mu", ...)
-    std::string field; ///< JSON path for messages
-    /// Canonical indices this parameter's entries drive: entry i of the slice drives
-    /// targets[i] (a list of canonical indices in the block).
-    std::vector<std::vector<Index>> targets;
-};
+class ProblemParameters;
 
 /// What the checkpointed adjoint of one load case held and recomputed.
 struct LoadCaseCheckpoint {
@@ -77,9 +57,9 @@ public:
     ReducedFunctional(ReducedFunctional&&) noexcept;
 
     /// Number of optimization variables.
-    Index size() const { return m_size; }
+    Index size() const;
     /// The parameter values of the scenes as given (the starting point).
-    const VectorXd& initial() const { return m_initial; }
+    const VectorXd& initial() const;
     /// Names of the parameters, one per "parameters" entry, with their slice sizes.
     std::vector<std::pair<std::string, Index>> layout() const;
 
@@ -97,21 +77,16 @@ public:
     };
     const CheckSettings& check_settings() const { return m_check; }
     /// Direction scale per variable (a typical magnitude: lengths for positions, the value for moduli).
-    const VectorXd& scales() const { return m_scales; }
+    const VectorXd& scales() const;
     /// The file's "checkpointing" (mode NONE without it: the full-memory adjoint).
     const CheckpointSettings& checkpointing() const { return m_checkpointing; }
 
 private:
     struct LoadCase;
     std::vector<std::unique_ptr<LoadCase>> m_cases;
-    std::vector<ParameterSpec> m_parameters;
-    std::vector<Index> m_offsets;
-    Index m_size = 0;
-    VectorXd m_initial, m_scales;
+    std::unique_ptr<ProblemParameters> m_parameters;
     CheckSettings m_check;
     CheckpointSettings m_checkpointing;
-    /// The elastic moduli are parametrized by mu and lambda (else by E and nu, or not at all).
-    bool m_lame = false;
 };
 
 } // namespace diffipc

@@ -1,0 +1,85 @@
+#pragma once
+/// @file problem_parameters.hpp
+/// The "parameters" list of a problem file (docs/problem_format.md): which simulation
+/// values the optimization vector p drives. Entry k is a slice of p; value i of the slice
+/// drives a list of canonical entries (forward/simulation/parameters.hpp): a selection of
+/// rest-position components (shape), Young's modulus and Poisson's ratio or the Lame
+/// parameters mu and lambda (one pair or the other) or density per element or per body, an
+/// initial velocity or displacement per body or per vertex, the friction coefficients, or
+/// every prescribed displacement of every step.
+
+#include "adjoint/adjoint.hpp"
+#include "forward/scene/scene.hpp"
+#include "forward/simulation/parameters.hpp"
+#include "forward/simulation/simulator.hpp"
+
+#include <nlohmann/json.hpp>
+
+#include <string>
+#include <utility>
+#include <vector>
+
+namespace diffipc {
+
+/// One entry of the problem's "parameters" list.
+struct ParameterSpec {
+    enum class Kind {
+        SHAPE,
+        YOUNGS_MODULUS,
+        POISSON_RATIO,
+        LAME_MU,
+        LAME_LAMBDA,
+        DENSITY,
+        INITIAL_VELOCITY,
+        INITIAL_DISPLACEMENT,
+        PRESCRIBED,
+        FRICTION
+    };
+    Kind kind = Kind::SHAPE;
+    std::string name; ///< as in the file ("shape", "E", "mu", ...)
+    std::string field; ///< JSON path for messages
+    /// Canonical indices this parameter's entries drive: entry i of the slice drives
+    /// targets[i] (a list of canonical indices in the block).
+    std::vector<std::vector<Index>> targets;
+};
+
+class ProblemParameters {
+public:
+    /// @brief Parses and checks the list.
+    /// @param params the problem's "parameters" (a non-empty list)
+    /// @param scene, sim the first load case's scene and a simulator of it (selections, prescribed dofs, friction)
+    /// @param bases every load case's canonical values (the first gives p's initial values;
+    ///        friction and prescribed parameters need the same sizes in every case)
+    /// @throws InputError naming the entry
+    ProblemParameters(const nlohmann::json& params, const Scene& scene, const Simulator& sim,
+        const std::vector<const SimulationParameters*>& bases);
+
+    /// Size of p.
+    Index size() const { return m_size; }
+    /// p at the first load case's values (the starting point).
+    const VectorXd& initial() const { return m_initial; }
+    /// A typical magnitude per variable (gradcheck's direction scale).
+    const VectorXd& scales() const { return m_scales; }
+    /// Names of the entries with their slice sizes.
+    std::vector<std::pair<std::string, Index>> layout() const;
+    const std::vector<ParameterSpec>& entries() const { return m_entries; }
+    /// The elastic moduli are parametrized by mu and lambda (else by E and nu, or not at all).
+    bool lame() const { return m_lame; }
+    /// The parameter derivatives the adjoint must compute.
+    ParameterRequest request() const;
+
+    /// @brief Writes p into the canonical values `sp` (every target of every entry).
+    void apply(const VectorXd& p, SimulationParameters& sp) const;
+    /// @brief Adds dJ/dp, from the adjoint's canonical gradient `g` at the values `at`, to
+    /// `dJ_dp` (size()); dJ/dE and dJ/dnu by the chain rule through the Lame parameters.
+    void add_gradient(const ParameterGradient& g, const SimulationParameters& at, VectorXd& dJ_dp) const;
+
+private:
+    std::vector<ParameterSpec> m_entries;
+    std::vector<Index> m_offsets;
+    Index m_size = 0;
+    VectorXd m_initial, m_scales;
+    bool m_lame = false;
+};
+
+} // namespace diffipc
