@@ -72,7 +72,7 @@ ReducedFunctional::ReducedFunctional(const json& doc, const std::string& base_di
     // Every key is known and has its kind (docs/problem_format.md); nothing is ignored.
     const JsonField root(doc, "");
     root.require_object({ "description", "scene", "objective", "weight", "parameters", "gradcheck", "checkpointing",
-        "threads", "scenes" });
+        "threads", "scenes", "constraints" });
     if (doc.contains("scenes"))
         for (const char* k : { "scene", "objective", "weight" })
             if (doc.contains(k))
@@ -190,6 +190,47 @@ ReducedFunctional::ReducedFunctional(const json& doc, const std::string& base_di
     }
     if (doc.contains("checkpointing"))
         m_checkpointing = parse_checkpointing(JsonField(doc["checkpointing"], "checkpointing"));
+    if (doc.contains("constraints"))
+        parse_constraints(JsonField(doc["constraints"], "constraints"));
+}
+
+void ReducedFunctional::parse_constraints(const JsonField& list)
+{
+    list.require_array();
+    for (size_t i = 0; i < list.size(); ++i) {
+        const JsonField f = list.at(i);
+        f.require_object({ "name", "objective", "case", "upper", "lower", "equals" });
+        ConstraintSpec c;
+        c.field = f.path();
+        c.name = f.has("name") ? f["name"].string() : "constraint " + std::to_string(i);
+        if (int(f.has("upper")) + int(f.has("lower")) + int(f.has("equals")) != 1)
+            f.fail("give exactly one of \"upper\", \"lower\" or \"equals\"");
+        c.kind = f.has("upper") ? ConstraintSpec::Kind::UPPER
+            : f.has("lower")    ? ConstraintSpec::Kind::LOWER
+                                : ConstraintSpec::Kind::EQUALS;
+        c.bound = f[f.has("upper") ? "upper" : f.has("lower") ? "lower" : "equals"].number();
+        if (f.has("case")) {
+            const int k = f["case"].integer(0);
+            if (k >= int(m_cases.size()))
+                f["case"].fail("no load case " + std::to_string(k) + " (" + std::to_string(m_cases.size()) + " cases)");
+            c.load_case = size_t(k);
+        } else if (m_cases.size() > 1)
+            f.fail("name the load case (\"case\": an index into scenes) the constraint is measured on");
+        if (!f.has("objective"))
+            f["objective"].fail("missing: the functional the constraint bounds (an objective, docs/objectives.md)");
+        c.objective = f["objective"].json();
+        {
+            // Validated against its load case now, like the objectives.
+            SimulationParameters fixed;
+            fixed.kappa = m_cases[c.load_case]->base.kappa;
+            const Simulator sim(m_cases[c.load_case]->scene, fixed);
+            parse_objective(c.objective, c.field + ".objective", sim);
+        }
+        for (const ConstraintSpec& other : m_constraints)
+            if (other.name == c.name)
+                f["name"].fail("duplicate constraint name '" + c.name + "'");
+        m_constraints.push_back(std::move(c));
+    }
 }
 
 Index ReducedFunctional::size() const { return m_parameters->size(); }
@@ -197,7 +238,7 @@ const VectorXd& ReducedFunctional::initial() const { return m_parameters->initia
 const VectorXd& ReducedFunctional::scales() const { return m_parameters->scales(); }
 std::vector<std::pair<std::string, Index>> ReducedFunctional::layout() const { return m_parameters->layout(); }
 
-Evaluation ReducedFunctional::evaluate(const VectorXd& p, bool gradient) const
+Evaluation ReducedFunctional::evaluate(const VectorXd& p, bool gradient, bool constraints) const
 {
     const Index n = m_parameters->size();
     if (p.size() != n)
@@ -208,47 +249,96 @@ Evaluation ReducedFunctional::evaluate(const VectorXd& p, bool gradient) const
     Evaluation out;
     if (gradient)
         out.gradient = VectorXd::Zero(n);
+    const int m = constraints ? int(m_constraints.size()) : 0;
+    out.constraint_values = VectorXd::Zero(m);
+    if (gradient)
+        out.constraint_gradients = MatrixXd::Zero(m, n);
     const ParameterRequest request = m_parameters->request();
-    for (const auto& lc : m_cases) {
-        SimulationParameters sp = lc->base;
+    for (size_t c = 0; c < m_cases.size(); ++c) {
+        const LoadCase& lc = *m_cases[c];
+        SimulationParameters sp = lc.base;
         m_parameters->apply(p, sp);
-        Simulator sim(lc->scene, sp);
-        const auto objective = parse_objective(lc->objective, lc->field, sim);
-        ParameterGradient g;
+        // The functionals of this case: its objective (row -1), then the constraints on it.
+        std::vector<int> rows { -1 };
+        for (int i = 0; i < m; ++i)
+            if (m_constraints[size_t(i)].load_case == c)
+                rows.push_back(i);
         if (gradient && m_checkpointing.mode != CheckpointSettings::Mode::NONE) {
-            // The forward runs inside checkpointed_gradient(); J comes from the adapter's copy of the states.
-            StreamedObjectiveAdapter adapter(*objective, request, lc->weight);
-            LoadCaseCheckpoint c;
-            g = checkpointed_gradient(sim, adapter.streamed(), request, m_checkpointing, &c.records);
-            c.objective_stored_states = adapter.stored_states();
-            c.objective_stored_bytes = adapter.stored_bytes();
-            out.value += lc->weight * adapter.value();
-            out.forward_time += c.records.forward_time;
-            out.adjoint_time += c.records.recompute_time + c.records.adjoint_time;
-            out.checkpoints.push_back(c);
-        } else {
-            Timer tf;
-            sim.run();
-            out.forward_time += tf.seconds();
-            const Trajectory& tr = sim.trajectory();
-            if (tr.final_status != StepStatus::CONVERGED)
-                throw AdjointError("no value and no gradient: " + tr.failure_message);
-            out.value += lc->weight * objective->value(sim, tr);
+            // The forward runs inside checkpointed_gradient(), once per functional; values come
+            // from the adapter's copy of the states.
+            for (const int row : rows) {
+                Simulator sim(lc.scene, sp);
+                const auto objective = row < 0 ? parse_objective(lc.objective, lc.field, sim)
+                                               : parse_objective(m_constraints[size_t(row)].objective,
+                                                   m_constraints[size_t(row)].field + ".objective", sim);
+                const double weight = row < 0 ? lc.weight : 1.0;
+                StreamedObjectiveAdapter adapter(*objective, request, weight);
+                LoadCaseCheckpoint record;
+                const ParameterGradient g
+                    = checkpointed_gradient(sim, adapter.streamed(), request, m_checkpointing, &record.records);
+                record.objective_stored_states = adapter.stored_states();
+                record.objective_stored_bytes = adapter.stored_bytes();
+                out.forward_time += record.records.forward_time;
+                out.adjoint_time += record.records.recompute_time + record.records.adjoint_time;
+                if (row < 0) {
+                    out.value += weight * adapter.value();
+                    out.checkpoints.push_back(record);
+                    m_parameters->add_gradient(g, sp, out.gradient);
+                } else {
+                    out.constraint_values[row] = adapter.value();
+                    VectorXd dg = VectorXd::Zero(n);
+                    m_parameters->add_gradient(g, sp, dg);
+                    out.constraint_gradients.row(row) = dg.transpose();
+                }
+            }
+            continue;
+        }
+        Simulator sim(lc.scene, sp);
+        std::vector<std::unique_ptr<Objective>> objectives;
+        for (const int row : rows)
+            objectives.push_back(row < 0 ? parse_objective(lc.objective, lc.field, sim)
+                                         : parse_objective(m_constraints[size_t(row)].objective,
+                                             m_constraints[size_t(row)].field + ".objective", sim));
+        Timer tf;
+        sim.run();
+        out.forward_time += tf.seconds();
+        const Trajectory& tr = sim.trajectory();
+        if (tr.final_status != StepStatus::CONVERGED)
+            throw AdjointError("no value and no gradient: " + tr.failure_message);
+        for (size_t r = 0; r < rows.size(); ++r) {
+            const int row = rows[r];
+            const Objective* objective = objectives[r].get();
+            const double weight = row < 0 ? lc.weight : 1.0;
+            const double value = objective->value(sim, tr);
+            if (row < 0)
+                out.value += weight * value;
+            else
+                out.constraint_values[row] = value;
             if (!gradient)
                 continue;
             Timer ta;
             StateSeed seed;
             seed.resize(int(tr.steps.size()));
-            objective->add_gradient(sim, tr, request, lc->weight, seed);
-            g = adjoint_gradient(sim, seed, request);
+            objective->add_gradient(sim, tr, request, weight, seed);
+            const ParameterGradient g = adjoint_gradient(sim, seed, request);
             out.adjoint_time += ta.seconds();
+            if (row < 0)
+                m_parameters->add_gradient(g, sp, out.gradient);
+            else {
+                VectorXd dg = VectorXd::Zero(n);
+                m_parameters->add_gradient(g, sp, dg);
+                out.constraint_gradients.row(row) = dg.transpose();
+            }
         }
-        m_parameters->add_gradient(g, sp, out.gradient);
     }
     if (!std::isfinite(out.value))
         throw ObjectiveDomainError(
             "J = " + format_number(out.value) + ": the objective overflows (check its targets, weights and exponents)");
-    if (gradient && !out.gradient.allFinite())
+    for (int i = 0; i < m; ++i)
+        if (!std::isfinite(out.constraint_values[i]))
+            throw ObjectiveDomainError(m_constraints[size_t(i)].field + " = " + format_number(out.constraint_values[i])
+                + ": the constraint's functional overflows");
+    if (gradient && (!out.gradient.allFinite() || !out.constraint_gradients.allFinite()))
         throw AdjointError("no gradient: a non-finite derivative (check the objective's parameters)");
     return out;
 }

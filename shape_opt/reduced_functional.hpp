@@ -27,6 +27,7 @@
 
 namespace diffipc {
 
+class JsonField;
 class ProblemParameters;
 
 /// What the checkpointed adjoint of one load case held and recomputed.
@@ -34,6 +35,18 @@ struct LoadCaseCheckpoint {
     CheckpointStatistics records; ///< the step records (peak held, the schedule's bound, recomputed steps, times)
     int objective_stored_states = 0; ///< states whose x_k, v_k the objective's adapter copied (T + 1 at most)
     size_t objective_stored_bytes = 0; ///< their bytes
+};
+
+/// One entry of the problem's "constraints": a functional of one load case with a bound,
+/// g(p) <= upper, g(p) >= lower or g(p) == equals (docs/problem_format.md).
+struct ConstraintSpec {
+    enum class Kind { UPPER, LOWER, EQUALS };
+    std::string name; ///< the file's "name", else "constraint i"
+    std::string field; ///< "constraints[i]"
+    Kind kind = Kind::UPPER;
+    double bound = 0;
+    size_t load_case = 0;
+    nlohmann::json objective; ///< the functional g, an objective (docs/objectives.md)
 };
 
 /// Results of one evaluation.
@@ -44,6 +57,10 @@ struct Evaluation {
     double forward_time = 0, adjoint_time = 0;
     /// One per load case when the problem has checkpointing and the gradient was computed; else empty.
     std::vector<LoadCaseCheckpoint> checkpoints;
+    /// With constraints: g_i(p) for every constraint (not compared with its bound), and with
+    /// the gradient dg_i/dp as row i; else empty.
+    VectorXd constraint_values;
+    MatrixXd constraint_gradients;
 };
 
 class ReducedFunctional {
@@ -63,10 +80,15 @@ public:
     /// Names of the parameters, one per "parameters" entry, with their slice sizes.
     std::vector<std::pair<std::string, Index>> layout() const;
 
-    /// @brief J(p) and, if `gradient`, dJ/dp by the adjoint.
+    /// @brief J(p) and, if `gradient`, dJ/dp by the adjoint; with `constraints`, also every
+    /// constraint's functional and its gradient, from the same forward run of its load case
+    /// (one adjoint sweep per functional; with checkpointing, one checkpointed run each).
     /// @throws InputError for a p of the wrong size or with non-finite entries;
     ///         AdjointError (no gradient) if a forward step fails.
-    Evaluation evaluate(const VectorXd& p, bool gradient) const;
+    Evaluation evaluate(const VectorXd& p, bool gradient, bool constraints = false) const;
+
+    /// The problem's "constraints" (empty without).
+    const std::vector<ConstraintSpec>& constraints() const { return m_constraints; }
 
     /// Settings of `diffipc gradcheck` from the file's optional "gradcheck" object.
     struct CheckSettings {
@@ -82,11 +104,14 @@ public:
     const CheckpointSettings& checkpointing() const { return m_checkpointing; }
 
 private:
+    void parse_constraints(const JsonField& list);
+
     struct LoadCase;
     std::vector<std::unique_ptr<LoadCase>> m_cases;
     std::unique_ptr<ProblemParameters> m_parameters;
     CheckSettings m_check;
     CheckpointSettings m_checkpointing;
+    std::vector<ConstraintSpec> m_constraints;
 };
 
 } // namespace diffipc
