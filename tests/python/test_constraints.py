@@ -14,6 +14,7 @@ def beam_problem(checkpointing=False):
     p["constraints"] = [
         {"name": "volume", "objective": {"type": "volume"}, "upper": 0.19},
         {"name": "energy", "objective": {"type": "elastic_energy", "time": "final"}, "lower": 1e-3},
+        {"name": "material", "objective": {"type": "volume", "configuration": "rest"}, "upper": 0.2},
     ]
     if checkpointing:
         p["checkpointing"] = {"mode": "stride", "stride": 1}
@@ -24,11 +25,11 @@ def beam_problem(checkpointing=False):
 def test_constraint_values_and_gradients(checkpointing):
     problem = beam_problem(checkpointing)
     J = diffipc.ReducedFunctional(problem)
-    assert [c["name"] for c in J.constraints] == ["volume", "energy"]
+    assert [c["name"] for c in J.constraints] == ["volume", "energy", "material"]
     assert J.constraints[0]["kind"] == "upper" and J.constraints[1]["bound"] == 1e-3
     p = J.initial
     e = J.evaluation(p, gradient=True, constraints=True)
-    assert e.constraint_values.shape == (2,) and e.constraint_gradients.shape == (2, J.size)
+    assert e.constraint_values.shape == (3,) and e.constraint_gradients.shape == (3, J.size)
     # Independently: each constraint's functional as the objective of its own problem.
     for i, c in enumerate(problem["constraints"]):
         alone = dict(problem, objective=c["objective"])
@@ -40,6 +41,7 @@ def test_constraint_values_and_gradients(checkpointing):
     # The deformed area at the final state, near the rest area 0.2; the gradients against
     # central differences.
     assert e.constraint_values[0] == pytest.approx(0.2, rel=0.05)
+    assert e.constraint_values[2] == pytest.approx(0.2, rel=1e-14)  # the rest area of the 1 x 0.2 beam
     rng = np.random.default_rng(4)
     d = rng.uniform(-1, 1, J.size) * J.scales
     h = 1e-3  # truncation O(h^2): about 1e-8 relative here
