@@ -413,6 +413,26 @@ PYBIND11_MODULE(_diffipc, m)
             "A typical magnitude per variable (gradcheck's direction scale).")
         .def_property_readonly(
             "layout", &ReducedFunctional::layout, "[(type, size)] per entry of the problem's parameter list.")
+        .def_property_readonly("design_size", &ReducedFunctional::design_size,
+            "Number of design variables x (the inputs of the entries' maps; docs/parametrizations.md).")
+        .def_property_readonly(
+            "design_initial", [](const ReducedFunctional& rf) { return VectorXd(rf.design_initial()); },
+            "x at the start (the entries' \"initial\", else the maps' inverse of the scenes' values).")
+        .def_property_readonly("design_layout", &ReducedFunctional::design_layout,
+            "[(type, design size)] per entry of the problem's parameter list.")
+        .def(
+            "parameters_of",
+            [](const ReducedFunctional& rf, const py::array_t<double, py::array::c_style | py::array::forcecast>& x) {
+                return rf.parameters_of(parameter_vector(x, rf.design_size()));
+            },
+            py::arg("x"), "p = P(x): the parameters the design variables give.")
+        .def(
+            "design_gradient",
+            [](const ReducedFunctional& rf, const py::array_t<double, py::array::c_style | py::array::forcecast>& x,
+                const py::array_t<double, py::array::c_style | py::array::forcecast>& dJ_dp) {
+                return rf.design_gradient(parameter_vector(x, rf.design_size()), parameter_vector(dJ_dp, rf.size()));
+            },
+            py::arg("x"), py::arg("dJ_dp"), "dJ/dx = P'(x)^T dJ/dp (the maps' vector-Jacobian products in reverse).")
         .def_property_readonly(
             "check_settings",
             [](const ReducedFunctional& rf) {

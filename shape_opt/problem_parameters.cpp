@@ -2,6 +2,7 @@
 
 #include "forward/common/error.hpp"
 #include "forward/scene/json_field.hpp"
+#include "shape_opt/parametrization/map_json.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -187,10 +188,11 @@ namespace {
             throw InputError(field + ".type", "expected a parameter type (" + kind_names() + ")");
         const std::string type = spec["type"];
         for (const auto& [key, value] : spec.items()) {
-            static const char* const known[] = { "type", "per", "body", "vertices", "components", "group" };
+            static const char* const known[]
+                = { "type", "per", "body", "vertices", "components", "group", "maps", "initial" };
             if (std::find(std::begin(known), std::end(known), key) == std::end(known))
-                throw InputError(
-                    field + "." + key, "unknown field (expected type, per, body, vertices, components, group)");
+                throw InputError(field + "." + key,
+                    "unknown field (expected type, per, body, vertices, components, group, maps, initial)");
         }
         if (spec.contains("per") && !spec["per"].is_string())
             throw InputError(field + ".per", "expected a string");
@@ -452,6 +454,77 @@ ProblemParameters::ProblemParameters(
             }
         }
     }
+    parse_maps(params, scene);
+}
+
+void ProblemParameters::parse_maps(const json& params, const Scene& scene)
+{
+    const int d = scene.dim;
+    std::vector<std::unique_ptr<ParameterMap>> parts;
+    std::vector<VectorXd> initials;
+    for (size_t k = 0; k < m_entries.size(); ++k) {
+        const ParameterSpec& entry = m_entries[k];
+        const json& spec = params[k];
+        EntryLayout layout;
+        layout.size = Index(entry.targets.size());
+        layout.name = entry.name;
+        const bool material = entry.kind == Kind::YOUNGS_MODULUS || entry.kind == Kind::POISSON_RATIO
+            || entry.kind == Kind::LAME_MU || entry.kind == Kind::LAME_LAMBDA || entry.kind == Kind::DENSITY;
+        if (material
+            && std::all_of(entry.targets.begin(), entry.targets.end(), [](const auto& t) { return t.size() == 1; })) {
+            layout.kind = EntryLayout::Kind::PER_ELEMENT;
+            for (const auto& t : entry.targets)
+                layout.elements.push_back(t[0]);
+        }
+        if (entry.kind == Kind::SHAPE && layout.size == scene.body_vertices * d) {
+            bool in_order = true;
+            for (Index i = 0; i < layout.size && in_order; ++i)
+                in_order = entry.targets[size_t(i)].size() == 1 && entry.targets[size_t(i)][0] == i;
+            if (in_order)
+                layout.kind = EntryLayout::Kind::ALL_BODY_POSITIONS;
+        }
+        std::unique_ptr<ParameterChain> chain;
+        if (spec.contains("maps")) {
+            m_has_maps = true;
+            chain = std::make_unique<ParameterChain>(
+                parse_entry_maps(JsonField(spec["maps"], entry.field + ".maps"), layout, scene));
+        } else
+            chain = std::make_unique<ParameterChain>(layout.size);
+        // The start: "initial", else the inverse of the entry's values, else 0 if the maps give them there.
+        const VectorXd p0 = m_initial.segment(m_offsets[k], layout.size);
+        VectorXd x0;
+        if (spec.contains("initial")) {
+            const JsonField f(spec["initial"], entry.field + ".initial");
+            x0 = f.json().is_array() ? f.vector(int(chain->in_size()))
+                                     : VectorXd::Constant(chain->in_size(), f.number());
+        } else if (chain->invertible())
+            x0 = chain->inverse(p0, entry.field + ".maps");
+        else {
+            x0 = VectorXd::Zero(chain->in_size());
+            const VectorXd at_zero = chain->apply(x0);
+            if ((at_zero - p0).lpNorm<Eigen::Infinity>() > 1e-12 * std::max(1.0, p0.lpNorm<Eigen::Infinity>()))
+                throw InputError(entry.field + ".maps",
+                    "the maps have no inverse and do not give the scene's values at 0: give \"initial\" design values");
+        }
+        m_design_sizes.push_back(chain->in_size());
+        initials.push_back(x0);
+        parts.push_back(std::move(chain));
+    }
+    m_design = std::make_unique<Concatenation>(std::move(parts));
+    m_design_initial.resize(m_design->in_size());
+    Index at = 0;
+    for (const VectorXd& x0 : initials) {
+        m_design_initial.segment(at, x0.size()) = x0;
+        at += x0.size();
+    }
+}
+
+std::vector<std::pair<std::string, Index>> ProblemParameters::design_layout() const
+{
+    std::vector<std::pair<std::string, Index>> out;
+    for (size_t k = 0; k < m_entries.size(); ++k)
+        out.emplace_back(m_entries[k].name, m_design_sizes[k]);
+    return out;
 }
 
 std::vector<std::pair<std::string, Index>> ProblemParameters::layout() const

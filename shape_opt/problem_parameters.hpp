@@ -12,9 +12,11 @@
 #include "forward/scene/scene.hpp"
 #include "forward/simulation/parameters.hpp"
 #include "forward/simulation/simulator.hpp"
+#include "shape_opt/parametrization/parameter_map.hpp"
 
 #include <nlohmann/json.hpp>
 
+#include <memory>
 #include <string>
 #include <utility>
 #include <vector>
@@ -74,8 +76,29 @@ public:
     /// `dJ_dp` (size()); dJ/dE and dJ/dnu by the chain rule through the Lame parameters.
     void add_gradient(const ParameterGradient& g, const SimulationParameters& at, VectorXd& dJ_dp) const;
 
+    /// The design variables x: per entry, the inputs of its "maps" (docs/parametrizations.md;
+    /// an entry without maps: its values). Size of x.
+    Index design_size() const { return m_design->in_size(); }
+    /// x at the start: the entry's "initial", else the maps' inverse of p's initial values,
+    /// else 0 where the maps give those values at 0 (a shape control at rest).
+    const VectorXd& design_initial() const { return m_design_initial; }
+    /// p = P(x).
+    VectorXd parameters_of(const VectorXd& x) const { return m_design->apply(x); }
+    /// dJ/dx = P'(x)^T dJ/dp.
+    VectorXd design_gradient(const VectorXd& x, const VectorXd& dJ_dp) const { return m_design->vjp(x, dJ_dp); }
+    /// Names of the entries with their design sizes.
+    std::vector<std::pair<std::string, Index>> design_layout() const;
+    /// Whether some entry has maps (else x = p).
+    bool has_maps() const { return m_has_maps; }
+
 private:
+    void parse_maps(const nlohmann::json& params, const Scene& scene);
+
     std::vector<ParameterSpec> m_entries;
+    std::unique_ptr<Concatenation> m_design;
+    std::vector<Index> m_design_sizes;
+    VectorXd m_design_initial;
+    bool m_has_maps = false;
     std::vector<Index> m_offsets;
     Index m_size = 0;
     VectorXd m_initial, m_scales;

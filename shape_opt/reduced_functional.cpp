@@ -237,6 +237,32 @@ Index ReducedFunctional::size() const { return m_parameters->size(); }
 const VectorXd& ReducedFunctional::initial() const { return m_parameters->initial(); }
 const VectorXd& ReducedFunctional::scales() const { return m_parameters->scales(); }
 std::vector<std::pair<std::string, Index>> ReducedFunctional::layout() const { return m_parameters->layout(); }
+Index ReducedFunctional::design_size() const { return m_parameters->design_size(); }
+const VectorXd& ReducedFunctional::design_initial() const { return m_parameters->design_initial(); }
+std::vector<std::pair<std::string, Index>> ReducedFunctional::design_layout() const
+{
+    return m_parameters->design_layout();
+}
+
+VectorXd ReducedFunctional::parameters_of(const VectorXd& x) const
+{
+    if (x.size() != design_size())
+        throw InputError(
+            "design", "expected " + std::to_string(design_size()) + " values, got " + std::to_string(x.size()));
+    for (Index i = 0; i < x.size(); ++i)
+        if (!std::isfinite(x[i]))
+            throw InputError("design[" + std::to_string(i) + "]", "non-finite value");
+    return m_parameters->parameters_of(x);
+}
+
+VectorXd ReducedFunctional::design_gradient(const VectorXd& x, const VectorXd& dJ_dp) const
+{
+    if (x.size() != design_size() || dJ_dp.size() != size())
+        throw InputError("design",
+            "expected " + std::to_string(design_size()) + " design values and " + std::to_string(size())
+                + " gradient values, got " + std::to_string(x.size()) + " and " + std::to_string(dJ_dp.size()));
+    return m_parameters->design_gradient(x, dJ_dp);
+}
 
 Evaluation ReducedFunctional::evaluate(const VectorXd& p, bool gradient, bool constraints) const
 {

@@ -87,6 +87,16 @@ public:
     ///         AdjointError (no gradient) if a forward step fails.
     Evaluation evaluate(const VectorXd& p, bool gradient, bool constraints = false) const;
 
+    /// The design variables x (docs/parametrizations.md): per parameter entry, the inputs of
+    /// its "maps"; p = P(x). Without maps x = p.
+    Index design_size() const;
+    const VectorXd& design_initial() const;
+    std::vector<std::pair<std::string, Index>> design_layout() const;
+    /// p = P(x).
+    VectorXd parameters_of(const VectorXd& x) const;
+    /// dJ/dx = P'(x)^T dJ/dp (and so for any row vector in p's layout).
+    VectorXd design_gradient(const VectorXd& x, const VectorXd& dJ_dp) const;
+
     /// The problem's "constraints" (empty without).
     const std::vector<ConstraintSpec>& constraints() const { return m_constraints; }
 

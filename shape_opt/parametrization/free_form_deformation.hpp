@@ -1,0 +1,54 @@
+#pragma once
+/// @file free_form_deformation.hpp
+/// Mesh-independent shape controls (docs/parametrizations.md): a free-form deformation
+/// (Sederberg and Parry 1986) over an axis-aligned box. The design variables are the
+/// displacements of a lattice of (n_1 + 1) x ... x (n_d + 1) control points along the active
+/// axes; a rest vertex X inside the box, at local coordinates s = (X - lo) / (hi - lo) in
+/// [0, 1]^d, moves by
+///
+///   u(X) = sum_{i,j,k} B_i^{n_1}(s_1) B_j^{n_2}(s_2) B_k^{n_3}(s_3) P_ijk,
+///
+/// B the Bernstein polynomials; vertices outside the box stay. The parameter vector depends
+/// on the lattice only, not on the mesh: after a remesh the same x moves the new mesh the
+/// same way, so an optimizer keeps its history. The outer layer of control points moves the
+/// box's faces; fix it (`fixed_border`) for a deformation that is continuous across them.
+/// The output is the full rest-position vector X0 + u (#V * dim, vertex-major); linear in x.
+
+#include "forward/mesh/mesh.hpp"
+#include "shape_opt/parametrization/parameter_map.hpp"
+
+namespace diffipc {
+
+struct FfdLattice {
+    VectorXd lower, upper; ///< dim corners of the box (m), upper > lower
+    VectorXi degree; ///< dim polynomial degrees n_a >= 1 (n_a + 1 control points per axis)
+    std::vector<int> axes; ///< active axes of the displacements
+    /// Only the interior control points are variables (the box's faces stay in place).
+    bool fixed_border = false;
+};
+
+class FreeFormDeformation : public ParameterMap {
+public:
+    /// @param rest #V by dim rest positions
+    /// @throws InputError naming `field` for a box with upper <= lower, a degree below 1 or
+    ///         above 20, bad axes, or a fixed border with no interior control point
+    FreeFormDeformation(const Positions& rest, const FfdLattice& lattice, const std::string& field);
+    Index in_size() const override { return m_basis.cols(); }
+    Index out_size() const override { return m_rest.size(); }
+    VectorXd apply(const VectorXd& x) const override;
+    VectorXd vjp(const VectorXd& x, const VectorXd& y_bar) const override;
+    std::string name() const override { return "ffd"; }
+    /// Number of control points that are variables, and the position (m) of control point c
+    /// (lattice order: axis 0 fastest).
+    Index variable_points() const { return Index(m_points.size()); }
+    VectorXd control_point(Index c) const;
+
+private:
+    FfdLattice m_lattice;
+    int m_dim;
+    VectorXd m_rest;
+    std::vector<Index> m_points; ///< lattice indices of the variable control points
+    SparseMatrixd m_basis; ///< #V * dim by variable_points * |axes|: dy/dx
+};
+
+} // namespace diffipc
