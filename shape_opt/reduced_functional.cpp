@@ -244,6 +244,23 @@ std::vector<std::pair<std::string, Index>> ReducedFunctional::design_layout() co
     return m_parameters->design_layout();
 }
 
+bool ReducedFunctional::has_shape() const
+{
+    for (const ParameterSpec& e : m_parameters->entries())
+        if (e.kind == ParameterSpec::Kind::SHAPE)
+            return true;
+    return false;
+}
+
+VectorXd ReducedFunctional::rest_positions_of(const VectorXd& p) const
+{
+    SimulationParameters sp = m_cases[0]->base;
+    m_parameters->apply(p, sp);
+    return sp.rest_positions.head(m_cases[0]->scene.body_vertices * m_cases[0]->scene.dim);
+}
+
+const Scene& ReducedFunctional::scene() const { return m_cases[0]->scene; }
+
 VectorXd ReducedFunctional::parameters_of(const VectorXd& x) const
 {
     if (x.size() != design_size())

@@ -97,6 +97,13 @@ public:
     /// dJ/dx = P'(x)^T dJ/dp (and so for any row vector in p's layout).
     VectorXd design_gradient(const VectorXd& x, const VectorXd& dJ_dp) const;
 
+    /// Whether p moves rest positions (a "shape" entry), and the rest positions it gives
+    /// (#V * dim of the bodies, vertex-major; the first load case's mesh, which every case shares).
+    bool has_shape() const;
+    VectorXd rest_positions_of(const VectorXd& p) const;
+    /// The first load case's scene (the mesh every case shares).
+    const Scene& scene() const;
+
     /// The problem's "constraints" (empty without).
     const std::vector<ConstraintSpec>& constraints() const { return m_constraints; }
 

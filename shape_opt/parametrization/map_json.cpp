@@ -14,29 +14,6 @@ namespace diffipc {
 
 namespace {
 
-    /// The bodies' part of the scene mesh (obstacle vertices and facets left out).
-    Mesh body_mesh(const Scene& scene)
-    {
-        const Mesh& all = scene.mesh;
-        Mesh m;
-        m.dim = all.dim;
-        m.rest_positions = all.rest_positions.topRows(scene.body_vertices);
-        m.elements = all.elements;
-        m.vertex_body = all.vertex_body.head(scene.body_vertices);
-        m.element_body = all.element_body;
-        std::vector<Index> facets;
-        for (Index f = 0; f < all.boundary_facets.rows(); ++f)
-            if (all.boundary_facets.row(f).maxCoeff() < scene.body_vertices)
-                facets.push_back(f);
-        m.boundary_facets.resize(Index(facets.size()), all.boundary_facets.cols());
-        m.facet_body.resize(Index(facets.size()));
-        for (size_t k = 0; k < facets.size(); ++k) {
-            m.boundary_facets.row(Index(k)) = all.boundary_facets.row(facets[k]);
-            m.facet_body[Index(k)] = all.facet_body[facets[k]];
-        }
-        return m;
-    }
-
     void require(const EntryLayout& layout, EntryLayout::Kind kind, Index size, const JsonField& f, const char* what)
     {
         if (layout.kind != kind || size != layout.size)
@@ -138,7 +115,7 @@ namespace {
             require(layout, EntryLayout::Kind::ALL_BODY_POSITIONS, out, f,
                 "every rest-position component of every body vertex (a \"shape\" entry without \"vertices\" and "
                 "\"components\")");
-            const Mesh mesh = body_mesh(scene);
+            const Mesh mesh = bodies_mesh(scene);
             if (type == "ffd") {
                 keys({ "box", "degree", "axes", "fixed_border" });
                 const JsonField box = f["box"];
@@ -195,6 +172,28 @@ namespace {
     }
 
 } // namespace
+
+Mesh bodies_mesh(const Scene& scene)
+{
+    const Mesh& all = scene.mesh;
+    Mesh m;
+    m.dim = all.dim;
+    m.rest_positions = all.rest_positions.topRows(scene.body_vertices);
+    m.elements = all.elements;
+    m.vertex_body = all.vertex_body.head(scene.body_vertices);
+    m.element_body = all.element_body;
+    std::vector<Index> facets;
+    for (Index f = 0; f < all.boundary_facets.rows(); ++f)
+        if (all.boundary_facets.row(f).maxCoeff() < scene.body_vertices)
+            facets.push_back(f);
+    m.boundary_facets.resize(Index(facets.size()), all.boundary_facets.cols());
+    m.facet_body.resize(Index(facets.size()));
+    for (size_t k = 0; k < facets.size(); ++k) {
+        m.boundary_facets.row(Index(k)) = all.boundary_facets.row(facets[k]);
+        m.facet_body[Index(k)] = all.facet_body[facets[k]];
+    }
+    return m;
+}
 
 ParameterChain parse_entry_maps(const JsonField& maps, const EntryLayout& layout, const Scene& scene)
 {

@@ -23,6 +23,10 @@ struct EntryLayout {
     std::string name; ///< the entry's type, for messages
 };
 
+/// The bodies' part of the scene mesh: their vertices [0, body_vertices), elements and
+/// boundary facets (obstacle vertices and facets left out).
+Mesh bodies_mesh(const Scene& scene);
+
 /// @brief The chain of `maps` (applied to the design variables in the listed order; the last
 /// gives the entry's `layout.size` values), each map's sizes derived from the one after it.
 /// @throws InputError naming the map ("parameters[0].maps[1].radius") for an unknown type or

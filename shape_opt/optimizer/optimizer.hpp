@@ -1,0 +1,222 @@
+#pragma once
+/// @file optimizer.hpp
+/// Optimizers behind one interface (issue 12): a smooth problem
+///
+///   min f(x)  subject to  lower <= x <= upper,  c(x) <= 0,  h(x) = 0,
+///
+/// with gradients of f, c and h, a validity hook (a design may be invalid: an inverted
+/// or self-intersecting rest mesh, a forward solve that fails) and a per-iteration
+/// callback. Drivers: a projected L-BFGS with bounds (ours, because it must honour the
+/// validity hook), Ipopt (limited-memory Hessian, true constraints) and NLopt's MMA,
+/// CCSAQ and SLSQP (vector constraints).
+///
+/// Invalid points are never reported to an optimizer as NaN (NLopt's CCSA methods stall on
+/// it): L-BFGS bounds its line search by max_valid_step() and backtracks past a failed
+/// evaluation; Ipopt is told the evaluation failed (its line search cuts the step); NLopt
+/// gets a large finite value, so that CCSA's conservative check fails and it retries with a
+/// more conservative approximation (SLSQP's line search backtracks).
+
+#include "forward/common/types.hpp"
+
+#include <map>
+#include <string>
+#include <vector>
+
+namespace diffipc {
+
+/// f, c, h and their derivatives at one point.
+struct OptimizationValues {
+    double f = 0;
+    VectorXd gradient; ///< n
+    VectorXd inequality; ///< m_c values of c (feasible: <= 0)
+    MatrixXd inequality_jacobian; ///< m_c by n
+    VectorXd equality; ///< m_h values of h (feasible: == 0)
+    MatrixXd equality_jacobian; ///< m_h by n
+};
+
+/// What the per-iteration callback sees.
+struct IterationInfo {
+    int iteration = 0; ///< 0: the initial point
+    const VectorXd* x = nullptr;
+    const OptimizationValues* values = nullptr;
+    double gradient_norm = 0; ///< inf-norm of the projected gradient (L-BFGS) or of the Lagrangian's (Ipopt)
+    double step_norm = 0; ///< inf-norm of the last accepted change of x
+    int evaluations = 0; ///< evaluations so far
+    int rejected = 0; ///< trial points rejected so far (invalid or failed)
+    double evaluation_seconds = 0; ///< wall time inside evaluate() and max_valid_step() so far
+    double optimizer_seconds = 0; ///< wall time of the optimizer itself so far
+};
+
+/// The problem an optimizer sees.
+class OptimizationProblem {
+public:
+    virtual ~OptimizationProblem() = default;
+    /// Number of variables n.
+    virtual Index size() const = 0;
+    /// Number of inequality constraints m_c and equality constraints m_h.
+    virtual int inequalities() const { return 0; }
+    virtual int equalities() const { return 0; }
+    /// @brief f, its gradient and the constraints with their Jacobians at x, from one
+    /// evaluation (one forward run and its adjoints).
+    /// @return false if x is not a valid design or cannot be evaluated (a failed forward
+    /// solve): the optimizer rejects the point, `out` is not used
+    virtual bool evaluate(const VectorXd& x, OptimizationValues& out) = 0;
+    /// @brief Largest t in (0, 1] such that x + s dx is valid for every s in [0, t]; 1 when
+    /// the whole step is (the default: every point is valid).
+    virtual double max_valid_step(const VectorXd& x, const VectorXd& dx)
+    {
+        (void)x;
+        (void)dx;
+        return 1.0;
+    }
+    /// @brief Called at the initial point and after every accepted iterate.
+    /// @return false to stop the run (StopReason::USER_STOP)
+    virtual bool iteration(const IterationInfo& info)
+    {
+        (void)info;
+        return true;
+    }
+};
+
+enum class OptimizerAlgorithm { LBFGS, LBFGSB, IPOPT, MMA, CCSAQ, SLSQP };
+
+/// "lbfgs", "lbfgsb", "ipopt", "mma", "ccsaq", "slsqp"
+std::string to_string(OptimizerAlgorithm algorithm);
+/// @throws InputError naming `field` for an unknown name (listing the known ones)
+OptimizerAlgorithm parse_optimizer_algorithm(const std::string& name, const std::string& field);
+
+struct OptimizerSettings {
+    OptimizerAlgorithm algorithm = OptimizerAlgorithm::LBFGSB;
+    /// Bounds per variable (empty: none); -inf / +inf for a free side.
+    VectorXd lower, upper;
+    /// Stopping rules; a rule with value 0 (or a budget <= 0) is off.
+    double gradient_tolerance = 1e-8; ///< projected-gradient inf-norm, absolute
+    double relative_gradient_tolerance = 1e-6; ///< ... relative to the initial point's
+    double x_tolerance = 0; ///< inf-norm of the change of x in one iteration
+    double f_tolerance = 0; ///< |f_k - f_{k-1}| / max(|f_k|, |f_{k-1}|, 1e-300)
+    int max_iterations = 100;
+    double max_seconds = 0; ///< wall-time budget
+    double constraint_tolerance = 1e-6; ///< largest violation accepted as feasible (absolute)
+    int lbfgs_memory = 10; ///< correction pairs of the L-BFGS Hessian approximation (all drivers)
+    /// Options passed to the library as they are. Ipopt: any of its options, read as the
+    /// option's type (number, integer, string) and overriding ours. NLopt: "maxeval",
+    /// "xtol_rel", "ftol_abs", "stopval", and for MMA/CCSAQ the parameters "inner_maxeval",
+    /// "dual_algorithm", "dual_ftol_rel", "dual_ftol_abs", "dual_maxeval", "verbosity".
+    /// L-BFGS: none. Anything else is an InputError naming "optimizer.options.<name>".
+    std::map<std::string, std::string> options;
+};
+
+enum class StopReason {
+    GRADIENT_TOLERANCE,
+    X_TOLERANCE,
+    F_TOLERANCE,
+    ITERATION_BUDGET,
+    TIME_BUDGET,
+    LINE_SEARCH_STALLED,
+    USER_STOP,
+    INFEASIBLE, ///< the optimizer stopped without satisfying the constraints
+    INVALID_START, ///< the initial point is invalid (evaluate() returned false there; outside the bounds: InputError)
+    FAILED ///< the library reported an error (message says which)
+};
+/// "gradient_tolerance", "x_tolerance", ...
+std::string to_string(StopReason reason);
+
+struct OptimizerResult {
+    VectorXd x; ///< the best valid, feasible (within constraint_tolerance) point seen, else the last accepted one
+    OptimizationValues values; ///< at x
+    StopReason reason = StopReason::FAILED;
+    std::string message; ///< the reason in words, with the library's own status where there is one
+    int iterations = 0;
+    int evaluations = 0;
+    int rejected = 0;
+    double max_violation = 0; ///< of the constraints and bounds at x (0 without constraints)
+    double evaluation_seconds = 0, optimizer_seconds = 0;
+};
+
+/// @brief Minimizes `problem` from `x0` with the settings' algorithm.
+/// @param x0  n initial values, inside the bounds
+/// @throws InputError for settings that do not fit the problem (bound sizes, lower > upper, NaN,
+///         x0 outside its bounds, constraints given to L-BFGS, equalities given to MMA/CCSAQ, an
+///         option the library rejects); an exception thrown by the problem passes through.
+OptimizerResult minimize(OptimizationProblem& problem, const VectorXd& x0, const OptimizerSettings& settings);
+
+/// Shared by the drivers (lbfgsb.cpp, ipopt_driver.cpp, nlopt_driver.cpp); not for users.
+namespace optimizer_detail {
+
+    /// @brief Checks the settings against the problem and x0.
+    /// @throws InputError naming the field ("optimizer.lower", "optimizer.x0", ...)
+    void validate(const OptimizationProblem& problem, const VectorXd& x0, const OptimizerSettings& settings);
+
+    /// @brief Inf-norm of the projected gradient: g_i, except 0 where x_i sits on a bound and
+    /// -g_i points out of the box (the variable is held by the bound).
+    /// @param lower, upper  n bounds (-inf / +inf for a free side)
+    double projected_gradient_norm(
+        const VectorXd& x, const VectorXd& gradient, const VectorXd& lower, const VectorXd& upper);
+
+    /// |f1 - f0| / max(|f0|, |f1|, 1e-300): the measure of OptimizerSettings::f_tolerance.
+    double relative_change(double f0, double f1);
+
+    /// @brief One run of a driver: evaluations through it are timed and counted, every valid one
+    /// is a candidate for the result (the best feasible point), and the per-iteration callback
+    /// gets the counts and times. Times: evaluation = evaluate() + max_valid_step(); optimizer =
+    /// the rest of the wall time, less the time spent in iteration().
+    class Run {
+    public:
+        Run(OptimizationProblem& problem, const OptimizerSettings& settings);
+
+        OptimizationProblem& problem() { return m_problem; }
+        const OptimizerSettings& settings() const { return m_settings; }
+        /// n bounds, +-inf where the settings give none.
+        const VectorXd& lower() const { return m_lower; }
+        const VectorXd& upper() const { return m_upper; }
+
+        /// @brief problem.evaluate(), timed and counted. A point where it returns false, or a
+        /// non-finite f, gradient or constraint value, is rejected (counted; returns false).
+        /// @throws InputError naming "optimizer.problem" when the values have the wrong sizes
+        bool evaluate(const VectorXd& x, OptimizationValues& out);
+        /// problem.max_valid_step(), timed, clamped to [0, 1] (NaN: 0).
+        double max_valid_step(const VectorXd& x, const VectorXd& dx);
+        /// Largest violation of the constraints (c > 0, h != 0) and of the bounds at x.
+        double violation(const VectorXd& x, const OptimizationValues& values) const;
+        /// True when x is within constraint_tolerance of the constraints and bounds.
+        bool feasible(const VectorXd& x, const OptimizationValues& values) const
+        {
+            return violation(x, values) <= m_settings.constraint_tolerance;
+        }
+
+        /// @brief problem.iteration() with the counts and times filled in; x becomes the last
+        /// accepted point (the result when no feasible point is found).
+        /// @return false when the callback asks to stop
+        bool iteration(int iteration, const VectorXd& x, const OptimizationValues& values, double gradient_norm,
+            double step_norm);
+        /// True once settings.max_seconds (when > 0) of wall time have passed.
+        bool out_of_time() const;
+        /// Wall time since the run began, s.
+        double elapsed() const;
+        int evaluations() const { return m_evaluations; }
+        int rejected() const { return m_rejected; }
+        /// True once a valid point within constraint_tolerance has been evaluated.
+        bool has_feasible() const { return m_has_best; }
+        /// The best feasible valid f so far (+inf before the first).
+        double best_f() const { return m_best_f; }
+
+        /// @brief The result: the best valid feasible point seen, else the last accepted one, else
+        /// x0. A tolerance reason (gradient, x, f) without a feasible point becomes INFEASIBLE.
+        OptimizerResult finish(StopReason reason, const std::string& message, int iterations);
+
+    private:
+        OptimizationProblem& m_problem;
+        const OptimizerSettings& m_settings;
+        VectorXd m_lower, m_upper;
+        double m_start = 0; ///< steady clock at construction, s
+        double m_evaluation_seconds = 0, m_callback_seconds = 0;
+        int m_evaluations = 0, m_rejected = 0;
+        bool m_has_best = false, m_has_accepted = false;
+        double m_best_f = 0;
+        VectorXd m_best_x, m_accepted_x, m_first_x;
+        OptimizationValues m_best_values, m_accepted_values;
+    };
+
+} // namespace optimizer_detail
+
+} // namespace diffipc
