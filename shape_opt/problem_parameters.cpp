@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <map>
 #include <set>
 #include <stdexcept>
@@ -189,10 +190,10 @@ namespace {
         const std::string type = spec["type"];
         for (const auto& [key, value] : spec.items()) {
             static const char* const known[]
-                = { "type", "per", "body", "vertices", "components", "group", "maps", "initial" };
+                = { "type", "per", "body", "vertices", "components", "group", "maps", "initial", "lower", "upper" };
             if (std::find(std::begin(known), std::end(known), key) == std::end(known))
                 throw InputError(field + "." + key,
-                    "unknown field (expected type, per, body, vertices, components, group, maps, initial)");
+                    "unknown field (expected type, per, body, vertices, components, group, maps, initial, lower, upper)");
         }
         if (spec.contains("per") && !spec["per"].is_string())
             throw InputError(field + ".per", "expected a string");
@@ -461,7 +462,7 @@ void ProblemParameters::parse_maps(const json& params, const Scene& scene)
 {
     const int d = scene.dim;
     std::vector<std::unique_ptr<ParameterMap>> parts;
-    std::vector<VectorXd> initials;
+    std::vector<VectorXd> initials, lowers, uppers;
     for (size_t k = 0; k < m_entries.size(); ++k) {
         const ParameterSpec& entry = m_entries[k];
         const json& spec = params[k];
@@ -506,16 +507,40 @@ void ProblemParameters::parse_maps(const json& params, const Scene& scene)
                 throw InputError(entry.field + ".maps",
                     "the maps have no inverse and do not give the scene's values at 0: give \"initial\" design values");
         }
+        // Bounds of the design variables: a number for all or one per design value.
+        const auto bound = [&](const char* key, double fallback) -> VectorXd {
+            if (!spec.contains(key))
+                return VectorXd::Constant(chain->in_size(), fallback);
+            const JsonField f(spec[key], entry.field + "." + key);
+            return f.json().is_array() ? f.vector(int(chain->in_size())) : VectorXd::Constant(chain->in_size(), f.number());
+        };
+        const VectorXd lower = bound("lower", -std::numeric_limits<double>::infinity());
+        const VectorXd upper = bound("upper", std::numeric_limits<double>::infinity());
+        for (Index i = 0; i < lower.size(); ++i) {
+            if (!(lower[i] <= upper[i]))
+                throw InputError(entry.field + ".lower", "lower bound " + format_number(lower[i]) + " is above the upper bound "
+                        + format_number(upper[i]) + " (design value " + std::to_string(i) + ")");
+            if (!(x0[i] >= lower[i] && x0[i] <= upper[i]))
+                throw InputError(entry.field + (spec.contains("initial") ? ".initial" : ".lower"),
+                    "the initial design value " + std::to_string(i) + " = " + format_number(x0[i]) + " is outside its bounds ["
+                        + format_number(lower[i]) + ", " + format_number(upper[i]) + "]");
+        }
+        lowers.push_back(lower);
+        uppers.push_back(upper);
         m_design_sizes.push_back(chain->in_size());
         initials.push_back(x0);
         parts.push_back(std::move(chain));
     }
     m_design = std::make_unique<Concatenation>(std::move(parts));
     m_design_initial.resize(m_design->in_size());
+    m_design_lower.resize(m_design->in_size());
+    m_design_upper.resize(m_design->in_size());
     Index at = 0;
-    for (const VectorXd& x0 : initials) {
-        m_design_initial.segment(at, x0.size()) = x0;
-        at += x0.size();
+    for (size_t k = 0; k < initials.size(); ++k) {
+        m_design_initial.segment(at, initials[k].size()) = initials[k];
+        m_design_lower.segment(at, initials[k].size()) = lowers[k];
+        m_design_upper.segment(at, initials[k].size()) = uppers[k];
+        at += initials[k].size();
     }
 }
 

@@ -82,6 +82,9 @@ public:
     /// x at the start: the entry's "initial", else the maps' inverse of p's initial values,
     /// else 0 where the maps give those values at 0 (a shape control at rest).
     const VectorXd& design_initial() const { return m_design_initial; }
+    /// Bounds of x: the entries' "lower" and "upper" (-inf, +inf without).
+    const VectorXd& design_lower() const { return m_design_lower; }
+    const VectorXd& design_upper() const { return m_design_upper; }
     /// p = P(x).
     VectorXd parameters_of(const VectorXd& x) const { return m_design->apply(x); }
     /// dJ/dx = P'(x)^T dJ/dp.
@@ -97,7 +100,7 @@ private:
     std::vector<ParameterSpec> m_entries;
     std::unique_ptr<Concatenation> m_design;
     std::vector<Index> m_design_sizes;
-    VectorXd m_design_initial;
+    VectorXd m_design_initial, m_design_lower, m_design_upper;
     bool m_has_maps = false;
     std::vector<Index> m_offsets;
     Index m_size = 0;

@@ -72,7 +72,7 @@ ReducedFunctional::ReducedFunctional(const json& doc, const std::string& base_di
     // Every key is known and has its kind (docs/problem_format.md); nothing is ignored.
     const JsonField root(doc, "");
     root.require_object({ "description", "scene", "objective", "weight", "parameters", "gradcheck", "checkpointing",
-        "threads", "scenes", "constraints" });
+        "threads", "scenes", "constraints", "optimizer", "output" });
     if (doc.contains("scenes"))
         for (const char* k : { "scene", "objective", "weight" })
             if (doc.contains(k))
@@ -192,6 +192,15 @@ ReducedFunctional::ReducedFunctional(const json& doc, const std::string& base_di
         m_checkpointing = parse_checkpointing(JsonField(doc["checkpointing"], "checkpointing"));
     if (doc.contains("constraints"))
         parse_constraints(JsonField(doc["constraints"], "constraints"));
+    if (doc.contains("optimizer")) {
+        if (!doc["optimizer"].is_object())
+            throw InputError("optimizer", "expected an object (docs/optimization.md)");
+        m_optimizer = doc["optimizer"];
+    }
+    if (doc.contains("output") && !doc["output"].is_object())
+        throw InputError("output", "expected an object (docs/optimization.md)");
+    m_document = doc;
+    m_base_directory = base_directory;
 }
 
 void ReducedFunctional::parse_constraints(const JsonField& list)
@@ -260,6 +269,9 @@ VectorXd ReducedFunctional::rest_positions_of(const VectorXd& p) const
 }
 
 const Scene& ReducedFunctional::scene() const { return m_cases[0]->scene; }
+
+const VectorXd& ReducedFunctional::design_lower() const { return m_parameters->design_lower(); }
+const VectorXd& ReducedFunctional::design_upper() const { return m_parameters->design_upper(); }
 
 VectorXd ReducedFunctional::parameters_of(const VectorXd& x) const
 {

@@ -92,6 +92,15 @@ public:
     Index design_size() const;
     const VectorXd& design_initial() const;
     std::vector<std::pair<std::string, Index>> design_layout() const;
+    /// Bounds of x from the entries' "lower" and "upper" (infinite without).
+    const VectorXd& design_lower() const;
+    const VectorXd& design_upper() const;
+    /// The file's "optimizer" object (null without), read by the optimization run.
+    const nlohmann::json& optimizer_spec() const { return m_optimizer; }
+    /// The document as loaded and the folder its relative paths start from (for the problem
+    /// file an optimization writes with its optimum).
+    const nlohmann::json& document() const { return m_document; }
+    const std::string& base_directory() const { return m_base_directory; }
     /// p = P(x).
     VectorXd parameters_of(const VectorXd& x) const;
     /// dJ/dx = P'(x)^T dJ/dp (and so for any row vector in p's layout).
@@ -129,6 +138,8 @@ private:
     CheckSettings m_check;
     CheckpointSettings m_checkpointing;
     std::vector<ConstraintSpec> m_constraints;
+    nlohmann::json m_optimizer, m_document;
+    std::string m_base_directory;
 };
 
 } // namespace diffipc
