@@ -261,11 +261,16 @@ bool ReducedFunctional::has_shape() const
     return false;
 }
 
-VectorXd ReducedFunctional::rest_positions_of(const VectorXd& p) const
+SimulationParameters ReducedFunctional::simulation_parameters_of(const VectorXd& p) const
 {
     SimulationParameters sp = m_cases[0]->base;
     m_parameters->apply(p, sp);
-    return sp.rest_positions.head(m_cases[0]->scene.body_vertices * m_cases[0]->scene.dim);
+    return sp;
+}
+
+VectorXd ReducedFunctional::rest_positions_of(const VectorXd& p) const
+{
+    return simulation_parameters_of(p).rest_positions.head(m_cases[0]->scene.body_vertices * m_cases[0]->scene.dim);
 }
 
 const Scene& ReducedFunctional::scene() const { return m_cases[0]->scene; }

@@ -110,6 +110,9 @@ public:
     /// (#V * dim of the bodies, vertex-major; the first load case's mesh, which every case shares).
     bool has_shape() const;
     VectorXd rest_positions_of(const VectorXd& p) const;
+    /// The first load case's simulation parameters with p applied (rest positions, E and nu
+    /// or mu and lambda, densities, ...).
+    SimulationParameters simulation_parameters_of(const VectorXd& p) const;
     /// The first load case's scene (the mesh every case shares).
     const Scene& scene() const;
 

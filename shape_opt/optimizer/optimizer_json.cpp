@@ -11,9 +11,9 @@ OptimizerSettings parse_optimizer_settings(const JsonField& spec)
     OptimizerSettings s;
     if (spec.json().is_null())
         return s;
-    spec.require_object({ "algorithm", "max_iterations", "max_seconds", "gradient_tolerance",
-        "relative_gradient_tolerance", "x_tolerance", "f_tolerance", "constraint_tolerance", "lbfgs_memory",
-        "options" });
+    spec.require_object(
+        { "algorithm", "max_iterations", "max_seconds", "gradient_tolerance", "relative_gradient_tolerance",
+            "x_tolerance", "f_tolerance", "constraint_tolerance", "lbfgs_memory", "options" });
     if (spec.has("algorithm"))
         s.algorithm = parse_optimizer_algorithm(spec["algorithm"].string(), spec["algorithm"].path());
     if (spec.has("max_iterations"))
@@ -47,8 +47,7 @@ OptimizerSettings parse_optimizer_settings(const JsonField& spec)
                 char text[32];
                 std::snprintf(text, sizeof text, "%.17g", o.number()); // every digit: an option is exact
                 s.options[key] = text;
-            }
-            else
+            } else
                 o.fail("expected a number or a string");
         }
     }
