@@ -320,8 +320,13 @@ PYBIND11_MODULE(_diffipc, m)
 
     auto model = [](const std::string& name) { return parse_material_model(name, "model"); };
     m.def(
-        "lame_parameters", [](double E, double nu) { return std::make_pair(lame_mu(E, nu), lame_lambda(E, nu)); },
-        py::arg("E"), py::arg("nu"), "(mu, lambda) from Young's modulus and Poisson's ratio.");
+        "lame_parameters",
+        [](double E, double nu, bool plane_stress) {
+            return std::make_pair(lame_mu(E, nu), lame_lambda(E, nu, plane_stress));
+        },
+        py::arg("E"), py::arg("nu"), py::arg("plane_stress") = false,
+        "(mu, lambda) from Young's modulus and Poisson's ratio (3D and plane strain; plane_stress=True: the 2D "
+        "lambda of a thin sheet, E nu / (1 - nu^2)).");
     m.def(
         "element_energy",
         [model](const std::string& name, const MatrixXd& rest, const MatrixXd& deformed, double mu, double lambda) {

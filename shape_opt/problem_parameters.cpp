@@ -165,8 +165,8 @@ namespace {
 
     /// dJ/dp in the layout of SimulationParameters, so that one table serves values and
     /// derivatives; dJ/dE and dJ/dnu (at `at`) by the chain rule if `young_poisson`.
-    SimulationParameters canonical_gradient(
-        const ParameterGradient& g, const SimulationParameters& at, bool young_poisson)
+    SimulationParameters canonical_gradient(const ParameterGradient& g, const SimulationParameters& at,
+        bool young_poisson, const std::vector<char>& plane_stress)
     {
         SimulationParameters d;
         d.rest_positions = g.rest_positions;
@@ -179,7 +179,7 @@ namespace {
         d.prescribed = g.prescribed;
         if (young_poisson)
             lame_to_young_poisson(
-                at.youngs_modulus, at.poisson_ratio, g.mu, g.lambda, d.youngs_modulus, d.poisson_ratio);
+                at.youngs_modulus, at.poisson_ratio, g.mu, g.lambda, d.youngs_modulus, d.poisson_ratio, plane_stress);
         return d;
     }
 
@@ -193,7 +193,8 @@ namespace {
                 = { "type", "per", "body", "vertices", "components", "group", "maps", "initial", "lower", "upper" };
             if (std::find(std::begin(known), std::end(known), key) == std::end(known))
                 throw InputError(field + "." + key,
-                    "unknown field (expected type, per, body, vertices, components, group, maps, initial, lower, upper)");
+                    "unknown field (expected type, per, body, vertices, components, group, maps, initial, lower, "
+                    "upper)");
         }
         if (spec.contains("per") && !spec["per"].is_string())
             throw InputError(field + ".per", "expected a string");
@@ -512,18 +513,20 @@ void ProblemParameters::parse_maps(const json& params, const Scene& scene)
             if (!spec.contains(key))
                 return VectorXd::Constant(chain->in_size(), fallback);
             const JsonField f(spec[key], entry.field + "." + key);
-            return f.json().is_array() ? f.vector(int(chain->in_size())) : VectorXd::Constant(chain->in_size(), f.number());
+            return f.json().is_array() ? f.vector(int(chain->in_size()))
+                                       : VectorXd::Constant(chain->in_size(), f.number());
         };
         const VectorXd lower = bound("lower", -std::numeric_limits<double>::infinity());
         const VectorXd upper = bound("upper", std::numeric_limits<double>::infinity());
         for (Index i = 0; i < lower.size(); ++i) {
             if (!(lower[i] <= upper[i]))
-                throw InputError(entry.field + ".lower", "lower bound " + format_number(lower[i]) + " is above the upper bound "
-                        + format_number(upper[i]) + " (design value " + std::to_string(i) + ")");
+                throw InputError(entry.field + ".lower",
+                    "lower bound " + format_number(lower[i]) + " is above the upper bound " + format_number(upper[i])
+                        + " (design value " + std::to_string(i) + ")");
             if (!(x0[i] >= lower[i] && x0[i] <= upper[i]))
                 throw InputError(entry.field + (spec.contains("initial") ? ".initial" : ".lower"),
-                    "the initial design value " + std::to_string(i) + " = " + format_number(x0[i]) + " is outside its bounds ["
-                        + format_number(lower[i]) + ", " + format_number(upper[i]) + "]");
+                    "the initial design value " + std::to_string(i) + " = " + format_number(x0[i])
+                        + " is outside its bounds [" + format_number(lower[i]) + ", " + format_number(upper[i]) + "]");
         }
         lowers.push_back(lower);
         uppers.push_back(upper);
@@ -576,9 +579,10 @@ void ProblemParameters::apply(const VectorXd& p, SimulationParameters& sp) const
                 canonical_entry(sp, traits(m_entries[k].kind), t) = p[m_offsets[k] + Index(i)];
 }
 
-void ProblemParameters::add_gradient(const ParameterGradient& g, const SimulationParameters& at, VectorXd& dJ_dp) const
+void ProblemParameters::add_gradient(const ParameterGradient& g, const SimulationParameters& at,
+    const std::vector<char>& plane_stress, VectorXd& dJ_dp) const
 {
-    const SimulationParameters dJ = canonical_gradient(g, at, request().lame && !m_lame);
+    const SimulationParameters dJ = canonical_gradient(g, at, request().lame && !m_lame, plane_stress);
     for (size_t k = 0; k < m_entries.size(); ++k) {
         const KindTraits& t = traits(m_entries[k].kind);
         for (size_t i = 0; i < m_entries[k].targets.size(); ++i)

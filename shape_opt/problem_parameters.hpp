@@ -73,8 +73,10 @@ public:
     /// @brief Writes p into the canonical values `sp` (every target of every entry).
     void apply(const VectorXd& p, SimulationParameters& sp) const;
     /// @brief Adds dJ/dp, from the adjoint's canonical gradient `g` at the values `at`, to
-    /// `dJ_dp` (size()); dJ/dE and dJ/dnu by the chain rule through the Lame parameters.
-    void add_gradient(const ParameterGradient& g, const SimulationParameters& at, VectorXd& dJ_dp) const;
+    /// `dJ_dp` (size()); dJ/dE and dJ/dnu by the chain rule through the Lame parameters
+    /// (plane stress where `plane_stress`, per element, says so: Simulator::plane_stress()).
+    void add_gradient(const ParameterGradient& g, const SimulationParameters& at, const std::vector<char>& plane_stress,
+        VectorXd& dJ_dp) const;
 
     /// The design variables x: per entry, the inputs of its "maps" (docs/parametrizations.md;
     /// an entry without maps: its values). Size of x.

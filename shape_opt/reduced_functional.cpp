@@ -343,11 +343,11 @@ Evaluation ReducedFunctional::evaluate(const VectorXd& p, bool gradient, bool co
                 if (row < 0) {
                     out.value += weight * adapter.value();
                     out.checkpoints.push_back(record);
-                    m_parameters->add_gradient(g, sp, out.gradient);
+                    m_parameters->add_gradient(g, sp, sim.plane_stress(), out.gradient);
                 } else {
                     out.constraint_values[row] = adapter.value();
                     VectorXd dg = VectorXd::Zero(n);
-                    m_parameters->add_gradient(g, sp, dg);
+                    m_parameters->add_gradient(g, sp, sim.plane_stress(), dg);
                     out.constraint_gradients.row(row) = dg.transpose();
                 }
             }
@@ -383,10 +383,10 @@ Evaluation ReducedFunctional::evaluate(const VectorXd& p, bool gradient, bool co
             const ParameterGradient g = adjoint_gradient(sim, seed, request);
             out.adjoint_time += ta.seconds();
             if (row < 0)
-                m_parameters->add_gradient(g, sp, out.gradient);
+                m_parameters->add_gradient(g, sp, sim.plane_stress(), out.gradient);
             else {
                 VectorXd dg = VectorXd::Zero(n);
-                m_parameters->add_gradient(g, sp, dg);
+                m_parameters->add_gradient(g, sp, sim.plane_stress(), dg);
                 out.constraint_gradients.row(row) = dg.transpose();
             }
         }
