@@ -32,8 +32,8 @@ void ParameterGradient::add(const ParameterGradient& other, double scale)
     accumulate(prescribed, other.prescribed, scale);
 }
 
-void lame_to_young_poisson(
-    const VectorXd& E, const VectorXd& nu, const VectorXd& dmu, const VectorXd& dlambda, VectorXd& dE, VectorXd& dnu)
+void lame_to_young_poisson(const VectorXd& E, const VectorXd& nu, const VectorXd& dmu, const VectorXd& dlambda,
+    VectorXd& dE, VectorXd& dnu, const std::vector<char>& plane_stress)
 {
     // mu = E / (2 (1 + nu)), lambda = E nu / ((1 + nu)(1 - 2 nu)).
     dE.resize(E.size());
@@ -41,9 +41,15 @@ void lame_to_young_poisson(
     for (Index e = 0; e < E.size(); ++e) {
         const double n = nu[e], a = 1 + n, b = 1 - 2 * n;
         const double dmu_dE = 1 / (2 * a), dmu_dnu = -E[e] / (2 * a * a);
-        const double dl_dE = n / (a * b);
+        double dl_dE = n / (a * b);
         // d/dnu [nu / ((1 + nu)(1 - 2 nu))] = (1 + 2 nu^2) / ((1 + nu)^2 (1 - 2 nu)^2)
-        const double dl_dnu = E[e] * (1 + 2 * n * n) / (a * a * b * b);
+        double dl_dnu = E[e] * (1 + 2 * n * n) / (a * a * b * b);
+        if (!plane_stress.empty() && plane_stress[size_t(e)]) {
+            // lambda = E nu / (1 - nu^2): d/dnu [nu / (1 - nu^2)] = (1 + nu^2) / (1 - nu^2)^2
+            const double c = 1 - n * n;
+            dl_dE = n / c;
+            dl_dnu = E[e] * (1 + n * n) / (c * c);
+        }
         const double gm = dmu.size() ? dmu[e] : 0.0, gl = dlambda.size() ? dlambda[e] : 0.0;
         dE[e] = gm * dmu_dE + gl * dl_dE;
         dnu[e] = gm * dmu_dnu + gl * dl_dnu;

@@ -74,7 +74,8 @@ struct StateSeed {
 
 /// @brief dJ/dE and dJ/dnu from dJ/dmu and dJ/dlambda (per element).
 /// @param E, nu #E Young's moduli (Pa) and Poisson's ratios
-void lame_to_young_poisson(
-    const VectorXd& E, const VectorXd& nu, const VectorXd& dmu, const VectorXd& dlambda, VectorXd& dE, VectorXd& dnu);
+/// @param plane_stress #E flags (empty: none): lambda = E nu / (1 - nu^2) there
+void lame_to_young_poisson(const VectorXd& E, const VectorXd& nu, const VectorXd& dmu, const VectorXd& dlambda,
+    VectorXd& dE, VectorXd& dnu, const std::vector<char>& plane_stress = {});
 
 } // namespace diffipc

@@ -7,6 +7,7 @@
 #include "adjoint/adjoint.hpp"
 #include "cli/bench.hpp"
 #include "cli/gradcheck.hpp"
+#include "cli/optimize.hpp"
 #include "cli/simulate.hpp"
 #include "forward/common/error.hpp"
 #include "forward/common/threads.hpp"
@@ -112,6 +113,15 @@ int main(int argc, char** argv)
     grad_cmd->add_option("--directions", directions, "random directions (default: the file's, else 2)")
         ->check(CLI::Range(1, 1 << 20));
 
+    std::string optimize_path, optimize_out;
+    bool optimize_quiet = false;
+    auto* opt_cmd = app.add_subcommand("optimize",
+        "Optimize a problem file's design (docs/optimization.md); writes history.csv, summary.json, designs.pvd "
+        "and optimal_problem.json");
+    opt_cmd->add_option("problem", optimize_path, "problem file (JSON) with an \"optimizer\"")->required();
+    opt_cmd->add_option("-o,--output", optimize_out, "output directory (default: the file's output.directory)");
+    opt_cmd->add_flag("-q,--quiet", optimize_quiet, "no progress output");
+
     try {
         app.parse(argc, argv);
     } catch (const CLI::CallForHelp& e) {
@@ -138,6 +148,8 @@ int main(int argc, char** argv)
             return simulate(scene_path, out_dir, vtu_every, quiet, restart_dir);
         if (*val_cmd)
             return validate(validate_path);
+        if (*opt_cmd)
+            return optimize(optimize_path, optimize_out, optimize_quiet);
         if (*bench_cmd)
             return run_bench(bench_options);
         if (*grad_cmd)

@@ -258,12 +258,19 @@ namespace {
         if (type == "stress_norm")
             return parse_stress_norm(j, sim);
         if (type == "elastic_energy" || type == "volume" || type == "kinetic_energy") {
-            j.require_object({ "type", "body", "time", "include_initial" });
+            if (type == "volume")
+                j.require_object({ "type", "body", "time", "include_initial", "configuration" });
+            else
+                j.require_object({ "type", "body", "time", "include_initial" });
             std::vector<Index> elements = parse_elements(j, sim);
             if (type == "elastic_energy")
                 return aggregate(std::make_unique<ElasticEnergy>(elements), j);
-            if (type == "volume")
-                return aggregate(std::make_unique<Volume>(elements), j);
+            if (type == "volume") {
+                const std::string configuration = j.has("configuration") ? j["configuration"].string() : "current";
+                if (configuration != "current" && configuration != "rest")
+                    j["configuration"].fail("expected \"current\" or \"rest\", got \"" + configuration + "\"");
+                return aggregate(std::make_unique<Volume>(elements, configuration == "rest"), j);
+            }
             return aggregate(std::make_unique<KineticEnergy>(elements), j);
         }
         if (type == "compliance") {

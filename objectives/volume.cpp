@@ -40,13 +40,29 @@ namespace {
 
 double Volume::value(const Simulator& sim, const StateRef& state) const
 {
+    if (m_rest) {
+        const VectorXd X = flatten(sim.mesh().rest_positions);
+        return sim.mesh().dim == 2 ? volume<2>(m_elements, sim, X, 0.0, nullptr)
+                                   : volume<3>(m_elements, sim, X, 0.0, nullptr);
+    }
     return sim.mesh().dim == 2 ? volume<2>(m_elements, sim, state.positions, 0.0, nullptr)
                                : volume<3>(m_elements, sim, state.positions, 0.0, nullptr);
 }
 
-void Volume::add_gradient(const Simulator& sim, const StateRef& state, const ParameterRequest&, double scale,
-    VectorXd& d_positions, VectorXd&, ParameterGradient&) const
+void Volume::add_gradient(const Simulator& sim, const StateRef& state, const ParameterRequest& request, double scale,
+    VectorXd& d_positions, VectorXd&, ParameterGradient& partials) const
 {
+    if (m_rest) {
+        // The same formula at x = X: d(det D_m / d!)/dX_a = |e| G_a, a partial in X.
+        if (!request.rest_positions)
+            return;
+        const VectorXd X = flatten(sim.mesh().rest_positions);
+        if (sim.mesh().dim == 2)
+            volume<2>(m_elements, sim, X, scale, &partials.rest_positions);
+        else
+            volume<3>(m_elements, sim, X, scale, &partials.rest_positions);
+        return;
+    }
     if (sim.mesh().dim == 2)
         volume<2>(m_elements, sim, state.positions, scale, &d_positions);
     else

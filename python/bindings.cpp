@@ -168,10 +168,10 @@ VectorXd parameter_vector(const py::array_t<double, py::array::c_style | py::arr
     return Eigen::Map<const VectorXd>(p.data(), p.shape(0));
 }
 
-Evaluation evaluate_without_gil(const ReducedFunctional& rf, const VectorXd& p, bool gradient)
+Evaluation evaluate_without_gil(const ReducedFunctional& rf, const VectorXd& p, bool gradient, bool constraints = false)
 {
     py::gil_scoped_release release;
-    return rf.evaluate(p, gradient);
+    return rf.evaluate(p, gradient, constraints);
 }
 
 } // namespace
@@ -320,8 +320,13 @@ PYBIND11_MODULE(_diffipc, m)
 
     auto model = [](const std::string& name) { return parse_material_model(name, "model"); };
     m.def(
-        "lame_parameters", [](double E, double nu) { return std::make_pair(lame_mu(E, nu), lame_lambda(E, nu)); },
-        py::arg("E"), py::arg("nu"), "(mu, lambda) from Young's modulus and Poisson's ratio.");
+        "lame_parameters",
+        [](double E, double nu, bool plane_stress) {
+            return std::make_pair(lame_mu(E, nu), lame_lambda(E, nu, plane_stress));
+        },
+        py::arg("E"), py::arg("nu"), py::arg("plane_stress") = false,
+        "(mu, lambda) from Young's modulus and Poisson's ratio (3D and plane strain; plane_stress=True: the 2D "
+        "lambda of a thin sheet, E nu / (1 - nu^2)).");
     m.def(
         "element_energy",
         [model](const std::string& name, const MatrixXd& rest, const MatrixXd& deformed, double mu, double lambda) {
@@ -354,6 +359,17 @@ PYBIND11_MODULE(_diffipc, m)
                 return py::cast(e.gradient);
             },
             "dJ/dp (numpy), or None if not requested")
+        .def_property_readonly(
+            "constraint_values", [](const Evaluation& e) { return VectorXd(e.constraint_values); },
+            "g_i(p) of every constraint (numpy; empty unless evaluation(..., constraints=True))")
+        .def_property_readonly(
+            "constraint_gradients",
+            [](const Evaluation& e) -> py::object {
+                if (e.constraint_gradients.size() == 0 && e.constraint_values.size() > 0)
+                    return py::none();
+                return py::cast(MatrixXd(e.constraint_gradients));
+            },
+            "dg_i/dp as row i (numpy, #constraints by size), or None if the gradient was not requested")
         .def_readonly("forward_time", &Evaluation::forward_time, "s, summed over load cases")
         .def_readonly("adjoint_time", &Evaluation::adjoint_time,
             "s, summed over load cases (with checkpointing: the recomputed steps included)")
@@ -402,6 +418,26 @@ PYBIND11_MODULE(_diffipc, m)
             "A typical magnitude per variable (gradcheck's direction scale).")
         .def_property_readonly(
             "layout", &ReducedFunctional::layout, "[(type, size)] per entry of the problem's parameter list.")
+        .def_property_readonly("design_size", &ReducedFunctional::design_size,
+            "Number of design variables x (the inputs of the entries' maps; docs/parametrizations.md).")
+        .def_property_readonly(
+            "design_initial", [](const ReducedFunctional& rf) { return VectorXd(rf.design_initial()); },
+            "x at the start (the entries' \"initial\", else the maps' inverse of the scenes' values).")
+        .def_property_readonly("design_layout", &ReducedFunctional::design_layout,
+            "[(type, design size)] per entry of the problem's parameter list.")
+        .def(
+            "parameters_of",
+            [](const ReducedFunctional& rf, const py::array_t<double, py::array::c_style | py::array::forcecast>& x) {
+                return rf.parameters_of(parameter_vector(x, rf.design_size()));
+            },
+            py::arg("x"), "p = P(x): the parameters the design variables give.")
+        .def(
+            "design_gradient",
+            [](const ReducedFunctional& rf, const py::array_t<double, py::array::c_style | py::array::forcecast>& x,
+                const py::array_t<double, py::array::c_style | py::array::forcecast>& dJ_dp) {
+                return rf.design_gradient(parameter_vector(x, rf.design_size()), parameter_vector(dJ_dp, rf.size()));
+            },
+            py::arg("x"), py::arg("dJ_dp"), "dJ/dx = P'(x)^T dJ/dp (the maps' vector-Jacobian products in reverse).")
         .def_property_readonly(
             "check_settings",
             [](const ReducedFunctional& rf) {
@@ -428,10 +464,31 @@ PYBIND11_MODULE(_diffipc, m)
         .def(
             "evaluation",
             [](const ReducedFunctional& rf, const py::array_t<double, py::array::c_style | py::array::forcecast>& p,
-                bool gradient) { return evaluate_without_gil(rf, parameter_vector(p, rf.size()), gradient); },
-            py::arg("p"), py::arg("gradient") = true,
-            "An Evaluation (value, gradient, forward and adjoint seconds). Raises ValueError for a p of the wrong "
-            "size or with a non-finite entry, AdjointError if a forward step fails or no gradient can be computed.")
+                bool gradient, bool constraints) {
+                return evaluate_without_gil(rf, parameter_vector(p, rf.size()), gradient, constraints);
+            },
+            py::arg("p"), py::arg("gradient") = true, py::arg("constraints") = false,
+            "An Evaluation (value, gradient, forward and adjoint seconds; with constraints=True also every "
+            "constraint's functional and its gradient, from the same forward runs). Raises ValueError for a p of the "
+            "wrong size or with a non-finite entry, AdjointError if a forward step fails or no gradient can be "
+            "computed.")
+        .def_property_readonly(
+            "constraints",
+            [](const ReducedFunctional& rf) {
+                py::list out;
+                for (const ConstraintSpec& c : rf.constraints()) {
+                    py::dict d;
+                    d["name"] = c.name;
+                    d["kind"] = c.kind == ConstraintSpec::Kind::UPPER ? "upper"
+                        : c.kind == ConstraintSpec::Kind::LOWER       ? "lower"
+                                                                      : "equals";
+                    d["bound"] = c.bound;
+                    d["case"] = c.load_case;
+                    out.append(d);
+                }
+                return out;
+            },
+            "The problem's constraints: [{name, kind (\"upper\", \"lower\", \"equals\"), bound, case}].")
         .def(
             "evaluate",
             [](const ReducedFunctional& rf, const py::array_t<double, py::array::c_style | py::array::forcecast>& p,

@@ -27,33 +27,26 @@
 
 namespace diffipc {
 
-/// One entry of the problem's "parameters" list.
-struct ParameterSpec {
-    enum class Kind {
-        SHAPE,
-        YOUNGS_MODULUS,
-        POISSON_RATIO,
-        LAME_MU,
-        LAME_LAMBDA,
-        DENSITY,
-        INITIAL_VELOCITY,
-        INITIAL_DISPLACEMENT,
-        PRESCRIBED,
-        FRICTION
-    };
-    Kind kind = Kind::SHAPE;
-    std::string name; ///< as in the file ("shape", "E", "mu", ...)
-    std::string field; ///< JSON path for messages
-    /// Canonical indices this parameter's entries drive: entry i of the slice drives
-    /// targets[i] (a list of canonical indices in the block).
-    std::vector<std::vector<Index>> targets;
-};
+class JsonField;
+class ProblemParameters;
 
 /// What the checkpointed adjoint of one load case held and recomputed.
 struct LoadCaseCheckpoint {
     CheckpointStatistics records; ///< the step records (peak held, the schedule's bound, recomputed steps, times)
     int objective_stored_states = 0; ///< states whose x_k, v_k the objective's adapter copied (T + 1 at most)
     size_t objective_stored_bytes = 0; ///< their bytes
+};
+
+/// One entry of the problem's "constraints": a functional of one load case with a bound,
+/// g(p) <= upper, g(p) >= lower or g(p) == equals (docs/problem_format.md).
+struct ConstraintSpec {
+    enum class Kind { UPPER, LOWER, EQUALS };
+    std::string name; ///< the file's "name", else "constraint i"
+    std::string field; ///< "constraints[i]"
+    Kind kind = Kind::UPPER;
+    double bound = 0;
+    size_t load_case = 0;
+    nlohmann::json objective; ///< the functional g, an objective (docs/objectives.md)
 };
 
 /// Results of one evaluation.
@@ -64,6 +57,10 @@ struct Evaluation {
     double forward_time = 0, adjoint_time = 0;
     /// One per load case when the problem has checkpointing and the gradient was computed; else empty.
     std::vector<LoadCaseCheckpoint> checkpoints;
+    /// With constraints: g_i(p) for every constraint (not compared with its bound), and with
+    /// the gradient dg_i/dp as row i; else empty.
+    VectorXd constraint_values;
+    MatrixXd constraint_gradients;
 };
 
 class ReducedFunctional {
@@ -77,16 +74,50 @@ public:
     ReducedFunctional(ReducedFunctional&&) noexcept;
 
     /// Number of optimization variables.
-    Index size() const { return m_size; }
+    Index size() const;
     /// The parameter values of the scenes as given (the starting point).
-    const VectorXd& initial() const { return m_initial; }
+    const VectorXd& initial() const;
     /// Names of the parameters, one per "parameters" entry, with their slice sizes.
     std::vector<std::pair<std::string, Index>> layout() const;
 
-    /// @brief J(p) and, if `gradient`, dJ/dp by the adjoint.
+    /// @brief J(p) and, if `gradient`, dJ/dp by the adjoint; with `constraints`, also every
+    /// constraint's functional and its gradient, from the same forward run of its load case
+    /// (one adjoint sweep per functional; with checkpointing, one checkpointed run each).
     /// @throws InputError for a p of the wrong size or with non-finite entries;
     ///         AdjointError (no gradient) if a forward step fails.
-    Evaluation evaluate(const VectorXd& p, bool gradient) const;
+    Evaluation evaluate(const VectorXd& p, bool gradient, bool constraints = false) const;
+
+    /// The design variables x (docs/parametrizations.md): per parameter entry, the inputs of
+    /// its "maps"; p = P(x). Without maps x = p.
+    Index design_size() const;
+    const VectorXd& design_initial() const;
+    std::vector<std::pair<std::string, Index>> design_layout() const;
+    /// Bounds of x from the entries' "lower" and "upper" (infinite without).
+    const VectorXd& design_lower() const;
+    const VectorXd& design_upper() const;
+    /// The file's "optimizer" object (null without), read by the optimization run.
+    const nlohmann::json& optimizer_spec() const { return m_optimizer; }
+    /// The document as loaded and the folder its relative paths start from (for the problem
+    /// file an optimization writes with its optimum).
+    const nlohmann::json& document() const { return m_document; }
+    const std::string& base_directory() const { return m_base_directory; }
+    /// p = P(x).
+    VectorXd parameters_of(const VectorXd& x) const;
+    /// dJ/dx = P'(x)^T dJ/dp (and so for any row vector in p's layout).
+    VectorXd design_gradient(const VectorXd& x, const VectorXd& dJ_dp) const;
+
+    /// Whether p moves rest positions (a "shape" entry), and the rest positions it gives
+    /// (#V * dim of the bodies, vertex-major; the first load case's mesh, which every case shares).
+    bool has_shape() const;
+    VectorXd rest_positions_of(const VectorXd& p) const;
+    /// The first load case's simulation parameters with p applied (rest positions, E and nu
+    /// or mu and lambda, densities, ...).
+    SimulationParameters simulation_parameters_of(const VectorXd& p) const;
+    /// The first load case's scene (the mesh every case shares).
+    const Scene& scene() const;
+
+    /// The problem's "constraints" (empty without).
+    const std::vector<ConstraintSpec>& constraints() const { return m_constraints; }
 
     /// Settings of `diffipc gradcheck` from the file's optional "gradcheck" object.
     struct CheckSettings {
@@ -97,21 +128,21 @@ public:
     };
     const CheckSettings& check_settings() const { return m_check; }
     /// Direction scale per variable (a typical magnitude: lengths for positions, the value for moduli).
-    const VectorXd& scales() const { return m_scales; }
+    const VectorXd& scales() const;
     /// The file's "checkpointing" (mode NONE without it: the full-memory adjoint).
     const CheckpointSettings& checkpointing() const { return m_checkpointing; }
 
 private:
+    void parse_constraints(const JsonField& list);
+
     struct LoadCase;
     std::vector<std::unique_ptr<LoadCase>> m_cases;
-    std::vector<ParameterSpec> m_parameters;
-    std::vector<Index> m_offsets;
-    Index m_size = 0;
-    VectorXd m_initial, m_scales;
+    std::unique_ptr<ProblemParameters> m_parameters;
     CheckSettings m_check;
     CheckpointSettings m_checkpointing;
-    /// The elastic moduli are parametrized by mu and lambda (else by E and nu, or not at all).
-    bool m_lame = false;
+    std::vector<ConstraintSpec> m_constraints;
+    nlohmann::json m_optimizer, m_document;
+    std::string m_base_directory;
 };
 
 } // namespace diffipc

@@ -25,6 +25,23 @@ std::string to_string(MaterialModel model);
 /// Lame parameters from Young's modulus E (Pa) and Poisson's ratio nu (3D and plane strain).
 inline double lame_mu(double E, double nu) { return E / (2.0 * (1.0 + nu)); }
 inline double lame_lambda(double E, double nu) { return E * nu / ((1.0 + nu) * (1.0 - 2.0 * nu)); }
+/// The 2D lambda of plane stress (a thin sheet, zero normal stress): E nu / (1 - nu^2) =
+/// 2 lambda mu / (lambda + 2 mu) of the 3D parameters. Exact for linear elasticity; for the
+/// hyperelastic models the usual small-strain substitution (docs/math.md "Materials").
+inline double lame_lambda_plane_stress(double E, double nu) { return E * nu / (1.0 - nu * nu); }
+inline double lame_lambda(double E, double nu, bool plane_stress)
+{
+    return plane_stress ? lame_lambda_plane_stress(E, nu) : lame_lambda(E, nu);
+}
+/// E and nu back from mu and lambda (3D and plane strain, or plane stress).
+inline double youngs_modulus_of(double mu, double lambda, bool plane_stress)
+{
+    return plane_stress ? 2 * mu * (1 + lambda / (2 * mu + lambda)) : mu * (3 * lambda + 2 * mu) / (lambda + mu);
+}
+inline double poisson_ratio_of(double mu, double lambda, bool plane_stress)
+{
+    return plane_stress ? lambda / (2 * mu + lambda) : lambda / (2 * (lambda + mu));
+}
 
 template <int dim> class Material {
 public:

@@ -134,9 +134,9 @@ namespace {
         }
     }
 
-    MaterialSpec parse_material(const JsonField& f)
+    MaterialSpec parse_material(const JsonField& f, int dim)
     {
-        f.require_object({ "model", "E", "nu", "density" });
+        f.require_object({ "model", "E", "nu", "density", "plane" });
         MaterialSpec m;
         m.model = parse_material_model(f["model"].string(), f.path() + ".model");
         m.youngs_modulus = f["E"].number();
@@ -151,6 +151,14 @@ namespace {
         if (m.density > MAX_MATERIAL_VALUE)
             f["density"].fail(
                 "density above 1e30 kg/m^3: masses and forces would overflow (are the units consistent?)");
+        if (f.has("plane")) {
+            const std::string plane = f["plane"].string();
+            if (dim != 2)
+                f["plane"].fail("plane stress or strain is a 2D option");
+            if (plane != "strain" && plane != "stress")
+                f["plane"].fail("expected \"strain\" or \"stress\", got \"" + plane + "\"");
+            m.plane_stress = plane == "stress";
+        }
         return m;
     }
 
@@ -472,7 +480,7 @@ Scene parse_scene(const nlohmann::json& document, const std::string& base_direct
         for (const auto& other : scene.bodies)
             if (other.name == body.name)
                 bf["name"].fail("duplicate body name '" + body.name + "'");
-        body.material = parse_material(bf["material"]);
+        body.material = parse_material(bf["material"], dim);
         body.initial_velocity = bf.has("initial_velocity") ? bf["initial_velocity"].vector(dim) : VectorXd::Zero(dim);
         body.translation = bf.has("translation") ? bf["translation"].vector(dim) : VectorXd::Zero(dim);
         if (bf.has("friction"))

@@ -28,6 +28,8 @@ struct MaterialSpec {
     double youngs_modulus = 1e6; ///< E (Pa)
     double poisson_ratio = 0.3; ///< nu, in (-1, 0.5)
     double density = 1000; ///< rho (kg/m^3)
+    /// 2D only: "plane": "stress" (a thin sheet) instead of plane strain (the default).
+    bool plane_stress = false;
 };
 
 struct BoxRegion {

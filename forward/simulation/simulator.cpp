@@ -86,11 +86,13 @@ Simulator::Simulator(Scene scene, const SimulationParameters& parameters)
     m_space = std::make_unique<FESpace>(mesh);
 
     std::vector<MaterialModel> models(static_cast<size_t>(ne));
+    m_plane_stress.assign(static_cast<size_t>(ne), 0);
     VectorXd mu(ne), lambda(ne), density(ne);
     double mean_E = 0;
     for (Index e = 0; e < ne; ++e) {
         const MaterialSpec& m = m_scene.bodies[size_t(mesh.element_body[e])].material;
         models[size_t(e)] = m.model;
+        m_plane_stress[size_t(e)] = m.plane_stress;
         const double E = P.youngs_modulus.size() ? P.youngs_modulus[e] : m.youngs_modulus;
         const double nu = P.poisson_ratio.size() ? P.poisson_ratio[e] : m.poisson_ratio;
         if (!(E > 0))
@@ -98,7 +100,7 @@ Simulator::Simulator(Scene scene, const SimulationParameters& parameters)
         if (!(nu > -1 && nu < 0.5))
             throw InputError("nu[" + std::to_string(e) + "]", "Poisson's ratio must lie in (-1, 0.5)");
         mu[e] = P.mu.size() ? P.mu[e] : lame_mu(E, nu);
-        lambda[e] = P.lambda.size() ? P.lambda[e] : lame_lambda(E, nu);
+        lambda[e] = P.lambda.size() ? P.lambda[e] : lame_lambda(E, nu, m.plane_stress);
         if (!(mu[e] > 0))
             throw InputError("mu[" + std::to_string(e) + "]", "the shear modulus must be positive");
         if (!(lambda[e] > -2.0 / d * mu[e]))
@@ -507,7 +509,7 @@ void Simulator::set_element_materials(const VectorXd& youngs_modulus, const Vect
         if (!(poisson_ratio[e] > -1 && poisson_ratio[e] < 0.5))
             throw InputError("materials.nu[" + std::to_string(e) + "]", "Poisson's ratio must lie in (-1, 0.5)");
         mu[e] = lame_mu(youngs_modulus[e], poisson_ratio[e]);
-        lambda[e] = lame_lambda(youngs_modulus[e], poisson_ratio[e]);
+        lambda[e] = lame_lambda(youngs_modulus[e], poisson_ratio[e], m_plane_stress[size_t(e)]);
     }
     m_elastic->set_lame_parameters(mu, lambda);
 }
@@ -845,9 +847,8 @@ SimulationParameters Simulator::parameters() const
     p.youngs_modulus.resize(ne);
     p.poisson_ratio.resize(ne);
     for (Index e = 0; e < ne; ++e) {
-        const double m = p.mu[e], l = p.lambda[e];
-        p.youngs_modulus[e] = m * (3 * l + 2 * m) / (l + m);
-        p.poisson_ratio[e] = l / (2 * (l + m));
+        p.youngs_modulus[e] = youngs_modulus_of(p.mu[e], p.lambda[e], m_plane_stress[size_t(e)]);
+        p.poisson_ratio[e] = poisson_ratio_of(p.mu[e], p.lambda[e], m_plane_stress[size_t(e)]);
     }
     p.density = m_inertia->density();
     p.friction = VectorXd::Zero(num_groups());

@@ -72,6 +72,8 @@ public:
     VectorXd external_forces(double t) const;
     /// Dirichlet flags per dof.
     const std::vector<char>& constrained() const { return m_constrained; }
+    /// #E: is element e's material in plane stress (2D "plane": "stress"; else plane strain or 3D)?
+    const std::vector<char>& plane_stress() const { return m_plane_stress; }
 
     /// @name Contact and friction forces at the committed state (for output)
     /// Nodal forces in newtons, flattened #V*dim: the barrier and friction terms enter the
@@ -195,6 +197,7 @@ private:
     SimulationParameters m_overrides;
     std::vector<DirichletDof> m_dirichlet;
     std::vector<char> m_constrained;
+    std::vector<char> m_plane_stress; ///< per element
     struct LoadedFacet {
         Index facet;
         int spec;

@@ -65,13 +65,15 @@ InsertConstantsMap::InsertConstantsMap(
     : m_out(out_size)
 {
     if (Index(positions.size()) != values.size())
-        throw InputError(field, "one value per position: " + std::to_string(positions.size()) + " positions, "
+        throw InputError(field,
+            "one value per position: " + std::to_string(positions.size()) + " positions, "
                 + std::to_string(values.size()) + " values");
     std::vector<char> constant(size_t(std::max<Index>(out_size, 0)), 0);
     for (size_t k = 0; k < positions.size(); ++k) {
         const Index p = positions[k];
         if (p < 0 || p >= out_size)
-            throw InputError(field, "position " + std::to_string(p) + " is outside [0, " + std::to_string(out_size) + ")");
+            throw InputError(
+                field, "position " + std::to_string(p) + " is outside [0, " + std::to_string(out_size) + ")");
         if (constant[size_t(p)])
             throw InputError(field, "position " + std::to_string(p) + " is listed twice");
         if (!std::isfinite(values[Index(k)]))
@@ -123,7 +125,8 @@ namespace {
             return VectorXd::Constant(size, v[0]);
         if (v.size() != size)
             throw InputError(field,
-                std::string(what) + ": give one value or " + std::to_string(size) + ", got " + std::to_string(v.size()));
+                std::string(what) + ": give one value or " + std::to_string(size) + ", got "
+                    + std::to_string(v.size()));
         return v;
     }
 } // namespace
@@ -172,8 +175,9 @@ VectorXd ExpMap::inverse(const VectorXd& y, const std::string& field) const
     check_size(y, m_size, field, "exp");
     for (Index i = 0; i < y.size(); ++i)
         if (!(y[i] > 0) || !std::isfinite(y[i]))
-            throw InputError(field, "a log-space variable needs a positive value, got " + format_number(y[i])
-                    + " (entry " + std::to_string(i) + ")");
+            throw InputError(field,
+                "a log-space variable needs a positive value, got " + format_number(y[i]) + " (entry "
+                    + std::to_string(i) + ")");
     return y.array().log().matrix();
 }
 

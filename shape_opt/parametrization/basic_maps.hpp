@@ -42,8 +42,8 @@ public:
     /// @param positions distinct entries of y in [0, out_size)
     /// @param values one per position
     /// @throws InputError naming `field` for a position out of range or listed twice
-    InsertConstantsMap(Index out_size, const std::vector<Index>& positions, const VectorXd& values,
-        const std::string& field);
+    InsertConstantsMap(
+        Index out_size, const std::vector<Index>& positions, const VectorXd& values, const std::string& field);
     Index in_size() const override { return Index(m_free.size()); }
     Index out_size() const override { return m_out; }
     VectorXd apply(const VectorXd& x) const override;

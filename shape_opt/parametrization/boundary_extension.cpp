@@ -2,8 +2,8 @@
 
 #include "forward/common/error.hpp"
 
-#include <Eigen/SparseCholesky>
 #include <Eigen/Dense>
+#include <Eigen/SparseCholesky>
 
 namespace diffipc {
 
@@ -22,8 +22,9 @@ namespace {
         for (Index e = 0; e < mesh.num_elements(); ++e) {
             MatrixXd D(d, d); // edge vectors x_a - x_0 as columns
             for (int a = 0; a < d; ++a)
-                D.col(a) = (mesh.rest_positions.row(mesh.elements(e, a + 1)) - mesh.rest_positions.row(mesh.elements(e, 0)))
-                               .transpose();
+                D.col(a)
+                    = (mesh.rest_positions.row(mesh.elements(e, a + 1)) - mesh.rest_positions.row(mesh.elements(e, 0)))
+                          .transpose();
             const double volume = std::abs(D.determinant()) / (d == 2 ? 2.0 : 6.0);
             const MatrixXd Dinv = D.inverse(); // rows: gradients of phi_1 .. phi_d
             MatrixXd G(d + 1, d);
@@ -55,10 +56,11 @@ BoundaryExtension::BoundaryExtension(
             on_boundary[size_t(mesh.boundary_facets(f, a))] = 1;
     for (Index v : m_vertices) {
         if (v < 0 || v >= nv)
-            throw InputError(field, "vertex " + std::to_string(v) + " is not in the mesh (" + std::to_string(nv)
-                    + " vertices)");
+            throw InputError(
+                field, "vertex " + std::to_string(v) + " is not in the mesh (" + std::to_string(nv) + " vertices)");
         if (!on_boundary[size_t(v)])
-            throw InputError(field, "vertex " + std::to_string(v)
+            throw InputError(field,
+                "vertex " + std::to_string(v)
                     + " is not on the boundary (interior vertices follow the boundary's extension)");
         if (chosen[size_t(v)])
             throw InputError(field, "vertex " + std::to_string(v) + " is listed twice");

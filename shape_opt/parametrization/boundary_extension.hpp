@@ -26,8 +26,8 @@ public:
     ///        order, its displacement along each active axis
     /// @throws InputError naming `field` for a vertex out of range, not on the boundary or
     ///         listed twice, or a bad axis
-    BoundaryExtension(const Mesh& mesh, const std::vector<Index>& vertices, const std::vector<int>& axes,
-        const std::string& field);
+    BoundaryExtension(
+        const Mesh& mesh, const std::vector<Index>& vertices, const std::vector<int>& axes, const std::string& field);
     ~BoundaryExtension() override;
     Index in_size() const override { return Index(m_vertices.size() * m_axes.size()); }
     Index out_size() const override { return m_rest.size(); }

@@ -22,7 +22,8 @@ VectorXd LameMap::apply(const VectorXd& x) const
         const double E = x[i], nu = x[m_count + i];
         check_pair(E, nu, i, "design");
         y[i] = E / (2 * (1 + nu));
-        y[m_count + i] = m_plane == ElasticityPlane::STRESS ? E * nu / (1 - nu * nu) : E * nu / ((1 + nu) * (1 - 2 * nu));
+        y[m_count + i]
+            = m_plane == ElasticityPlane::STRESS ? E * nu / (1 - nu * nu) : E * nu / ((1 + nu) * (1 - 2 * nu));
     }
     return y;
 }

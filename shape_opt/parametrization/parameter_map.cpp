@@ -14,8 +14,7 @@ VectorXd ParameterMap::inverse(const VectorXd&, const std::string&) const
 void check_size(const VectorXd& v, Index size, const std::string& field, const std::string& what)
 {
     if (v.size() != size)
-        throw InputError(field,
-            what + " expects " + std::to_string(size) + " values, got " + std::to_string(v.size()));
+        throw InputError(field, what + " expects " + std::to_string(size) + " values, got " + std::to_string(v.size()));
 }
 
 ParameterChain::ParameterChain(std::vector<std::unique_ptr<ParameterMap>> maps, std::vector<std::string> fields)

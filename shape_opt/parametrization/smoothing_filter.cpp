@@ -46,7 +46,8 @@ SmoothingFilter::SmoothingFilter(
                     for (Index f : it->second) {
                         if (cell_of(f) != c + Eigen::Vector3i(i, j, k))
                             continue; // a hash collision
-                        const double w = volumes[f] * std::max(0.0, radius - (centroids.row(e) - centroids.row(f)).norm());
+                        const double w
+                            = volumes[f] * std::max(0.0, radius - (centroids.row(e) - centroids.row(f)).norm());
                         if (w > 0) {
                             row.emplace_back(f, w);
                             total += w;

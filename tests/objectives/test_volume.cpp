@@ -50,4 +50,37 @@ TEST_P(VolumeGradient, MatchesFiniteDifferences)
 
 INSTANTIATE_TEST_SUITE_P(Dims, VolumeGradient, ::testing::Values(2, 3));
 
+TEST(Volume, RestVolumeIsTheMaterialsVolumeAtEveryState)
+{
+    for (int dim : { 2, 3 }) {
+        const test::Run run = test::run_scene(test::cantilever_scene(dim));
+        const Mesh& mesh = run.sim->mesh();
+        const Volume rest({}, true);
+        double expected = 0; // independently, from the rest mesh's elements
+        for (Index e = 0; e < mesh.num_elements(); ++e)
+            expected += signed_volume(mesh.rest_positions, mesh.elements, e);
+        const VectorXd& x = state_positions(run.trajectory, run.steps());
+        EXPECT_NEAR(rest.value(*run.sim, { run.steps(), 0.0, x, x }), expected, 1e-14) << dim;
+        EXPECT_NEAR(expected, dim == 2 ? 0.25 : 0.25 * 0.25, 1e-14);
+    }
+}
+
+class RestVolumeGradient : public ::testing::TestWithParam<int> { };
+
+TEST_P(RestVolumeGradient, IsAnExplicitShapeDerivative)
+{
+    const test::Run run = test::run_scene(test::cantilever_scene(GetParam()));
+    std::vector<Index> half;
+    for (Index e = 0; e < run.sim->mesh().num_elements() / 2; ++e)
+        half.push_back(e);
+    const TimeAggregation J(std::make_unique<Volume>(half, true), TimeMode::FINAL);
+    // No state dependence (the state check sees a zero gradient and a zero difference), and the
+    // rest-position partial against central differences of value().
+    test::check_state_gradient(J, run);
+    test::check_parameter_gradient(J, run, test::Block::REST_POSITIONS);
+    test::check_parameter_gradient(J, run, test::Block::MU);
+}
+
+INSTANTIATE_TEST_SUITE_P(Dims, RestVolumeGradient, ::testing::Values(2, 3));
+
 } // namespace

@@ -1,0 +1,66 @@
+#pragma once
+/// @file design_problem.hpp
+/// A problem file as an optimization problem (issue 12): the design variables x of its
+/// parameter entries (docs/parametrizations.md), f(x) = J(P(x)), and its constraints
+/// g_i(P(x)) compared with their bounds, with gradients by the adjoint and the maps' VJPs.
+///
+/// Constraints reach the optimizer scaled by their bound: c = (g - b) / |b| for g <= b,
+/// (b - g) / |b| for g >= b, and h = (g - b) / |b| for g == b (|b| replaced by 1 for b = 0),
+/// so that the optimizer's constraint tolerance is relative (1e-6: a millionth of the bound).
+///
+/// A design that cannot be evaluated is a rejected point, not the end of the run: an
+/// invalid rest mesh (inverted elements, an intersecting boundary: shape_opt/rest_validity.hpp),
+/// a failed forward step, a value outside a map's domain. Shape steps are bounded by
+/// RestValidity::max_step along the rest positions' motion.
+
+#include "shape_opt/optimizer/optimizer.hpp"
+#include "shape_opt/reduced_functional.hpp"
+#include "shape_opt/rest_validity.hpp"
+
+#include <functional>
+#include <memory>
+#include <string>
+
+namespace diffipc {
+
+class DesignProblem : public OptimizationProblem {
+public:
+    explicit DesignProblem(const ReducedFunctional& functional);
+
+    Index size() const override { return m_functional.design_size(); }
+    int inequalities() const override { return int(m_inequality.size()); }
+    int equalities() const override { return int(m_equality.size()); }
+    bool evaluate(const VectorXd& x, OptimizationValues& out) override;
+    double max_valid_step(const VectorXd& x, const VectorXd& dx) override;
+    bool iteration(const IterationInfo& info) override;
+
+    /// Called at every accepted iterate (after the optimizer's own bookkeeping); return false
+    /// to stop. The values are those of the iterate; the last evaluation's times are in
+    /// last_evaluation().
+    std::function<bool(const IterationInfo&)> on_iteration;
+
+    /// The constraint functionals' indices in the problem's "constraints", per kind.
+    const std::vector<size_t>& inequality_constraints() const { return m_inequality; }
+    const std::vector<size_t>& equality_constraints() const { return m_equality; }
+    /// g_i(p) of every constraint at the last successful evaluation (unscaled, in the file's order).
+    const VectorXd& last_constraint_values() const { return m_last_constraints; }
+    /// The last successful evaluation (value, times; gradients in p's layout).
+    const Evaluation& last_evaluation() const { return m_last; }
+    /// Why the last rejected point was rejected ("" if none was).
+    const std::string& last_rejection() const { return m_last_rejection; }
+    int rejections() const { return m_rejections; }
+
+private:
+    bool reject(const std::string& why);
+
+    const ReducedFunctional& m_functional;
+    std::unique_ptr<RestValidity> m_validity; ///< with a shape entry
+    std::vector<size_t> m_inequality, m_equality;
+    VectorXd m_scale; ///< per constraint: |bound|, or 1
+    Evaluation m_last;
+    VectorXd m_last_constraints;
+    std::string m_last_rejection;
+    int m_rejections = 0;
+};
+
+} // namespace diffipc

@@ -1,0 +1,128 @@
+"""diffipc optimize (docs/optimization.md): short runs of a shape and a material problem,
+their outputs, independent checks that every written rest design is valid, and bad input."""
+import csv
+import json
+import math
+import subprocess
+
+import numpy as np
+import pytest
+
+import diffipc
+from conftest import ROOT
+
+
+def run(cli, *args, timeout=600):
+    return subprocess.run([cli, *map(str, args)], capture_output=True, text=True, timeout=timeout)
+
+
+def beam_shape_problem(algorithm="ipopt", iterations=6):
+    p = json.loads((ROOT / "studies" / "301_beam_shape_stress" / "problem.json").read_text())
+    p["parameters"] = [{"type": "shape", "lower": -0.05, "upper": 0.05, "maps": [
+        {"type": "ffd", "box": {"min": [0.2, -0.05], "max": [0.95, 0.25]}, "degree": [3, 2], "axes": [1],
+         "fixed_border": True}]}]
+    p["constraints"] = [{"name": "material", "objective": {"type": "volume", "configuration": "rest"},
+                         "upper": 0.2}]
+    p["optimizer"] = {"algorithm": algorithm, "max_iterations": iterations}
+    del p["gradcheck"]
+    return p
+
+
+def triangle_areas(points, cells):
+    a, b, c = points[cells[:, 0], :2], points[cells[:, 1], :2], points[cells[:, 2], :2]
+    u, v = b - a, c - a
+    return 0.5 * (u[:, 0] * v[:, 1] - u[:, 1] * v[:, 0])
+
+
+def boundary_edges(cells):
+    count = {}
+    for tri in cells:
+        for i in range(3):
+            e = tuple(sorted((tri[i], tri[(i + 1) % 3])))
+            count[e] = count.get(e, 0) + 1
+    return [e for e, n in count.items() if n == 1]
+
+
+def crossing(points, edges):
+    def orient(a, b, c):
+        return (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0])
+    for i in range(len(edges)):
+        for j in range(i + 1, len(edges)):
+            (a, b), (c, d) = edges[i], edges[j]
+            if len({a, b, c, d}) < 4:
+                continue
+            A, B, C, D = points[a], points[b], points[c], points[d]
+            o1, o2, o3, o4 = orient(A, B, C), orient(A, B, D), orient(C, D, A), orient(C, D, B)
+            if o1 * o2 < 0 and o3 * o4 < 0:
+                return True
+    return False
+
+
+@pytest.mark.parametrize("algorithm", ["ipopt", "slsqp"])
+def test_beam_shape_under_a_material_constraint(cli, tmp_path, algorithm):
+    meshio = pytest.importorskip("meshio")
+    problem = tmp_path / "beam.json"
+    problem.write_text(json.dumps(beam_shape_problem(algorithm)))
+    out = tmp_path / "out"
+    r = run(cli, "optimize", problem, "-o", out)
+    assert r.returncode == 0, r.stdout[-2000:] + r.stderr
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["stop_reason"] in ("gradient_tolerance", "iteration_budget", "f_tolerance", "x_tolerance",
+                                      "line_search_stalled"), summary
+    assert summary["final_J"] < summary["initial_J"]
+    assert summary["max_violation"] <= 1e-6
+    rows = list(csv.DictReader((out / "history.csv").open()))
+    assert len(rows) == summary["iterations"] + 1 and rows[0]["iteration"] == "0"
+    assert float(rows[0]["J"]) == pytest.approx(summary["initial_J"], rel=1e-12)
+    for row in rows:
+        assert float(row["material"]) <= 0.2 * (1 + 1e-6) or row["iteration"] == "0"
+    # Every written rest design is valid, checked here on the VTU's points and cells.
+    designs = sorted(out.glob("design_*.vtu"))
+    assert len(designs) >= 2
+    for path in designs:
+        m = meshio.read(path)
+        cells = m.cells_dict["triangle"]
+        assert (triangle_areas(m.points, cells) > 0).all(), path
+        assert not crossing(m.points, boundary_edges(cells)), path
+    # The optimal problem starts from the optimum: its J is the final J.
+    J = diffipc.ReducedFunctional(str(out / "optimal_problem.json"))
+    np.testing.assert_allclose(J.design_initial, summary["design"], rtol=0, atol=0)
+    value, _ = J.evaluate(J.parameters_of(J.design_initial), gradient=False)
+    assert value == pytest.approx(summary["final_J"], rel=1e-10)
+
+
+def test_log_space_modulus_with_lbfgsb(cli, tmp_path):
+    p = json.loads((ROOT / "studies" / "302_bar_youngs_markers" / "problem.json").read_text())
+    E0 = p["scene"]["bodies"][0]["material"]["E"]
+    p["parameters"] = [{"type": "E", "per": "element", "initial": math.log(0.5 * E0),
+                        "lower": math.log(1e-2 * E0), "upper": math.log(1e2 * E0),
+                        "maps": [{"type": "exp"}, {"type": "filter", "radius": 0.05}]}]
+    p["optimizer"] = {"algorithm": "lbfgsb", "max_iterations": 8}
+    p.pop("gradcheck", None)
+    problem = tmp_path / "bar.json"
+    problem.write_text(json.dumps(p))
+    r = run(cli, "optimize", problem, "-o", tmp_path / "o", "-q")
+    assert r.returncode == 0, r.stderr
+    summary = json.loads((tmp_path / "o" / "summary.json").read_text())
+    assert summary["final_J"] < 0.5 * summary["initial_J"], summary
+
+
+BAD = [
+    (lambda p: p["optimizer"].update(algorithm="bfgs") or p, "optimizer.algorithm"),
+    (lambda p: p["optimizer"].update(max_iterations=-1) or p, "optimizer.max_iterations"),
+    (lambda p: p["optimizer"].update(gradient_tol=1) or p, "optimizer.gradient_tol"),
+    (lambda p: p["parameters"][0].update(lower=0.1, upper=0.0) or p, "parameters[0].lower"),
+    (lambda p: p["parameters"][0].update(lower=0.01) or p, "parameters[0].lower"),
+    (lambda p: p["constraints"][0].update(objective={"type": "nope"}) or p, "constraints[0].objective"),
+    (lambda p: p.update(optimizer=[1]) or p, "optimizer"),
+]
+
+
+@pytest.mark.parametrize("mutate,field", BAD)
+def test_bad_optimization_input_names_the_field(cli, tmp_path, mutate, field):
+    problem = tmp_path / "p.json"
+    problem.write_text(json.dumps(mutate(beam_shape_problem())))
+    r = run(cli, "optimize", problem, "-o", tmp_path / "o", "-q")
+    assert r.returncode == 1, (r.returncode, r.stdout[-500:], r.stderr)
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 1 and field in lines[0], r.stderr
