@@ -63,7 +63,10 @@ namespace {
         for (Index e = 0; e < mesh.num_elements(); ++e)
             body[size_t(e)] = mesh.element_body[e];
         grid.cell_data.push_back({ "body", 1, body });
-        write_vtu(path, grid, VtuEncoding::BINARY);
+        // ASCII (every double exact): meshio 1.x misreads some raw appended files (it rewrites
+        // offsets in place and can match a rewritten one; docs/output_format.md), and a rest
+        // design is small.
+        write_vtu(path, grid, VtuEncoding::ASCII);
     }
 
     /// Relative mesh and scene paths made absolute, so that the problem written into the

@@ -172,13 +172,21 @@ void write_vtu(const std::string& path, const VtuGrid& grid, VtuEncoding encodin
         w.array(view("connectivity", 1, grid.connectivity));
         w.array(view("offsets", 1, grid.offsets));
         w.array(view("types", 1, types));
-        out << "</Cells>\n<PointData>\n";
-        for (const VtuArray& a : grid.point_data)
-            w.array(view(a));
-        out << "</PointData>\n<CellData>\n";
-        for (const VtuArray& a : grid.cell_data)
-            w.array(view(a));
-        out << "</CellData>\n</Piece>\n</UnstructuredGrid>\n";
+        out << "</Cells>\n";
+        // An empty <PointData/> or <CellData/> is left out: meshio refuses a file with one.
+        if (!grid.point_data.empty()) {
+            out << "<PointData>\n";
+            for (const VtuArray& a : grid.point_data)
+                w.array(view(a));
+            out << "</PointData>\n";
+        }
+        if (!grid.cell_data.empty()) {
+            out << "<CellData>\n";
+            for (const VtuArray& a : grid.cell_data)
+                w.array(view(a));
+            out << "</CellData>\n";
+        }
+        out << "</Piece>\n</UnstructuredGrid>\n";
         w.finish();
         out << "</VTKFile>\n";
     });

@@ -140,8 +140,11 @@ OptimizerResult minimize_lbfgsb(optimizer_detail::Run& run, const VectorXd& x0, 
                 stall = "no descent direction";
                 break;
             }
-            // Without curvature information the first step moves at most 1 in the inf-norm.
-            double t = pairs.empty() ? std::min(1.0, 1.0 / d_norm) : 1.0;
+            // Without curvature information the first trial moves 1 in the inf-norm (as
+            // L-BFGS-B's first step of unit length): a gradient of 3e-5 in log-modulus units
+            // otherwise gives steps of 3e-5 whose curvature is below the gradient's noise, and
+            // the run creeps along the gradient without ever forming a pair.
+            double t = pairs.empty() ? 1.0 / d_norm : 1.0;
             for (int trials = 0; trials < MAX_TRIALS; ++trials) {
                 if (run.out_of_time())
                     return run.finish(StopReason::TIME_BUDGET,

@@ -92,19 +92,23 @@ def test_beam_shape_under_a_material_constraint(cli, tmp_path, algorithm):
 
 
 def test_log_space_modulus_with_lbfgsb(cli, tmp_path):
+    # Synthetic markers: the bar of study 302 simulated at its own E; the fit starts at half of it.
     p = json.loads((ROOT / "studies" / "302_bar_youngs_markers" / "problem.json").read_text())
     E0 = p["scene"]["bodies"][0]["material"]["E"]
+    _, tr = diffipc.simulate(p["scene"])
+    objective = p["objective"]
+    objective["targets"] = [[list(tr["positions"][k][v]) for v in objective["vertices"]] for k in objective["steps"]]
     p["parameters"] = [{"type": "E", "per": "element", "initial": math.log(0.5 * E0),
                         "lower": math.log(1e-2 * E0), "upper": math.log(1e2 * E0),
                         "maps": [{"type": "exp"}, {"type": "filter", "radius": 0.05}]}]
-    p["optimizer"] = {"algorithm": "lbfgsb", "max_iterations": 8}
+    p["optimizer"] = {"algorithm": "lbfgsb", "max_iterations": 15}
     p.pop("gradcheck", None)
     problem = tmp_path / "bar.json"
     problem.write_text(json.dumps(p))
     r = run(cli, "optimize", problem, "-o", tmp_path / "o", "-q")
     assert r.returncode == 0, r.stderr
     summary = json.loads((tmp_path / "o" / "summary.json").read_text())
-    assert summary["final_J"] < 0.5 * summary["initial_J"], summary
+    assert summary["final_J"] < 1e-2 * summary["initial_J"], summary
 
 
 BAD = [

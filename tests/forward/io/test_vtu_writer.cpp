@@ -100,6 +100,21 @@ TEST(VtuWriter, AsciiDoublesReadBackExactly)
     EXPECT_NE(file.find("Name=\"body\" NumberOfComponents=\"1\" format=\"ascii\">\n0\n1\n-7\n"), std::string::npos);
 }
 
+TEST(VtuWriter, EmptyDataSectionsAreLeftOut)
+{
+    // Before: an empty <PointData></PointData>, which meshio refuses (a rest design has cell data only).
+    VtuGrid grid = small_grid();
+    grid.point_data.clear();
+    const fs::path path = scratch("no_point_data.vtu");
+    write_vtu(path.string(), grid, VtuEncoding::BINARY);
+    const std::string file = read(path);
+    EXPECT_EQ(file.find("PointData"), std::string::npos);
+    EXPECT_NE(file.find("<CellData>"), std::string::npos);
+    grid.cell_data.clear();
+    write_vtu(path.string(), grid, VtuEncoding::ASCII);
+    EXPECT_EQ(read(path).find("CellData"), std::string::npos);
+}
+
 TEST(VtuWriter, ArraysOfTheWrongSizeAreRefused)
 {
     VtuGrid g = small_grid();

@@ -67,6 +67,13 @@ void double_well(const VectorXd& x, double& f, VectorXd& g)
     g = (x.array().cube() - x.array()).matrix();
 }
 
+/// Minima at +-2, f'' = 3 x^2 - 4 < 0 for |x| < 1.15: wider than the first (unit) step.
+void wide_double_well(const VectorXd& x, double& f, VectorXd& g)
+{
+    f = (x.array().pow(4) / 4 - 2 * x.array().square()).sum();
+    g = (x.array().cube() - 4 * x.array()).matrix();
+}
+
 void quadratic(const VectorXd& x, double& f, VectorXd& g)
 {
     f = 0.5 * x.squaredNorm();
@@ -104,20 +111,21 @@ TEST(Lbfgsb, RefusesConstraintsNamingTheAlternatives)
     }
 }
 
-// The first steps from x = 0.1 lie where f'' < 0: their pairs have s.y < 0 and are skipped;
-// the run still reaches the minimum x = 1 to 1e-8 (gradient_tolerance 1e-10, f'' = 2 there).
+// The first step from x = 0.1 (a unit step, to 1.1) lies where f'' < 0: its pair has s.y < 0
+// and is skipped; the run still reaches the minimum x = 2 to 1e-8 (gradient_tolerance 1e-10,
+// f'' = 8 there).
 TEST(Lbfgsb, SkipsPairsWithoutPositiveCurvature)
 {
-    LambdaProblem p(2, double_well);
+    LambdaProblem p(2, wide_double_well);
     const OptimizerResult r = minimize(p, VectorXd::Constant(2, 0.1), lbfgsb());
     EXPECT_EQ(r.reason, StopReason::GRADIENT_TOLERANCE) << r.message;
-    EXPECT_LT((r.x - VectorXd::Ones(2)).lpNorm<Eigen::Infinity>(), 1e-8) << r.x.transpose();
+    EXPECT_LT((r.x - VectorXd::Constant(2, 2.0)).lpNorm<Eigen::Infinity>(), 1e-8) << r.x.transpose();
     ASSERT_GE(p.iterates.size(), 2u);
     const VectorXd s = p.iterates[1] - p.iterates[0];
     VectorXd g0, g1;
     double f;
-    double_well(p.iterates[0], f, g0);
-    double_well(p.iterates[1], f, g1);
+    wide_double_well(p.iterates[0], f, g0);
+    wide_double_well(p.iterates[1], f, g1);
     EXPECT_LT(s.dot(g1 - g0), 0); // the first pair indeed had negative curvature
 }
 
