@@ -423,6 +423,12 @@ PYBIND11_MODULE(_diffipc, m)
         .def_property_readonly(
             "design_initial", [](const ReducedFunctional& rf) { return VectorXd(rf.design_initial()); },
             "x at the start (the entries' \"initial\", else the maps' inverse of the scenes' values).")
+        .def_property_readonly(
+            "design_lower", [](const ReducedFunctional& rf) { return VectorXd(rf.design_lower()); },
+            "Lower bounds of x (the entries' \"lower\"; -inf without).")
+        .def_property_readonly(
+            "design_upper", [](const ReducedFunctional& rf) { return VectorXd(rf.design_upper()); },
+            "Upper bounds of x (the entries' \"upper\"; +inf without).")
         .def_property_readonly("design_layout", &ReducedFunctional::design_layout,
             "[(type, design size)] per entry of the problem's parameter list.")
         .def(

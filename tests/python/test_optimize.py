@@ -111,6 +111,32 @@ def test_log_space_modulus_with_lbfgsb(cli, tmp_path):
     assert summary["final_J"] < 1e-2 * summary["initial_J"], summary
 
 
+def test_a_failing_forward_solve_is_a_rejected_point_and_the_run_goes_on(cli, tmp_path):
+    # Newton gets 9 iterations per step: the beam of study 301 converges for E >= 2e6 and fails
+    # (NEWTON_EXHAUSTED) at its own E = 1e6. The tip's targets come from a run at E = 1e6, so
+    # the fit, started at E = 3e6 in log space, steps towards designs whose forward fails:
+    # those are rejected points, the line search cuts the step, and the run ends normally.
+    p = json.loads((ROOT / "studies" / "301_beam_shape_stress" / "problem.json").read_text())
+    scene = p["scene"]
+    _, tr = diffipc.simulate(scene)
+    tip = [10, 32]  # (1, 0) and (1, 0.2) of the 11 x 3 vertex grid
+    p["objective"] = {"type": "markers", "vertices": tip, "steps": [2],
+                      "targets": [[list(tr["positions"][2][v]) for v in tip]]}
+    scene["solver"]["max_iterations"] = 9
+    p["parameters"] = [{"type": "E", "initial": math.log(3e6), "lower": math.log(1e5), "upper": math.log(1e7),
+                        "maps": [{"type": "exp"}]}]
+    p["optimizer"] = {"algorithm": "lbfgsb", "max_iterations": 10}
+    p.pop("gradcheck", None)
+    problem = tmp_path / "tip.json"
+    problem.write_text(json.dumps(p))
+    r = run(cli, "optimize", problem, "-o", tmp_path / "o", "-q")
+    assert r.returncode == 0, r.stderr
+    summary = json.loads((tmp_path / "o" / "summary.json").read_text())
+    assert summary["rejected"] >= 1 and "NEWTON_EXHAUSTED" in summary["last_rejection"], summary
+    assert summary["final_J"] < summary["initial_J"], summary
+    assert math.exp(summary["design"][0]) > 1e6  # it stayed where the forward converges
+
+
 BAD = [
     (lambda p: p["optimizer"].update(algorithm="bfgs") or p, "optimizer.algorithm"),
     (lambda p: p["optimizer"].update(max_iterations=-1) or p, "optimizer.max_iterations"),
