@@ -2,6 +2,8 @@
 
 #include "cli/optimize.hpp"
 
+#include "cli/stop_signal.hpp"
+
 #include "forward/common/error.hpp"
 #include "forward/common/timer.hpp"
 #include "forward/io/output.hpp"
@@ -14,7 +16,6 @@
 #include <nlohmann/json.hpp>
 
 #include <cmath>
-#include <csignal>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -25,13 +26,6 @@ namespace fs = std::filesystem;
 namespace diffipc {
 
 namespace {
-
-    volatile std::sig_atomic_t g_stop = 0;
-    extern "C" void on_stop(int signal)
-    {
-        g_stop = signal;
-        std::signal(signal, SIG_DFL);
-    }
 
     /// The rest design: the bodies' rest mesh at p, with the per-element material as cell data.
     void write_design_vtu(const std::string& path, const ReducedFunctional& rf, const VectorXd& p)
@@ -192,16 +186,12 @@ int optimize(const std::string& problem_path, std::string out_dir, bool quiet)
             designs.push_back({ double(info.iteration), 0, name });
             write_pvd((fs::path(out_dir) / "designs.pvd").string(), designs);
         }
-        return g_stop == 0;
+        return stop_signal() == 0;
     };
 
-    g_stop = 0;
-    std::signal(SIGINT, on_stop);
-    std::signal(SIGTERM, on_stop);
+    catch_stop_signals(); // the run stops after the current iteration
     const OptimizerResult result = minimize(problem, rf.design_initial(), settings);
-    const int stop_signal = g_stop;
-    std::signal(SIGINT, SIG_DFL);
-    std::signal(SIGTERM, SIG_DFL);
+    const int stopped_by = release_stop_signals();
     history.close();
 
     nlohmann::json summary;
@@ -232,8 +222,8 @@ int optimize(const std::string& problem_path, std::string out_dir, bool quiet)
         std::printf("diffipc: %s after %d iterations (%d evaluations, %d rejected): J %.6e -> %.6e; wrote %s\n",
             to_string(result.reason).c_str(), result.iterations, result.evaluations, result.rejected, initial_value,
             have_point ? result.values.f : std::nan(""), out_dir.c_str());
-    if (stop_signal != 0)
-        return 128 + stop_signal;
+    if (stopped_by != 0)
+        return interrupted_exit_code(stopped_by);
     if (result.reason == StopReason::INVALID_START || result.reason == StopReason::FAILED) {
         std::fprintf(stderr, "diffipc: %s: %s%s\n", to_string(result.reason).c_str(), result.message.c_str(),
             problem.last_rejection().empty() ? "" : (" (" + problem.last_rejection() + ")").c_str());

@@ -3,6 +3,8 @@
 
 #include "cli/simulate.hpp"
 
+#include "cli/stop_signal.hpp"
+
 #include "forward/common/error.hpp"
 #include "forward/common/timer.hpp"
 #include "forward/io/output.hpp"
@@ -24,20 +26,6 @@ namespace fs = std::filesystem;
 namespace diffipc {
 
 namespace {
-
-    /// The first SIGINT or SIGTERM asks the run to stop after the current step; the handler
-    /// then restores the default action, so a second one ends the process at once (the
-    /// trajectory keeps every step up to its last flush).
-    volatile std::sig_atomic_t g_stop_signal = 0;
-
-    extern "C" void on_stop_signal(int signal)
-    {
-        g_stop_signal = signal;
-        std::signal(signal, SIG_DFL);
-    }
-
-    /// Exit code of a run stopped by `signal`: 128 + the signal number, as shells report it.
-    int interrupted_exit_code(int signal) { return 128 + signal; }
 
     /// States read for a resumed run: the integrators' history (BDF2 needs two).
     constexpr int RESUME_STATES = 2;
@@ -181,14 +169,14 @@ int simulate(std::string scene_path, std::string out_dir, int vtu_every, bool qu
         write_json(summary_path, summary);
         timer.add_to(output_seconds);
     };
-    g_stop_signal = 0;
-    std::signal(SIGINT, on_stop_signal);
-    std::signal(SIGTERM, on_stop_signal);
+    // A stop signal ends the run after the current step (a second one at once: the
+    // trajectory keeps every step up to its last flush).
+    catch_stop_signals();
     bring_up_to_date("RUNNING");
 
     Timer since_print, since_flush;
     const int total = sc.time.steps;
-    while (sim.steps_done() < total && !g_stop_signal) {
+    while (sim.steps_done() < total && !stop_signal()) {
         if (sim.step() != StepStatus::CONVERGED)
             break;
         const StepRecord& r = sim.trajectory().steps.back();
@@ -212,12 +200,10 @@ int simulate(std::string scene_path, std::string out_dir, int vtu_every, bool qu
             since_flush = Timer();
         }
     }
-    const int stop_signal = g_stop_signal;
-    std::signal(SIGINT, SIG_DFL);
-    std::signal(SIGTERM, SIG_DFL);
+    const int stopped_by = release_stop_signals();
 
     const Trajectory& tr = sim.trajectory();
-    const bool interrupted = stop_signal != 0 && tr.final_status == StepStatus::CONVERGED && sim.steps_done() < total;
+    const bool interrupted = stopped_by != 0 && tr.final_status == StepStatus::CONVERGED && sim.steps_done() < total;
     if (h5) {
         const Timer timer;
         h5->close();
@@ -227,8 +213,8 @@ int simulate(std::string scene_path, std::string out_dir, int vtu_every, bool qu
 
     if (interrupted) {
         std::fprintf(stderr, "diffipc: interrupted by %s after %d of %d steps; wrote %s\n",
-            stop_signal == SIGINT ? "SIGINT" : "SIGTERM", sim.steps_done(), total, out_dir.c_str());
-        return interrupted_exit_code(stop_signal);
+            stopped_by == SIGINT ? "SIGINT" : "SIGTERM", sim.steps_done(), total, out_dir.c_str());
+        return interrupted_exit_code(stopped_by);
     }
     if (tr.final_status != StepStatus::CONVERGED) {
         std::fprintf(stderr, "diffipc: %s\n", tr.failure_message.c_str());
