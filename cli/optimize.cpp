@@ -161,10 +161,10 @@ int optimize(const std::string& problem_path, std::string out_dir, bool quiet)
     }
     double initial_value = std::nan("");
     problem.on_iteration = [&](const IterationInfo& info) {
-        const OptimizationValues& v = *info.values;
+        const double J = info.values->f * problem.objective_scale();
         if (info.iteration == 0)
-            initial_value = v.f;
-        history << info.iteration << "," << csv_number(v.f);
+            initial_value = J;
+        history << info.iteration << "," << csv_number(J);
         const VectorXd& g = problem.last_constraint_values();
         for (size_t i = 0; i < constraints.size(); ++i)
             history << "," << csv_number(Index(i) < g.size() ? g[Index(i)] : std::nan(""));
@@ -173,7 +173,7 @@ int optimize(const std::string& problem_path, std::string out_dir, bool quiet)
                 << csv_number(info.optimizer_seconds) << "," << csv_number(wall.seconds()) << "\n";
         history.flush();
         if (!quiet) {
-            std::printf("  %4d  %-13.6e", info.iteration, v.f);
+            std::printf("  %4d  %-13.6e", info.iteration, J);
             for (size_t i = 0; i < constraints.size(); ++i)
                 std::printf("  %-12.5e", Index(i) < g.size() ? g[Index(i)] : std::nan(""));
             std::printf("  %-9.2e  %-9.2e  %4d  %8.2f  %8.3f\n", info.gradient_norm, info.step_norm, info.rejected,
@@ -208,7 +208,7 @@ int optimize(const std::string& problem_path, std::string out_dir, bool quiet)
         summary["initial_J"] = initial_value;
     const bool have_point = result.x.size() == rf.design_size() && result.values.gradient.size() > 0;
     if (have_point) {
-        summary["final_J"] = result.values.f;
+        summary["final_J"] = result.values.f * problem.objective_scale();
         summary["max_violation"] = result.max_violation;
         summary["design"] = std::vector<double>(result.x.data(), result.x.data() + result.x.size());
         write_json((fs::path(out_dir) / "optimal_problem.json").string(), optimal_problem(rf, result.x));
@@ -221,7 +221,7 @@ int optimize(const std::string& problem_path, std::string out_dir, bool quiet)
     if (!quiet)
         std::printf("diffipc: %s after %d iterations (%d evaluations, %d rejected): J %.6e -> %.6e; wrote %s\n",
             to_string(result.reason).c_str(), result.iterations, result.evaluations, result.rejected, initial_value,
-            have_point ? result.values.f : std::nan(""), out_dir.c_str());
+            have_point ? result.values.f * problem.objective_scale() : std::nan(""), out_dir.c_str());
     if (stopped_by != 0)
         return interrupted_exit_code(stopped_by);
     if (result.reason == StopReason::INVALID_START || result.reason == StopReason::FAILED) {

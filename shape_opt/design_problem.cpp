@@ -47,8 +47,10 @@ bool DesignProblem::evaluate(const VectorXd& x, OptimizationValues& out)
         // an objective undefined there: this design, not the problem, is at fault.
         return reject(error.what());
     }
-    out.f = e.value;
-    out.gradient = m_functional.design_gradient(x, e.gradient);
+    if (!(m_objective_scale > 0))
+        m_objective_scale = std::abs(e.value) > 1e-300 ? std::abs(e.value) : 1.0;
+    out.f = e.value / m_objective_scale;
+    out.gradient = m_functional.design_gradient(x, e.gradient) / m_objective_scale;
     const auto& constraints = m_functional.constraints();
     const Index n = x.size();
     out.inequality.resize(Index(m_inequality.size()));

@@ -8,6 +8,10 @@
 /// (b - g) / |b| for g >= b, and h = (g - b) / |b| for g == b (|b| replaced by 1 for b = 0),
 /// so that the optimizer's constraint tolerance is relative (1e-6: a millionth of the bound).
 ///
+/// The objective reaches the optimizer divided by |J| at the first design evaluated (the start,
+/// for every driver), so that tolerances and the first steps do not depend on J's units (a
+/// stress p-norm of 2e5 Pa, a marker misfit of 1e-2 m^2); objective_scale() gives the factor.
+///
 /// A design that cannot be evaluated is a rejected point, not the end of the run: an
 /// invalid rest mesh (inverted elements, an intersecting boundary: shape_opt/rest_validity.hpp),
 /// a failed forward step, a value outside a map's domain. Shape steps are bounded by
@@ -49,6 +53,8 @@ public:
     /// Why the last rejected point was rejected ("" if none was).
     const std::string& last_rejection() const { return m_last_rejection; }
     int rejections() const { return m_rejections; }
+    /// J = objective_scale() * f (1 until the first successful evaluation).
+    double objective_scale() const { return m_objective_scale > 0 ? m_objective_scale : 1.0; }
 
 private:
     bool reject(const std::string& why);
@@ -61,6 +67,7 @@ private:
     VectorXd m_last_constraints;
     std::string m_last_rejection;
     int m_rejections = 0;
+    double m_objective_scale = 0;
 };
 
 } // namespace diffipc

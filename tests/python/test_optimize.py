@@ -137,6 +137,30 @@ def test_a_failing_forward_solve_is_a_rejected_point_and_the_run_goes_on(cli, tm
     assert math.exp(summary["design"][0]) > 1e6  # it stayed where the forward converges
 
 
+def test_sigint_stops_after_the_iteration_and_writes_everything(cli, tmp_path):
+    import signal
+    p = beam_shape_problem("ipopt", iterations=200)
+    p["scene"]["bodies"][0]["mesh"]["box"]["cells"] = [80, 16]
+    p["optimizer"]["gradient_tolerance"] = 0
+    p["optimizer"]["relative_gradient_tolerance"] = 0
+    problem = tmp_path / "long.json"
+    problem.write_text(json.dumps(p))
+    out = tmp_path / "o"
+    proc = subprocess.Popen([cli, "optimize", str(problem), "-o", str(out)], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True)
+    for line in proc.stdout:
+        if line.split()[:1] == ["1"]:  # iteration 1 is done
+            proc.send_signal(signal.SIGINT)
+            break
+    proc.stdout.read()
+    assert proc.wait(timeout=120) == 130, proc.stderr.read()
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["stop_reason"] == "user_stop", summary
+    rows = list(csv.DictReader((out / "history.csv").open()))
+    assert len(rows) == summary["iterations"] + 1 >= 2
+    assert (out / "optimal_problem.json").exists() and (out / "design_final.vtu").exists()
+
+
 BAD = [
     (lambda p: p["optimizer"].update(algorithm="bfgs") or p, "optimizer.algorithm"),
     (lambda p: p["optimizer"].update(max_iterations=-1) or p, "optimizer.max_iterations"),
