@@ -171,3 +171,37 @@ TEST(IpoptDriver, IterationsAreIpoptsIterates)
     for (size_t k = 0; k < p.iterations.size(); ++k)
         EXPECT_EQ(p.iterations[k], int(k));
 }
+
+namespace {
+/// f = (x - 3)^2 with every x > 1 invalid (evaluate() returns false): the minimum lies beyond
+/// the valid designs, which Ipopt does not know as a constraint.
+class BeyondTheValidDesigns : public OptimizationProblem {
+public:
+    Index size() const override { return 1; }
+    bool evaluate(const VectorXd& x, OptimizationValues& out) override
+    {
+        if (x[0] > 1)
+            return false;
+        out.f = (x[0] - 3) * (x[0] - 3);
+        out.gradient = VectorXd::Constant(1, 2 * (x[0] - 3));
+        return true;
+    }
+};
+} // namespace
+
+// Before: Ipopt cut every step at the rejected points until the steps were 1e-11 and ran to
+// its iteration budget (a beam's shape: 982 of 1050 trials rejected). Now five iterations in a
+// row with rejections and steps below 1e-9 of x end the run as a stalled line search, at a
+// valid point next to the boundary.
+TEST(IpoptDriver, StepsThatVanishAtRejectedDesignsEndTheRun)
+{
+    BeyondTheValidDesigns p;
+    OptimizerSettings s = ipopt();
+    s.max_iterations = 3000;
+    const OptimizerResult r = minimize(p, VectorXd::Zero(1), s);
+    EXPECT_EQ(r.reason, StopReason::LINE_SEARCH_STALLED) << r.message;
+    EXPECT_LT(r.iterations, 3000);
+    EXPECT_GT(r.rejected, 5);
+    EXPECT_LE(r.x[0], 1.0);
+    EXPECT_GT(r.x[0], 0.9) << r.message;
+}
