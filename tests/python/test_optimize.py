@@ -161,6 +161,21 @@ def test_sigint_stops_after_the_iteration_and_writes_everything(cli, tmp_path):
     assert (out / "optimal_problem.json").exists() and (out / "design_final.vtu").exists()
 
 
+@pytest.mark.parametrize("name", ["problem", "problem_penalty"])
+def test_study_401_short(cli, tmp_path, name):
+    p = json.loads((ROOT / "studies" / "401_cantilever_area" / f"{name}.json").read_text())
+    p["optimizer"]["max_iterations"] = 4
+    p["output"]["design_every"] = 0
+    problem = tmp_path / "p.json"
+    problem.write_text(json.dumps(p))
+    r = run(cli, "optimize", problem, "-o", tmp_path / "o", "-q")
+    assert r.returncode == 0, r.stderr
+    summary = json.loads((tmp_path / "o" / "summary.json").read_text())
+    assert summary["final_J"] < summary["initial_J"]
+    if name == "problem":
+        assert summary["max_violation"] <= 1e-6
+
+
 BAD = [
     (lambda p: p["optimizer"].update(algorithm="bfgs") or p, "optimizer.algorithm"),
     (lambda p: p["optimizer"].update(max_iterations=-1) or p, "optimizer.max_iterations"),
