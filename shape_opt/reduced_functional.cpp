@@ -323,16 +323,35 @@ Evaluation ReducedFunctional::evaluate(const VectorXd& p, bool gradient, bool co
         for (int i = 0; i < m; ++i)
             if (m_constraints[size_t(i)].load_case == c)
                 rows.push_back(i);
+        // Row -1 is the objective (weighted; its gradient adds to out.gradient), row i >= 0
+        // constraint i (unweighted; its value and gradient fill row i).
+        const auto functional = [&](int row, const Simulator& sim) {
+            return row < 0 ? parse_objective(lc.objective, lc.field, sim)
+                           : parse_objective(m_constraints[size_t(row)].objective,
+                               m_constraints[size_t(row)].field + ".objective", sim);
+        };
+        const auto store = [&](int row, double value, const ParameterGradient* g, const Simulator& sim) {
+            if (row < 0)
+                out.value += lc.weight * value;
+            else
+                out.constraint_values[row] = value;
+            if (!g)
+                return;
+            if (row < 0) {
+                m_parameters->add_gradient(*g, sp, sim.plane_stress(), out.gradient);
+                return;
+            }
+            VectorXd dg = VectorXd::Zero(n);
+            m_parameters->add_gradient(*g, sp, sim.plane_stress(), dg);
+            out.constraint_gradients.row(row) = dg.transpose();
+        };
         if (gradient && m_checkpointing.mode != CheckpointSettings::Mode::NONE) {
             // The forward runs inside checkpointed_gradient(), once per functional; values come
             // from the adapter's copy of the states.
             for (const int row : rows) {
                 Simulator sim(lc.scene, sp);
-                const auto objective = row < 0 ? parse_objective(lc.objective, lc.field, sim)
-                                               : parse_objective(m_constraints[size_t(row)].objective,
-                                                   m_constraints[size_t(row)].field + ".objective", sim);
-                const double weight = row < 0 ? lc.weight : 1.0;
-                StreamedObjectiveAdapter adapter(*objective, request, weight);
+                const auto objective = functional(row, sim);
+                StreamedObjectiveAdapter adapter(*objective, request, row < 0 ? lc.weight : 1.0);
                 LoadCaseCheckpoint record;
                 const ParameterGradient g
                     = checkpointed_gradient(sim, adapter.streamed(), request, m_checkpointing, &record.records);
@@ -340,25 +359,16 @@ Evaluation ReducedFunctional::evaluate(const VectorXd& p, bool gradient, bool co
                 record.objective_stored_bytes = adapter.stored_bytes();
                 out.forward_time += record.records.forward_time;
                 out.adjoint_time += record.records.recompute_time + record.records.adjoint_time;
-                if (row < 0) {
-                    out.value += weight * adapter.value();
+                if (row < 0)
                     out.checkpoints.push_back(record);
-                    m_parameters->add_gradient(g, sp, sim.plane_stress(), out.gradient);
-                } else {
-                    out.constraint_values[row] = adapter.value();
-                    VectorXd dg = VectorXd::Zero(n);
-                    m_parameters->add_gradient(g, sp, sim.plane_stress(), dg);
-                    out.constraint_gradients.row(row) = dg.transpose();
-                }
+                store(row, adapter.value(), &g, sim);
             }
             continue;
         }
         Simulator sim(lc.scene, sp);
         std::vector<std::unique_ptr<Objective>> objectives;
         for (const int row : rows)
-            objectives.push_back(row < 0 ? parse_objective(lc.objective, lc.field, sim)
-                                         : parse_objective(m_constraints[size_t(row)].objective,
-                                             m_constraints[size_t(row)].field + ".objective", sim));
+            objectives.push_back(functional(row, sim));
         Timer tf;
         sim.run();
         out.forward_time += tf.seconds();
@@ -368,27 +378,18 @@ Evaluation ReducedFunctional::evaluate(const VectorXd& p, bool gradient, bool co
         for (size_t r = 0; r < rows.size(); ++r) {
             const int row = rows[r];
             const Objective* objective = objectives[r].get();
-            const double weight = row < 0 ? lc.weight : 1.0;
             const double value = objective->value(sim, tr);
-            if (row < 0)
-                out.value += weight * value;
-            else
-                out.constraint_values[row] = value;
-            if (!gradient)
+            if (!gradient) {
+                store(row, value, nullptr, sim);
                 continue;
+            }
             Timer ta;
             StateSeed seed;
             seed.resize(int(tr.steps.size()));
-            objective->add_gradient(sim, tr, request, weight, seed);
+            objective->add_gradient(sim, tr, request, row < 0 ? lc.weight : 1.0, seed);
             const ParameterGradient g = adjoint_gradient(sim, seed, request);
             out.adjoint_time += ta.seconds();
-            if (row < 0)
-                m_parameters->add_gradient(g, sp, sim.plane_stress(), out.gradient);
-            else {
-                VectorXd dg = VectorXd::Zero(n);
-                m_parameters->add_gradient(g, sp, sim.plane_stress(), dg);
-                out.constraint_gradients.row(row) = dg.transpose();
-            }
+            store(row, value, &g, sim);
         }
     }
     if (!std::isfinite(out.value))

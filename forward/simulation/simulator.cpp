@@ -525,7 +525,8 @@ StepStatus Simulator::step()
     const double w = m_integrator->potential_weight();
     m_problem.set_weight(m_elastic.get(), w);
     m_problem.set_weight(m_external.get(), w);
-    m_inertia->set_target(m_integrator->inertial_target());
+    const VectorXd inertial_target = m_integrator->inertial_target();
+    m_inertia->set_target(inertial_target);
     if (m_contact) {
         m_problem.set_weight(m_contact.get(), w);
         m_contact->reset_times();
@@ -560,12 +561,13 @@ StepStatus Simulator::step()
     if (m_contact) {
         // A free dof's Newton step longer than the bodies' size plus the inertial drift
         // |x~ - x_n| is not a step a converging solve takes (docs/math.md, "Newton").
-        const VectorXd drift = m_integrator->inertial_target() - m_integrator->positions();
         double largest = 0;
-        if (m_integrator->dynamic())
-            for (Index i = 0; i < drift.size(); ++i)
+        if (m_integrator->dynamic()) {
+            const VectorXd& x_n = m_integrator->positions();
+            for (Index i = 0; i < x_n.size(); ++i)
                 if (!m_constrained[size_t(i)])
-                    largest = std::max(largest, std::abs(drift[i]));
+                    largest = std::max(largest, std::abs(inertial_target[i] - x_n[i]));
+        }
         settings.max_displacement = m_bbox_diagonal + largest;
     }
     const NewtonSolver newton(m_problem, m_assembler, *m_linear, settings);

@@ -1,6 +1,8 @@
 #include "shape_opt/parametrization/lame_map.hpp"
 
+#include "adjoint/sensitivity.hpp"
 #include "forward/common/error.hpp"
+#include "forward/materials/material.hpp"
 
 namespace diffipc {
 
@@ -21,9 +23,8 @@ VectorXd LameMap::apply(const VectorXd& x) const
     for (Index i = 0; i < m_count; ++i) {
         const double E = x[i], nu = x[m_count + i];
         check_pair(E, nu, i, "design");
-        y[i] = E / (2 * (1 + nu));
-        y[m_count + i]
-            = m_plane == ElasticityPlane::STRESS ? E * nu / (1 - nu * nu) : E * nu / ((1 + nu) * (1 - 2 * nu));
+        y[i] = lame_mu(E, nu);
+        y[m_count + i] = lame_lambda(E, nu, m_plane == ElasticityPlane::STRESS);
     }
     return y;
 }
@@ -32,23 +33,12 @@ VectorXd LameMap::vjp(const VectorXd& x, const VectorXd& y_bar) const
 {
     check_size(x, in_size(), "design", "lame");
     check_size(y_bar, out_size(), "design", "lame's gradient");
+    // The adjoint's own chain rule from (mu, lambda) to (E, nu), per element.
+    VectorXd dE, dnu;
+    lame_to_young_poisson(x.head(m_count), x.tail(m_count), y_bar.head(m_count), y_bar.tail(m_count), dE, dnu,
+        std::vector<char>(size_t(m_count), m_plane == ElasticityPlane::STRESS ? 1 : 0));
     VectorXd x_bar(in_size());
-    for (Index i = 0; i < m_count; ++i) {
-        const double E = x[i], nu = x[m_count + i];
-        const double mu_E = 1 / (2 * (1 + nu)), mu_nu = -E / (2 * (1 + nu) * (1 + nu));
-        double lambda_E, lambda_nu;
-        if (m_plane == ElasticityPlane::STRESS) {
-            const double D = 1 - nu * nu;
-            lambda_E = nu / D;
-            lambda_nu = E * (1 + nu * nu) / (D * D);
-        } else {
-            const double D = (1 + nu) * (1 - 2 * nu); // d(nu / D)/dnu = (1 + 2 nu^2) / D^2
-            lambda_E = nu / D;
-            lambda_nu = E * (1 + 2 * nu * nu) / (D * D);
-        }
-        x_bar[i] = mu_E * y_bar[i] + lambda_E * y_bar[m_count + i];
-        x_bar[m_count + i] = mu_nu * y_bar[i] + lambda_nu * y_bar[m_count + i];
-    }
+    x_bar << dE, dnu;
     return x_bar;
 }
 
@@ -56,18 +46,12 @@ VectorXd LameMap::inverse(const VectorXd& y, const std::string& field) const
 {
     check_size(y, out_size(), field, "lame");
     VectorXd x(in_size());
+    const bool plane_stress = m_plane == ElasticityPlane::STRESS;
     for (Index i = 0; i < m_count; ++i) {
         const double mu = y[i], lambda = y[m_count + i];
         if (!(mu > 0))
             throw InputError(field, "pair " + std::to_string(i) + " has mu = " + format_number(mu) + ": needs mu > 0");
-        double E, nu;
-        if (m_plane == ElasticityPlane::STRESS) {
-            nu = lambda / (2 * mu + lambda);
-            E = 2 * mu * (1 + nu);
-        } else {
-            E = mu * (3 * lambda + 2 * mu) / (lambda + mu);
-            nu = lambda / (2 * (lambda + mu));
-        }
+        const double E = youngs_modulus_of(mu, lambda, plane_stress), nu = poisson_ratio_of(mu, lambda, plane_stress);
         check_pair(E, nu, i, field);
         x[i] = E;
         x[m_count + i] = nu;
