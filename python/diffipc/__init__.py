@@ -4,7 +4,8 @@ Load a scene (file path or dict), run it, get the trajectory as numpy arrays;
 load a problem (docs/problem_format.md) as a ReducedFunctional for J(p) and its
 adjoint gradient dJ/dp, checked by taylor_test and finite_difference_check.
 Bad input raises ValueError naming the field; a gradient that cannot be
-computed raises AdjointError (a RuntimeError). See docs/python.md.
+computed raises AdjointError (a RuntimeError). diffipc.plot draws PNG figures of a
+`diffipc optimize` output directory. See docs/python.md.
 """
 
 import json
@@ -46,6 +47,16 @@ from ._diffipc import (  # noqa: E402,F401
 from ._diffipc import set_threads as _set_threads  # noqa: E402
 from .reduced import ReducedFunctional, finite_difference_check, taylor_test  # noqa: E402,F401
 from .optimize import OptimizeResult, minimize  # noqa: E402,F401
+
+
+def __getattr__(name):
+    # diffipc.plot (matplotlib) is imported on first use: `import diffipc` stays light, and
+    # `python3 -m diffipc.plot` does not find the module imported before it runs.
+    if name == "plot":
+        import importlib
+
+        return importlib.import_module(".plot", __name__)
+    raise AttributeError(f"module 'diffipc' has no attribute '{name}'")
 
 
 def set_threads(count):

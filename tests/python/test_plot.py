@@ -1,0 +1,325 @@
+"""diffipc.plot (docs/python.md): the figures of a short `diffipc optimize` run of study 401 are
+valid PNGs that draw exactly what history.csv, summary.json and the problem say; the objective
+over time reproduces the run's J and an independent aggregation of the same states; bad
+directories and files are errors naming them."""
+import csv
+import json
+import os
+import struct
+import subprocess
+import sys
+import zlib
+
+import numpy as np
+import pytest
+
+pytest.importorskip("matplotlib")
+import diffipc  # noqa: E402
+from diffipc import plot  # noqa: E402
+from conftest import ROOT  # noqa: E402
+
+STUDY = ROOT / "studies" / "401_cantilever_area"
+
+
+def optimize(cli, tmp_path, name="problem", iterations=4, edit=None):
+    """A short run of study 401 into tmp_path/o; returns (output directory, problem path)."""
+    p = json.loads((STUDY / f"{name}.json").read_text())
+    p["optimizer"]["max_iterations"] = iterations
+    p["output"]["design_every"] = 0
+    if edit:
+        edit(p)
+    problem = tmp_path / f"{name}.json"
+    problem.write_text(json.dumps(p))
+    out = tmp_path / "o"
+    r = subprocess.run([cli, "optimize", str(problem), "-o", str(out), "-q"], capture_output=True, text=True,
+                       timeout=300)
+    assert r.returncode == 0, r.stderr
+    return out, problem
+
+
+def history_columns(out):
+    """history.csv read here with the csv module, independently of diffipc.plot's reader."""
+    rows = list(csv.DictReader((out / "history.csv").open()))
+    return {key: np.array([float(row[key]) for row in rows]) for key in rows[0]}
+
+
+def png_size(path):
+    """Width and height from the PNG's IHDR chunk, after checking the signature and its CRC."""
+    data = path.read_bytes()
+    assert data[:8] == b"\x89PNG\r\n\x1a\n", path
+    length, kind = struct.unpack(">I4s", data[8:16])
+    assert kind == b"IHDR" and length == 13
+    body = data[16:16 + 13]
+    assert struct.unpack(">I", data[29:33])[0] == zlib.crc32(kind + body)
+    return struct.unpack(">II", body[:8])
+
+
+def check_png(result):
+    path = result.path if hasattr(result, "path") else result
+    import pathlib
+
+    path = pathlib.Path(path)
+    assert path.is_file() and path.stat().st_size > 10_000, path
+    width, height = png_size(path)
+    inches = result.figure.get_size_inches()
+    assert (width, height) == (round(inches[0] * 110), round(inches[1] * 110))
+    from matplotlib.image import imread
+
+    pixels = imread(path)  # decodes every row: a truncated or corrupt file fails here
+    assert pixels.shape[:2] == (height, width)
+    assert pixels[..., :3].std() > 0.05  # not a blank canvas
+
+
+def line(ax, label):
+    found = [ln for ln in ax.get_lines() if ln.get_label() == label]
+    assert len(found) == 1, [ln.get_label() for ln in ax.get_lines()]
+    return np.asarray(found[0].get_xdata(), dtype=float), np.asarray(found[0].get_ydata(), dtype=float)
+
+
+def test_convergence_draws_the_history(cli, tmp_path):
+    out, _ = optimize(cli, tmp_path)
+    h = history_columns(out)
+    summary = json.loads((out / "summary.json").read_text())
+    assert len(h["J"]) == summary["iterations"] + 1 >= 3
+
+    result = plot.plot_convergence(out)
+    assert result.path == os.path.join(str(out), "convergence.png")
+    check_png(result)
+    ax_j, ax_gap, ax_norm = result.figure.axes
+    x, y = line(ax_j, "J")
+    np.testing.assert_array_equal(x, h["iteration"])
+    np.testing.assert_array_equal(y, h["J"])
+    assert y[0] == summary["initial_J"] and y[-1] == summary["final_J"]
+    x, y = line(ax_norm, "gradient norm (J / |J(x0)|)")
+    np.testing.assert_array_equal(y, h["gradient_norm"])
+    # The step norm of iteration 0 is 0: a log axis cannot show it, so it is left out.
+    assert h["step_norm"][0] == 0
+    x, y = line(ax_norm, "step norm")
+    np.testing.assert_array_equal(x, h["iteration"][1:])
+    np.testing.assert_array_equal(y, h["step_norm"][1:])
+    gap = np.abs(h["J"] - h["J"][-1]) / abs(h["J"][-1])
+    x, y = ax_gap.get_lines()[0].get_xdata(), ax_gap.get_lines()[0].get_ydata()
+    np.testing.assert_array_equal(x, h["iteration"][:-1])
+    np.testing.assert_allclose(y, gap[:-1], rtol=1e-15)
+    assert ax_gap.get_yscale() == "log" and ax_norm.get_yscale() == "log"
+    assert ax_j.get_yscale() == "linear"  # J changes by 13%: a log axis would hide it
+
+
+def test_constraints_draw_values_bounds_and_violations(cli, tmp_path):
+    out, problem = optimize(cli, tmp_path)
+    h = history_columns(out)
+    bound = json.loads(problem.read_text())["constraints"][0]["upper"]
+    assert bound == 0.2
+    result = plot.plot_constraints(out)
+    check_png(result)
+    ax_g, ax_v = result.figure.axes
+    x, y = line(ax_g, "area (g)")
+    np.testing.assert_array_equal(x, h["iteration"])
+    np.testing.assert_array_equal(y, h["area"])
+    _, y = line(ax_g, "bound: g <= 0.2")
+    assert set(y) == {bound}
+    expected = np.maximum(0.0, (h["area"] - bound) / bound)
+    assert expected.max() > 1e-6  # Ipopt's first iterate of this run is infeasible: the check sees a violation
+    _, y = line(ax_v, "area")
+    np.testing.assert_allclose(y, expected, rtol=1e-15, atol=0)
+    np.testing.assert_array_equal(result.data["area violation"], y)
+    _, y = line(ax_v, "constraint_tolerance 1e-06")
+    assert set(y) == {1e-6}
+
+
+def test_violations_follow_the_optimizers_scaling():
+    g = np.array([-1.0, 0.0, 0.5, 3.0])
+    np.testing.assert_allclose(plot.violations(g, "upper", 2.0), [0, 0, 0, 0.5])
+    np.testing.assert_allclose(plot.violations(g, "lower", 2.0), [1.5, 1.0, 0.75, 0])
+    np.testing.assert_allclose(plot.violations(g, "equals", -2.0), [0.5, 1.0, 1.25, 2.5])
+    np.testing.assert_allclose(plot.violations(g, "upper", 0.0), [0, 0, 0.5, 3.0])  # |b| = 0 -> 1
+    with pytest.raises(ValueError, match="constraint kind"):
+        plot.violations(g, "below", 1.0)
+
+
+def test_objective_over_time_reproduces_the_run(cli, tmp_path):
+    out, problem = optimize(cli, tmp_path)
+    h = history_columns(out)
+    summary = json.loads((out / "summary.json").read_text())
+    result = plot.plot_objective_over_time(out, problem=problem, refine=4)
+    check_png(result)
+    c = result.data
+    assert c["kind"] == "per_state" and c["objective"] == "compliance" and c["unit"] == "J"
+    # The scene: 2 static steps of dt = 0.5; the objective: the compliance at the final state.
+    np.testing.assert_array_equal(c["steps"], [1, 2])
+    np.testing.assert_array_equal(c["time"], [0.5, 1.0])
+    assert c["initial"][-1] == pytest.approx(h["J"][0], rel=1e-12)
+    assert c["optimal"][-1] == pytest.approx(summary["final_J"], rel=1e-12)
+    assert c["check"]["initial"][1] == h["J"][0] and c["check"]["optimal"][1] == summary["final_J"]
+    # Independently: the same problem with time "sum" in one full run of each design is f_1 + f_2.
+    p = json.loads(problem.read_text())
+    p["objective"]["time"] = "sum"
+    for key in ("constraints", "optimizer", "output"):
+        p.pop(key)
+    J = diffipc.ReducedFunctional(p, base_directory=tmp_path)
+    for name, x in (("initial", J.design_initial), ("optimal", np.array(summary["design"]))):
+        total, _ = J.evaluate(J.parameters_of(x), gradient=False)
+        assert c[name].sum() == pytest.approx(total, rel=1e-10), name
+    # The load grows: compliance at half the load is below that at the full load, and the
+    # optimal design is stiffer at both load levels.
+    assert (np.diff(c["initial"]) > 0).all() and (c["optimal"] < c["initial"]).all()
+    # refine=4: 8 states at dt / 4 that pass through the problem's two states.
+    np.testing.assert_allclose(c["fine_time"], np.arange(1, 9) * 0.125)
+    np.testing.assert_allclose(c["fine_initial"][[3, 7]], c["initial"], rtol=1e-7)
+    np.testing.assert_allclose(c["fine_optimal"][[3, 7]], c["optimal"], rtol=1e-7)
+    assert c["fine_difference"] < 1e-7
+    ax = result.figure.axes[0]
+    x, y = line(ax, "initial design, the problem's states")
+    np.testing.assert_array_equal(x, c["time"])
+    np.testing.assert_array_equal(y, c["initial"])
+    _, y = line(ax, "optimal design, dt / 4")
+    np.testing.assert_array_equal(y, c["fine_optimal"])
+
+
+def test_objective_over_time_refuses_another_start(cli, tmp_path):
+    # A problem whose start is not the run's: the curve would not be the run's, and the check says so.
+    out, problem = optimize(cli, tmp_path)
+    p = json.loads(problem.read_text())
+    p["parameters"][0]["initial"] = 0.01
+    other = tmp_path / "other.json"
+    other.write_text(json.dumps(p))
+    with pytest.raises(RuntimeError, match="the initial design's J recomputed"):
+        plot.objective_over_time(out, problem=other)
+    with pytest.raises(ValueError, match="refine: must be at least 1"):
+        plot.objective_over_time(out, problem=problem, refine=0)
+    with pytest.raises(ValueError, match="nope.json: problem file not found"):
+        plot.objective_over_time(out, problem=tmp_path / "nope.json")
+
+
+def test_tracking_objective_contributions_sum_to_J(cli, tmp_path):
+    # Study 302's markers at steps 2 and 4 of a dynamic bar: one contribution per listed state.
+    p = json.loads((ROOT / "studies" / "302_bar_youngs_markers" / "problem.json").read_text())
+    p["scene"] = str(ROOT / "studies" / "302_bar_youngs_markers" / p["scene"]) if isinstance(p["scene"], str) \
+        else p["scene"]
+    p.pop("gradcheck", None)
+    p["optimizer"] = {"algorithm": "lbfgsb", "max_iterations": 2}
+    problem = tmp_path / "bar.json"
+    problem.write_text(json.dumps(p))
+    out = tmp_path / "o"
+    r = subprocess.run([cli, "optimize", str(problem), "-o", str(out), "-q"], capture_output=True, text=True,
+                       timeout=300)
+    assert r.returncode == 0, r.stderr
+    c = plot.objective_over_time(out, problem=problem)
+    assert c["kind"] == "contributions"
+    np.testing.assert_array_equal(c["steps"], p["objective"]["steps"])
+    summary = json.loads((out / "summary.json").read_text())
+    assert c["initial"].sum() == pytest.approx(summary["initial_J"], rel=1e-10)
+    assert c["optimal"].sum() == pytest.approx(summary["final_J"], rel=1e-10)
+    assert (c["initial"] > 0).all()
+    with pytest.raises(ValueError, match="refine: applies to per-state objectives"):
+        plot.objective_over_time(out, problem=problem, refine=2)
+
+
+def test_plot_run_skips_what_does_not_apply(cli, tmp_path):
+    # The penalty version: no constraints, and a `sum` objective, which has no per-state curve.
+    out, problem = optimize(cli, tmp_path, name="problem_penalty")
+    lines = []
+    plots = plot.plot_run(out, problem=problem, printer=lines.append)
+    assert [os.path.basename(p.path) for p in plots] == ["convergence.png"]
+    assert not (out / "constraints.png").exists() and not (out / "objective_over_time.png").exists()
+    assert any("constraints.png: not written (the run has no constraints)" in s for s in lines), lines
+    assert any("objective_over_time.png: not written" in s and "type 'sum'" in s for s in lines), lines
+    with pytest.raises(ValueError, match="has no constraints"):
+        plot.plot_constraints(out)
+
+
+def test_module_command_writes_and_prints_the_figures(cli, tmp_path):
+    out, _ = optimize(cli, tmp_path)
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join(sys.path))
+    # summary.json's problem path is the one given to diffipc optimize (absolute here).
+    r = subprocess.run([sys.executable, "-m", "diffipc.plot", str(out), "--refine", "2"], capture_output=True,
+                       text=True, timeout=300, env=env)
+    assert r.returncode == 0, r.stderr
+    printed = r.stdout.splitlines()
+    for name in ("convergence.png", "constraints.png", "objective_over_time.png"):
+        assert str(out / name) in printed, r.stdout
+        assert (out / name).stat().st_size > 10_000
+    assert "relative difference to the run's J" in r.stdout
+    assert "Traceback" not in r.stderr
+    r = subprocess.run([sys.executable, "-m", "diffipc.plot", str(tmp_path / "missing")], capture_output=True,
+                       text=True, timeout=120, env=env)
+    assert r.returncode == 1 and "Traceback" not in r.stderr
+    assert r.stderr.strip() == f"diffipc.plot: {tmp_path / 'missing'}: not a directory (expected the output " \
+                               "of `diffipc optimize -o DIR`)"
+
+
+def copy_run(out, tmp_path):
+    import shutil
+
+    bad = tmp_path / "bad"
+    shutil.copytree(out, bad)
+    return bad
+
+
+def test_bad_directories_name_the_file(cli, tmp_path):
+    out, _ = optimize(cli, tmp_path, iterations=1)
+    with pytest.raises(ValueError, match="nowhere: not a directory"):
+        plot.plot_convergence(tmp_path / "nowhere")
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    with pytest.raises(ValueError, match=r"empty/history.csv: missing"):
+        plot.plot_convergence(empty)
+
+    bad = copy_run(out, tmp_path)
+    text = (bad / "history.csv").read_text().splitlines()
+    (bad / "history.csv").write_text("\n".join(text[:1] + [text[1].replace(text[1].split(",")[1], "abc", 1)]) + "\n")
+    with pytest.raises(ValueError, match=r"bad/history.csv line 2: column 'J': not a number: 'abc'"):
+        plot.plot_convergence(bad)
+    (bad / "history.csv").write_text("\n".join(text[:1]) + "\n")
+    with pytest.raises(ValueError, match=r"history.csv: no iteration rows"):
+        plot.plot_convergence(bad)
+    (bad / "history.csv").write_text("\n".join(["iteration,J,area"] + text[1:]) + "\n")
+    with pytest.raises(ValueError, match=r"history.csv: header 'iteration,J,area' is not"):
+        plot.plot_convergence(bad)
+    (bad / "history.csv").write_text("\n".join(text[:2] + [text[1]]) + "\n")
+    with pytest.raises(ValueError, match=r"history.csv: column 'iteration' must count 0, 1, 2"):
+        plot.plot_convergence(bad)
+    (bad / "history.csv").write_text("\n".join(text) + "\n")
+    (bad / "summary.json").write_text("{not json")
+    with pytest.raises(ValueError, match=r"bad/summary.json: not readable as JSON"):
+        plot.plot_convergence(bad)
+    (bad / "summary.json").write_text((out / "summary.json").read_text())
+    problem = json.loads((bad / "optimal_problem.json").read_text())
+    problem["constraints"][0]["name"] = "mass"
+    (bad / "optimal_problem.json").write_text(json.dumps(problem))
+    with pytest.raises(ValueError, match=r"optimal_problem.json: constraints\[0\].name: 'mass' is not history.csv's"):
+        plot.plot_constraints(bad)
+    (bad / "optimal_problem.json").unlink()
+    with pytest.raises(ValueError, match=r"optimal_problem.json: missing; history.csv has constraint columns \(area\)"):
+        plot.plot_constraints(bad)
+
+
+def test_readme_first_command_runs_the_optimization_and_plots(cli, tmp_path):
+    # README's first command is scripts/run_example.sh; here it runs on this build (the two
+    # variables skip install and build) in a copy holding the script and study 401.
+    import re
+    import shutil
+
+    readme = (ROOT / "README.md").read_text()
+    section = readme[readme.index("## The two commands"):]
+    assert re.search(r"\n    (\S.*)\n", section).group(1) == "bash scripts/run_example.sh"
+    (tmp_path / "scripts").mkdir()
+    shutil.copy(ROOT / "scripts" / "run_example.sh", tmp_path / "scripts")
+    shutil.copytree(STUDY, tmp_path / "studies" / STUDY.name)
+    env = dict(os.environ, DIFFIPC_CLI=cli, DIFFIPC_PYTHONPATH=os.path.dirname(os.path.dirname(diffipc.__file__)))
+    r = subprocess.run(["bash", str(tmp_path / "scripts" / "run_example.sh")], capture_output=True, text=True,
+                       timeout=600, env=env)
+    assert r.returncode == 0, r.stdout[-3000:] + r.stderr
+    out = tmp_path / "output" / "401_cantilever_area"
+    assert f"== results in {out}/" in r.stdout
+    listed = re.findall(r"^  (\S+\.(?:json|csv|png|pvd)) ", r.stdout, flags=re.M)
+    assert len(listed) == 7, r.stdout
+    for name in listed:
+        assert (out / name).stat().st_size > 0, name
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["final_J"] < summary["initial_J"] and summary["max_violation"] <= 1e-6
+    assert re.search(r"optimize \+ plot: \d+\.\d s wall", r.stdout)
+    env.pop("DIFFIPC_PYTHONPATH")
+    r = subprocess.run(["bash", str(tmp_path / "scripts" / "run_example.sh")], capture_output=True, text=True,
+                       timeout=60, env=env)
+    assert r.returncode == 1 and "set both DIFFIPC_CLI and DIFFIPC_PYTHONPATH" in r.stderr
