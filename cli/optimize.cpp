@@ -12,6 +12,7 @@
 #include "shape_opt/design_problem.hpp"
 #include "shape_opt/optimizer/optimizer_json.hpp"
 #include "shape_opt/reduced_functional.hpp"
+#include "shape_opt/remesh.hpp"
 
 #include <nlohmann/json.hpp>
 
@@ -63,38 +64,11 @@ namespace {
         write_vtu(path, grid, VtuEncoding::ASCII);
     }
 
-    /// Relative mesh and scene paths made absolute, so that the problem written into the
-    /// output directory still finds its files.
-    void absolute_paths(nlohmann::json& scene, const fs::path& base)
-    {
-        for (const char* list : { "bodies", "obstacles" })
-            if (scene.contains(list) && scene[list].is_array())
-                for (auto& item : scene[list])
-                    if (item.is_object() && item.contains("mesh") && item["mesh"].is_object()
-                        && item["mesh"].contains("file") && item["mesh"]["file"].is_string()) {
-                        const fs::path file = item["mesh"]["file"].get<std::string>();
-                        if (file.is_relative())
-                            item["mesh"]["file"] = fs::absolute(base / file).lexically_normal().string();
-                    }
-    }
-
+    /// The problem with x as every parameter entry's "initial", its scenes inlined and their
+    /// paths absolute (shape_opt/remesh.hpp), so that it loads from the output directory.
     nlohmann::json optimal_problem(const ReducedFunctional& rf, const VectorXd& x)
     {
-        nlohmann::json doc = rf.document();
-        const fs::path base = rf.base_directory().empty() ? fs::path(".") : fs::path(rf.base_directory());
-        const auto fix_case = [&](nlohmann::json& c) {
-            if (c["scene"].is_string()) {
-                const fs::path file = c["scene"].get<std::string>();
-                if (file.is_relative())
-                    c["scene"] = fs::absolute(base / file).lexically_normal().string();
-            } else
-                absolute_paths(c["scene"], base);
-        };
-        if (doc.contains("scenes"))
-            for (auto& c : doc["scenes"])
-                fix_case(c);
-        else
-            fix_case(doc);
+        nlohmann::json doc = self_contained_document(rf);
         Index at = 0;
         const auto layout = rf.design_layout();
         for (size_t k = 0; k < layout.size(); ++k) {
@@ -141,6 +115,7 @@ int optimize(const std::string& problem_path, std::string out_dir, bool quiet)
         throw InputError(out_dir, "cannot create output directory");
 
     DesignProblem problem(rf);
+    problem.set_remesh_directory(out_dir);
     const auto& constraints = rf.constraints();
     const std::string history_path = (fs::path(out_dir) / "history.csv").string();
     std::ofstream history(history_path);
@@ -182,11 +157,21 @@ int optimize(const std::string& problem_path, std::string out_dir, bool quiet)
         }
         if (design_every > 0 && info.iteration % design_every == 0) {
             const std::string name = "design_" + std::to_string(info.iteration) + ".vtu";
-            write_design_vtu((fs::path(out_dir) / name).string(), rf, rf.parameters_of(*info.x));
+            const ReducedFunctional& now = problem.functional();
+            write_design_vtu((fs::path(out_dir) / name).string(), now, now.parameters_of(*info.x));
             designs.push_back({ double(info.iteration), 0, name });
             write_pvd((fs::path(out_dir) / "designs.pvd").string(), designs);
         }
         return stop_signal() == 0;
+    };
+    problem.on_remesh = [&](const RemeshRecord& r) {
+        if (!quiet) {
+            std::printf("  remeshed after iteration %d: quality %.3f -> %.3f, %ld -> %ld elements, J %.6e -> %.6e "
+                        "(%.2f s)\n",
+                r.iteration, r.quality_before, r.quality_after, long(r.elements_before), long(r.elements_after),
+                r.J_before, r.J_after, r.seconds);
+            std::fflush(stdout);
+        }
     };
 
     catch_stop_signals(); // the run stops after the current iteration
@@ -211,8 +196,26 @@ int optimize(const std::string& problem_path, std::string out_dir, bool quiet)
         summary["final_J"] = result.values.f * problem.objective_scale();
         summary["max_violation"] = result.max_violation;
         summary["design"] = std::vector<double>(result.x.data(), result.x.data() + result.x.size());
-        write_json((fs::path(out_dir) / "optimal_problem.json").string(), optimal_problem(rf, result.x));
-        write_design_vtu((fs::path(out_dir) / "design_final.vtu").string(), rf, rf.parameters_of(result.x));
+        const ReducedFunctional& now = problem.functional();
+        write_json((fs::path(out_dir) / "optimal_problem.json").string(), optimal_problem(now, result.x));
+        write_design_vtu((fs::path(out_dir) / "design_final.vtu").string(), now, now.parameters_of(result.x));
+    }
+    if (rf.remesh_settings().enabled()) {
+        nlohmann::json list = nlohmann::json::array();
+        for (const RemeshRecord& r : problem.remeshes())
+            list.push_back({ { "iteration", r.iteration }, { "quality_before", r.quality_before },
+                { "quality_after", r.quality_after }, { "elements_before", r.elements_before },
+                { "elements_after", r.elements_after }, { "J_before", r.J_before }, { "J_after", r.J_after },
+                { "constraints_before",
+                    std::vector<double>(
+                        r.constraints_before.data(), r.constraints_before.data() + r.constraints_before.size()) },
+                { "constraints_after",
+                    std::vector<double>(
+                        r.constraints_after.data(), r.constraints_after.data() + r.constraints_after.size()) },
+                { "files", r.files }, { "seconds", r.seconds } });
+        summary["remeshes"] = list;
+        if (!problem.remesh_failure().empty())
+            summary["remesh_failure"] = problem.remesh_failure();
     }
     summary["wall_time"] = { { "total", wall.seconds() }, { "evaluation", result.evaluation_seconds },
         { "optimizer", result.optimizer_seconds } };

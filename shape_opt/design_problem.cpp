@@ -2,23 +2,41 @@
 
 #include "adjoint/adjoint.hpp"
 #include "forward/common/error.hpp"
+#include "forward/common/timer.hpp"
 #include "shape_opt/parametrization/map_json.hpp"
 
 #include <cmath>
+#include <filesystem>
+
+#include <unistd.h>
 
 namespace diffipc {
 
 DesignProblem::DesignProblem(const ReducedFunctional& functional)
-    : m_functional(functional)
+    : m_functional(&functional)
 {
-    if (functional.has_shape())
-        m_validity = std::make_unique<RestValidity>(bodies_mesh(functional.scene()));
+    build_validity();
+    const RemeshSettings& remesh = functional.remesh_settings();
+    if (remesh.enabled()) {
+        const Mesh mesh = bodies_mesh(functional.scene());
+        m_remesh_size = remesh.size > 0 ? remesh.size : mean_edge_length(mesh.rest_positions, mesh.elements);
+        m_remesh_trigger = remesh.quality;
+    }
     const auto& constraints = functional.constraints();
     m_scale.resize(Index(constraints.size()));
     for (size_t i = 0; i < constraints.size(); ++i) {
         (constraints[i].kind == ConstraintSpec::Kind::EQUALS ? m_equality : m_inequality).push_back(i);
         m_scale[Index(i)] = constraints[i].bound != 0 ? std::abs(constraints[i].bound) : 1.0;
     }
+}
+
+DesignProblem::~DesignProblem() = default;
+
+void DesignProblem::build_validity()
+{
+    m_validity.reset();
+    if (m_functional->has_shape())
+        m_validity = std::make_unique<RestValidity>(bodies_mesh(m_functional->scene()));
 }
 
 bool DesignProblem::reject(const std::string& why)
@@ -33,13 +51,13 @@ bool DesignProblem::evaluate(const VectorXd& x, OptimizationValues& out)
     Evaluation e;
     VectorXd p;
     try {
-        p = m_functional.parameters_of(x);
+        p = m_functional->parameters_of(x);
         if (m_validity) {
-            const std::string problem = m_validity->problem(m_functional.rest_positions_of(p));
+            const std::string problem = m_validity->problem(m_functional->rest_positions_of(p));
             if (!problem.empty())
                 return reject("invalid rest mesh: " + problem);
         }
-        e = m_functional.evaluate(p, true, !m_functional.constraints().empty());
+        e = m_functional->evaluate(p, true, !m_functional->constraints().empty());
     } catch (const AdjointError& error) {
         return reject(error.what());
     } catch (const InputError& error) {
@@ -50,8 +68,8 @@ bool DesignProblem::evaluate(const VectorXd& x, OptimizationValues& out)
     if (!(m_objective_scale > 0))
         m_objective_scale = std::abs(e.value) > 1e-300 ? std::abs(e.value) : 1.0;
     out.f = e.value / m_objective_scale;
-    out.gradient = m_functional.design_gradient(x, e.gradient) / m_objective_scale;
-    const auto& constraints = m_functional.constraints();
+    out.gradient = m_functional->design_gradient(x, e.gradient) / m_objective_scale;
+    const auto& constraints = m_functional->constraints();
     const Index n = x.size();
     out.inequality.resize(Index(m_inequality.size()));
     out.inequality_jacobian.resize(Index(m_inequality.size()), n);
@@ -59,7 +77,7 @@ bool DesignProblem::evaluate(const VectorXd& x, OptimizationValues& out)
     out.equality_jacobian.resize(Index(m_equality.size()), n);
     const auto row = [&](size_t i) {
         return VectorXd(
-            m_functional.design_gradient(x, e.constraint_gradients.row(Index(i)).transpose()) / m_scale[Index(i)]);
+            m_functional->design_gradient(x, e.constraint_gradients.row(Index(i)).transpose()) / m_scale[Index(i)]);
     };
     for (size_t k = 0; k < m_inequality.size(); ++k) {
         const size_t i = m_inequality[k];
@@ -85,14 +103,88 @@ double DesignProblem::max_valid_step(const VectorXd& x, const VectorXd& dx)
     try {
         // The rest positions move along X(x + t dx); for the linear shape maps (boundary
         // extension, free-form deformation, none) that is the line X0 + t dX.
-        const VectorXd X0 = m_functional.rest_positions_of(m_functional.parameters_of(x));
-        const VectorXd X1 = m_functional.rest_positions_of(m_functional.parameters_of(x + dx));
+        const VectorXd X0 = m_functional->rest_positions_of(m_functional->parameters_of(x));
+        const VectorXd X1 = m_functional->rest_positions_of(m_functional->parameters_of(x + dx));
         return m_validity->max_step(X0, X1 - X0);
     } catch (const InputError&) {
         return 0.0;
     }
 }
 
-bool DesignProblem::iteration(const IterationInfo& info) { return on_iteration ? on_iteration(info) : true; }
+bool DesignProblem::iteration(const IterationInfo& info)
+{
+    const bool go_on = on_iteration ? on_iteration(info) : true;
+    if (go_on && info.x)
+        remesh_if_needed(*info.x, info.iteration);
+    return go_on;
+}
+
+bool DesignProblem::remesh_if_needed(const VectorXd& x, int iteration, bool force)
+{
+    const RemeshSettings& settings = m_functional->remesh_settings();
+    if (!settings.enabled() || int(m_remeshes.size()) >= settings.max_remeshes)
+        return false;
+    const Scene& scene = m_functional->scene();
+    const int d = scene.dim;
+    const Mesh mesh = bodies_mesh(scene);
+    const VectorXd X = m_functional->rest_positions_of(m_functional->parameters_of(x));
+    Positions current(mesh.rest_positions.rows(), d);
+    for (Index v = 0; v < current.rows(); ++v)
+        current.row(v) = X.segment(v * d, d).transpose();
+    const double quality = min_quality(current, mesh.elements);
+    if (!force && quality >= m_remesh_trigger)
+        return false;
+    std::string directory = m_remesh_directory;
+    if (directory.empty())
+        directory
+            = (std::filesystem::temp_directory_path() / ("diffipc_remesh_" + std::to_string(::getpid()))).string();
+    const Timer timer;
+    RemeshRecord record;
+    record.iteration = iteration;
+    std::unique_ptr<ReducedFunctional> fresh;
+    try {
+        std::filesystem::create_directories(directory);
+        const nlohmann::json doc
+            = remeshed_document(*m_functional, x, m_remesh_size, directory, int(m_remeshes.size()) + 1, record);
+        if (!force && !(record.quality_after > record.quality_before)) {
+            m_remesh_trigger = std::min(settings.quality, 0.9 * quality);
+            throw RemeshError("the new mesh's worst quality " + std::to_string(record.quality_after)
+                + " is not above the old one's " + std::to_string(record.quality_before) + "; kept the old mesh");
+        }
+        fresh = std::make_unique<ReducedFunctional>(doc, m_functional->base_directory(), "remeshed problem");
+        if (fresh->design_layout() != m_functional->design_layout())
+            throw RemeshError("the design variables change with the mesh (a per-element or per-vertex parameter)");
+        // J and the constraints at x on both meshes: the remesh's discretization change.
+        const bool constraints = !m_functional->constraints().empty();
+        const Evaluation before = m_functional->evaluate(m_functional->parameters_of(x), false, constraints);
+        const Evaluation after = fresh->evaluate(fresh->parameters_of(x), false, constraints);
+        record.J_before = before.value;
+        record.J_after = after.value;
+        record.constraints_before = before.constraint_values;
+        record.constraints_after = after.constraint_values;
+    } catch (const RemeshError& e) {
+        m_remesh_failure = e.what();
+        return false;
+    } catch (const InputError& e) {
+        m_remesh_failure = e.what();
+        return false;
+    } catch (const AdjointError& e) {
+        m_remesh_failure = std::string("the forward run on the new mesh failed: ") + e.what();
+        return false;
+    } catch (const std::filesystem::filesystem_error& e) {
+        m_remesh_failure = e.what();
+        return false;
+    }
+    record.seconds = timer.seconds();
+    m_remesh_trigger = std::min(settings.quality, 0.9 * record.quality_after);
+    m_remeshed = std::move(fresh);
+    m_functional = m_remeshed.get();
+    build_validity();
+    m_remeshes.push_back(record);
+    m_remesh_failure.clear();
+    if (on_remesh)
+        on_remesh(m_remeshes.back());
+    return true;
+}
 
 } // namespace diffipc

@@ -24,14 +24,27 @@
 #include <functional>
 #include <memory>
 #include <string>
+#include <vector>
 
 namespace diffipc {
 
 class DesignProblem : public OptimizationProblem {
 public:
     explicit DesignProblem(const ReducedFunctional& functional);
+    ~DesignProblem() override;
 
-    Index size() const override { return m_functional.design_size(); }
+    /// The reduced functional now evaluated: the one given, or after a remesh the one on the
+    /// new mesh (same design variables, bounds and constraints).
+    const ReducedFunctional& functional() const { return *m_functional; }
+    /// Where remeshed rest meshes go (default: a folder under the system's temporary directory).
+    void set_remesh_directory(const std::string& directory) { m_remesh_directory = directory; }
+    /// Every remesh so far, and why the last attempt failed ("" if none did).
+    const std::vector<RemeshRecord>& remeshes() const { return m_remeshes; }
+    const std::string& remesh_failure() const { return m_remesh_failure; }
+    /// Called after each remesh (the CLI prints it).
+    std::function<void(const RemeshRecord&)> on_remesh;
+
+    Index size() const override { return m_functional->design_size(); }
     int inequalities() const override { return int(m_inequality.size()); }
     int equalities() const override { return int(m_equality.size()); }
     bool evaluate(const VectorXd& x, OptimizationValues& out) override;
@@ -56,10 +69,23 @@ public:
     /// J = objective_scale() * f (1 until the first successful evaluation).
     double objective_scale() const { return m_objective_scale > 0 ? m_objective_scale : 1.0; }
 
+    /// @brief Remeshes at the accepted design x if the problem's "remesh" settings ask for it
+    /// (worst quality below the threshold, remeshes left); iteration() calls it after
+    /// on_iteration. Returns whether it remeshed; a failed remesh is recorded in
+    /// remesh_failure() and the run goes on with the old mesh.
+    bool remesh_if_needed(const VectorXd& x, int iteration, bool force = false);
+
 private:
     bool reject(const std::string& why);
+    void build_validity();
 
-    const ReducedFunctional& m_functional;
+    const ReducedFunctional* m_functional;
+    std::unique_ptr<ReducedFunctional> m_remeshed; ///< the functional on the newest mesh
+    std::string m_remesh_directory;
+    std::vector<RemeshRecord> m_remeshes;
+    std::string m_remesh_failure;
+    double m_remesh_size = 0;
+    double m_remesh_trigger = 0; ///< remesh below this worst quality (remesh.hpp)
     std::unique_ptr<RestValidity> m_validity; ///< with a shape entry
     std::vector<size_t> m_inequality, m_equality;
     VectorXd m_scale; ///< per constraint: |bound|, or 1

@@ -1,5 +1,7 @@
 #include "shape_opt/problem_parameters.hpp"
 
+#include "shape_opt/parametrization/free_form_deformation.hpp"
+
 #include "forward/common/error.hpp"
 #include "forward/scene/json_field.hpp"
 #include "shape_opt/parametrization/map_json.hpp"
@@ -532,6 +534,7 @@ void ProblemParameters::parse_maps(const json& params, const Scene& scene)
         uppers.push_back(upper);
         m_design_sizes.push_back(chain->in_size());
         initials.push_back(x0);
+        m_chains.push_back(chain.get());
         parts.push_back(std::move(chain));
     }
     m_design = std::make_unique<Concatenation>(std::move(parts));
@@ -545,6 +548,62 @@ void ProblemParameters::parse_maps(const json& params, const Scene& scene)
         m_design_upper.segment(at, initials[k].size()) = uppers[k];
         at += initials[k].size();
     }
+}
+
+namespace {
+    /// The free-form deformation of a shape entry's chain and its index there (nullptr if none).
+    const FreeFormDeformation* find_ffd(const ParameterChain& chain, size_t& index)
+    {
+        for (size_t i = 0; i < chain.size(); ++i)
+            if (const auto* ffd = dynamic_cast<const FreeFormDeformation*>(&chain.map(i))) {
+                index = i;
+                return ffd;
+            }
+        return nullptr;
+    }
+} // namespace
+
+std::string ProblemParameters::remesh_obstacle() const
+{
+    int shapes = 0;
+    for (size_t k = 0; k < m_entries.size(); ++k) {
+        if (m_entries[k].kind != Kind::SHAPE)
+            continue;
+        ++shapes;
+        size_t at = 0;
+        if (!find_ffd(*m_chains[k], at))
+            return m_entries[k].field
+                + ": a remesh keeps the design variables only with mesh-independent shape controls (a \"ffd\" map); "
+                  "these depend on the mesh's vertices";
+    }
+    if (shapes == 0)
+        return "the problem has no \"shape\" parameter (a remesh renews a moving rest mesh)";
+    if (shapes > 1)
+        return "a remesh needs one \"shape\" parameter entry, the problem has " + std::to_string(shapes);
+    return "";
+}
+
+Positions ProblemParameters::pull_back_shape(const VectorXd& x, const Positions& current) const
+{
+    const std::string obstacle = remesh_obstacle();
+    if (!obstacle.empty())
+        throw std::runtime_error(obstacle);
+    check_size(x, design_size(), "design", "the design");
+    Index at = 0;
+    for (size_t k = 0; k < m_entries.size(); ++k) {
+        if (m_entries[k].kind == Kind::SHAPE) {
+            const ParameterChain& chain = *m_chains[k];
+            size_t index = 0;
+            const FreeFormDeformation* ffd = find_ffd(chain, index);
+            // The lattice's input: the maps before it applied to the entry's design values.
+            VectorXd z = x.segment(at, m_design_sizes[k]);
+            for (size_t i = 0; i < index; ++i)
+                z = chain.map(i).apply(z);
+            return ffd->pull_back(current, z);
+        }
+        at += m_design_sizes[k];
+    }
+    throw std::logic_error("pull_back_shape: no shape entry");
 }
 
 std::vector<std::pair<std::string, Index>> ProblemParameters::design_layout() const

@@ -95,6 +95,14 @@ public:
     std::vector<std::pair<std::string, Index>> design_layout() const;
     /// Whether some entry has maps (else x = p).
     bool has_maps() const { return m_has_maps; }
+    /// Why a remesh could not keep these design variables ("" if it can): a remesh needs its
+    /// shape entry driven by a free-form deformation, whose variables do not depend on the
+    /// mesh (shape_opt/remesh.hpp).
+    std::string remesh_obstacle() const;
+    /// @brief The body rest positions (#V by dim) that x moves onto `current` through the
+    /// shape entry's free-form deformation (FreeFormDeformation::pull_back).
+    /// @throws std::runtime_error if remesh_obstacle() is not empty or the pull-back fails
+    Positions pull_back_shape(const VectorXd& x, const Positions& current) const;
 
 private:
     void parse_maps(const nlohmann::json& params, const Scene& scene);
@@ -102,6 +110,7 @@ private:
     std::vector<ParameterSpec> m_entries;
     std::unique_ptr<Concatenation> m_design;
     std::vector<Index> m_design_sizes;
+    std::vector<const ParameterChain*> m_chains; ///< per entry, owned by m_design
     VectorXd m_design_initial, m_design_lower, m_design_upper;
     bool m_has_maps = false;
     std::vector<Index> m_offsets;

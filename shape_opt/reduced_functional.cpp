@@ -72,7 +72,7 @@ ReducedFunctional::ReducedFunctional(const json& doc, const std::string& base_di
     // Every key is known and has its kind (docs/problem_format.md); nothing is ignored.
     const JsonField root(doc, "");
     root.require_object({ "description", "scene", "objective", "weight", "parameters", "gradcheck", "checkpointing",
-        "threads", "scenes", "constraints", "optimizer", "output" });
+        "threads", "scenes", "constraints", "optimizer", "output", "remesh" });
     if (doc.contains("scenes"))
         for (const char* k : { "scene", "objective", "weight" })
             if (doc.contains(k))
@@ -197,6 +197,15 @@ ReducedFunctional::ReducedFunctional(const json& doc, const std::string& base_di
             throw InputError("optimizer", "expected an object (docs/optimization.md)");
         m_optimizer = doc["optimizer"];
     }
+    if (doc.contains("remesh")) {
+        m_remesh = parse_remesh_settings(JsonField(doc["remesh"], "remesh"));
+        if (const std::string why = m_parameters->remesh_obstacle(); !why.empty())
+            throw InputError("remesh", why);
+        const std::string vertices = vertex_selection(doc);
+        if (!vertices.empty())
+            throw InputError(
+                "remesh", vertices + " selects vertices by index, which a remesh renumbers: select by region instead");
+    }
     if (doc.contains("output") && !doc["output"].is_object())
         throw InputError("output", "expected an object (docs/optimization.md)");
     m_document = doc;
@@ -274,6 +283,13 @@ VectorXd ReducedFunctional::rest_positions_of(const VectorXd& p) const
 }
 
 const Scene& ReducedFunctional::scene() const { return m_cases[0]->scene; }
+
+std::string ReducedFunctional::remesh_obstacle() const { return m_parameters->remesh_obstacle(); }
+
+Positions ReducedFunctional::pull_back_shape(const VectorXd& x, const Positions& current) const
+{
+    return m_parameters->pull_back_shape(x, current);
+}
 
 const VectorXd& ReducedFunctional::design_lower() const { return m_parameters->design_lower(); }
 const VectorXd& ReducedFunctional::design_upper() const { return m_parameters->design_upper(); }

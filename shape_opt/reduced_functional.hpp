@@ -18,6 +18,7 @@
 #include "adjoint/adjoint.hpp"
 #include "adjoint/checkpointing.hpp"
 #include "objectives/objective.hpp"
+#include "shape_opt/remesh.hpp"
 
 #include <nlohmann/json.hpp>
 
@@ -97,6 +98,13 @@ public:
     const VectorXd& design_upper() const;
     /// The file's "optimizer" object (null without), read by the optimization run.
     const nlohmann::json& optimizer_spec() const { return m_optimizer; }
+    /// The file's "remesh" settings (RemeshSettings(), never remesh, without; shape_opt/remesh.hpp).
+    const RemeshSettings& remesh_settings() const { return m_remesh; }
+    /// Why a remesh could not keep the design variables ("" if it can).
+    std::string remesh_obstacle() const;
+    /// @brief The body rest positions (#V by dim) that x moves onto `current` (the shape
+    /// entry's free-form deformation inverted; ProblemParameters::pull_back_shape).
+    Positions pull_back_shape(const VectorXd& x, const Positions& current) const;
     /// The document as loaded and the folder its relative paths start from (for the problem
     /// file an optimization writes with its optimum).
     const nlohmann::json& document() const { return m_document; }
@@ -141,6 +149,7 @@ private:
     CheckSettings m_check;
     CheckpointSettings m_checkpointing;
     std::vector<ConstraintSpec> m_constraints;
+    RemeshSettings m_remesh;
     nlohmann::json m_optimizer, m_document;
     std::string m_base_directory;
 };

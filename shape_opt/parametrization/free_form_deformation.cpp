@@ -2,7 +2,10 @@
 
 #include "forward/common/error.hpp"
 
+#include <Eigen/LU>
+
 #include <cmath>
+#include <stdexcept>
 
 namespace diffipc {
 
@@ -39,10 +42,17 @@ FreeFormDeformation::FreeFormDeformation(const Positions& rest, const FfdLattice
             throw InputError(field, "axes must be distinct, each in [0, " + std::to_string(d) + ")");
         used[size_t(a)] = 1;
     }
-    // Control points in lattice order (axis 0 fastest); with a fixed border only the interior.
+    // Control points in lattice order (axis 0 fastest); without those on fixed faces.
+    std::vector<char> fixed(static_cast<size_t>(d), lattice.fixed_border ? 1 : 0);
+    for (int a : lattice.fixed_border_axes) {
+        if (a < 0 || a >= d)
+            throw InputError(field, "fixed_border axes must lie in [0, " + std::to_string(d) + ")");
+        fixed[size_t(a)] = 1;
+    }
     Index count = 1;
     for (int a = 0; a < d; ++a)
         count *= lattice.degree[a] + 1;
+    m_lattice_points = count;
     std::vector<Index> slot(size_t(count), -1);
     for (Index c = 0; c < count; ++c) {
         bool border = false;
@@ -50,15 +60,16 @@ FreeFormDeformation::FreeFormDeformation(const Positions& rest, const FfdLattice
         for (int a = 0; a < d; ++a) {
             const Index i = rest_index % (lattice.degree[a] + 1);
             rest_index /= lattice.degree[a] + 1;
-            border = border || i == 0 || i == lattice.degree[a];
+            border = border || (fixed[size_t(a)] && (i == 0 || i == lattice.degree[a]));
         }
-        if (!lattice.fixed_border || !border) {
+        if (!border) {
             slot[size_t(c)] = Index(m_points.size());
             m_points.push_back(c);
         }
     }
     if (m_points.empty())
-        throw InputError(field, "a fixed border leaves no control point: raise a degree to 2 or more");
+        throw InputError(
+            field, "a fixed border leaves no control point: raise a degree to 2 or more along the fixed axes");
 
     const Index axes = Index(lattice.axes.size());
     std::vector<Eigen::Triplet<double, int>> triplets;
@@ -117,6 +128,103 @@ VectorXd FreeFormDeformation::control_point(Index c) const
         p[a] = m_lattice.lower[a] + (m_lattice.upper[a] - m_lattice.lower[a]) * double(i) / m_lattice.degree[a];
     }
     return p;
+}
+
+void FreeFormDeformation::displacement(const VectorXd& X, const MatrixXd& control, VectorXd& u, MatrixXd& du) const
+{
+    const int d = m_dim;
+    u.setZero(d);
+    du.setZero(d, d);
+    VectorXd s(d);
+    for (int a = 0; a < d; ++a) {
+        s[a] = (X[a] - m_lattice.lower[a]) / (m_lattice.upper[a] - m_lattice.lower[a]);
+        if (!(s[a] >= 0 && s[a] <= 1))
+            return; // outside the box nothing moves
+    }
+    // Per axis the Bernstein values and their derivatives in X_a:
+    // dB_i^n/ds = n (B_{i-1}^{n-1} - B_i^{n-1}).
+    std::vector<std::vector<double>> value(static_cast<size_t>(d)), slope(static_cast<size_t>(d));
+    for (int a = 0; a < d; ++a) {
+        const int n = m_lattice.degree[a];
+        const double to_s = 1.0 / (m_lattice.upper[a] - m_lattice.lower[a]);
+        for (int i = 0; i <= n; ++i) {
+            value[size_t(a)].push_back(bernstein(n, i, s[a]));
+            const double lower = i > 0 ? bernstein(n - 1, i - 1, s[a]) : 0.0;
+            const double upper = i < n ? bernstein(n - 1, i, s[a]) : 0.0;
+            slope[size_t(a)].push_back(n * (lower - upper) * to_s);
+        }
+    }
+    std::vector<Index> index(static_cast<size_t>(d));
+    for (Index c = 0; c < m_lattice_points; ++c) {
+        if (control.col(c).isZero(0))
+            continue;
+        Index rest_index = c;
+        for (int a = 0; a < d; ++a) {
+            index[size_t(a)] = rest_index % (m_lattice.degree[a] + 1);
+            rest_index /= m_lattice.degree[a] + 1;
+        }
+        double weight = 1;
+        for (int a = 0; a < d; ++a)
+            weight *= value[size_t(a)][size_t(index[size_t(a)])];
+        u += weight * control.col(c);
+        for (int b = 0; b < d; ++b) {
+            double w = slope[size_t(b)][size_t(index[size_t(b)])];
+            for (int a = 0; a < d; ++a)
+                if (a != b)
+                    w *= value[size_t(a)][size_t(index[size_t(a)])];
+            du.col(b) += w * control.col(c);
+        }
+    }
+}
+
+Positions FreeFormDeformation::pull_back(const Positions& current, const VectorXd& x) const
+{
+    check_size(x, in_size(), "design", name());
+    if (current.cols() != m_dim)
+        throw std::runtime_error("ffd pull-back: expected " + std::to_string(m_dim) + " coordinates per vertex");
+    // Every lattice point's displacement (the fixed ones zero).
+    const Index axes = Index(m_lattice.axes.size());
+    MatrixXd control = MatrixXd::Zero(m_dim, m_lattice_points);
+    for (size_t k = 0; k < m_points.size(); ++k)
+        for (Index j = 0; j < axes; ++j)
+            control(m_lattice.axes[size_t(j)], m_points[k]) = x[Index(k) * axes + j];
+    const double tolerance = 1e-13 * (m_lattice.upper - m_lattice.lower).norm();
+    Positions rest(current.rows(), m_dim);
+    VectorXd u, X;
+    MatrixXd du;
+    for (Index v = 0; v < current.rows(); ++v) {
+        const VectorXd y = current.row(v).transpose();
+        X = y;
+        bool converged = false;
+        for (int it = 0; it < 100 && !converged; ++it) {
+            displacement(X, control, u, du);
+            const VectorXd r = X + u - y;
+            if (r.norm() <= tolerance) {
+                converged = true;
+                break;
+            }
+            const MatrixXd J = MatrixXd::Identity(m_dim, m_dim) + du;
+            const VectorXd step = J.fullPivLu().solve(r);
+            if (!step.allFinite())
+                break;
+            // Halve a step that does not reduce the residual (the map is piecewise at the box).
+            double t = 1;
+            for (int h = 0; h < 30; ++h, t *= 0.5) {
+                VectorXd trial = X - t * step, ut;
+                MatrixXd dut;
+                displacement(trial, control, ut, dut);
+                if ((trial + ut - y).norm() < r.norm()) {
+                    X = trial;
+                    break;
+                }
+            }
+        }
+        if (!converged)
+            throw std::runtime_error("the free-form deformation cannot be inverted at vertex " + std::to_string(v)
+                + " (the design folds the lattice there)");
+        rest.row(v) = X.transpose();
+    }
+    return rest;
 }
 
 } // namespace diffipc

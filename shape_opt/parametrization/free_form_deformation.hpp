@@ -11,7 +11,8 @@
 /// B the Bernstein polynomials; vertices outside the box stay. The parameter vector depends
 /// on the lattice only, not on the mesh: after a remesh the same x moves the new mesh the
 /// same way, so an optimizer keeps its history. The outer layer of control points moves the
-/// box's faces; fix it (`fixed_border`) for a deformation that is continuous across them.
+/// box's faces; fix it (`fixed_border`) for a deformation that is continuous across them, or
+/// fix the faces normal to some axes only, where the body crosses the box there.
 /// The output is the full rest-position vector X0 + u (#V * dim, vertex-major); linear in x.
 
 #include "forward/mesh/mesh.hpp"
@@ -25,6 +26,9 @@ struct FfdLattice {
     std::vector<int> axes; ///< active axes of the displacements
     /// Only the interior control points are variables (the box's faces stay in place).
     bool fixed_border = false;
+    /// The same along some axes only: the control points on the box's faces normal to these
+    /// axes stay (with fixed_border, all axes).
+    std::vector<int> fixed_border_axes;
 };
 
 class FreeFormDeformation : public ParameterMap {
@@ -42,12 +46,22 @@ public:
     /// (lattice order: axis 0 fastest).
     Index variable_points() const { return Index(m_points.size()); }
     VectorXd control_point(Index c) const;
+    /// @brief The rest positions that the design x moves onto `current`: per row y, the X
+    /// with X + u_x(X) = y (Newton's method on the lattice's polynomial; u = 0 outside the
+    /// box). A remesh of the domain at x uses it to find the new mesh's rest positions, so
+    /// that the same x gives the same domain (shape_opt/remesh.hpp).
+    /// @throws std::runtime_error naming the vertex where the deformation cannot be inverted
+    Positions pull_back(const Positions& current, const VectorXd& x) const;
 
 private:
+    /// u_x(X) and du/dX (dim by dim) at any point X.
+    void displacement(const VectorXd& X, const MatrixXd& control, VectorXd& u, MatrixXd& du) const;
+
     FfdLattice m_lattice;
     int m_dim;
     VectorXd m_rest;
     std::vector<Index> m_points; ///< lattice indices of the variable control points
+    Index m_lattice_points = 0; ///< all of them, fixed ones included
     SparseMatrixd m_basis; ///< #V * dim by variable_points * |axes|: dy/dx
 };
 

@@ -125,7 +125,15 @@ namespace {
                 lattice.upper = box["max"].vector(dim);
                 lattice.degree = f["degree"].int_vector(dim, 1);
                 lattice.axes = parse_axes(f, dim);
-                lattice.fixed_border = f.has("fixed_border") && f["fixed_border"].boolean();
+                if (f.has("fixed_border")) {
+                    // true (every face), false, or a list of the axes whose faces stay.
+                    const JsonField fb = f["fixed_border"];
+                    if (fb.json().is_array()) {
+                        for (size_t i = 0; i < fb.size(); ++i)
+                            lattice.fixed_border_axes.push_back(fb.at(i).integer(0));
+                    } else
+                        lattice.fixed_border = fb.boolean();
+                }
                 return std::make_unique<FreeFormDeformation>(mesh.rest_positions, lattice, f.path());
             }
             keys({ "vertices", "axes" });

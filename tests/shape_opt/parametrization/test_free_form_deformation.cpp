@@ -110,3 +110,29 @@ TEST(FreeFormDeformation, BadLatticesNameTheField)
     l.degree = Eigen::Vector2i(1, 3);
     EXPECT_THROW(FreeFormDeformation(mesh.rest_positions, l, "design.maps[0]"), InputError);
 }
+
+TEST(FreeFormDeformation, BorderFixedAlongSomeAxesOnly)
+{
+    // Faces normal to x stay; the faces normal to y move with their control points.
+    const Mesh mesh = unit_box(2, 10);
+    FfdLattice l = lattice(2);
+    l.fixed_border_axes = { 0 };
+    const FreeFormDeformation ffd(mesh.rest_positions, l, "design");
+    EXPECT_EQ(ffd.variable_points(), (l.degree[0] - 1) * (l.degree[1] + 1));
+    const VectorXd x = VectorXd::Random(ffd.in_size()) * 0.05;
+    const VectorXd y = ffd.apply(x);
+    bool y_face_moved = false;
+    for (Index v = 0; v < mesh.num_vertices(); ++v) {
+        const VectorXd X = mesh.rest_positions.row(v).transpose();
+        const double move = (y.segment(v * 2, 2) - X).norm();
+        const bool inside_y = X[1] >= l.lower[1] && X[1] <= l.upper[1];
+        if (inside_y && (std::abs(X[0] - l.lower[0]) < 1e-12 || std::abs(X[0] - l.upper[0]) < 1e-12))
+            EXPECT_LT(move, 1e-15) << "vertex " << v << " on a fixed face";
+        if (std::abs(X[1] - l.lower[1]) < 1e-12 && X[0] > l.lower[0] + 1e-9 && X[0] < l.upper[0] - 1e-9)
+            y_face_moved = y_face_moved || move > 1e-4;
+    }
+    EXPECT_TRUE(y_face_moved);
+    test::expect_vjp_matches_differences(ffd, x);
+    l.fixed_border_axes = { 2 };
+    EXPECT_THROW(FreeFormDeformation(mesh.rest_positions, l, "design"), InputError);
+}

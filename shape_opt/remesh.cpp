@@ -1,0 +1,409 @@
+#include "shape_opt/remesh.hpp"
+
+#include "forward/common/error.hpp"
+#include "forward/scene/json_field.hpp"
+#include "forward/scene/json_input.hpp"
+#include "shape_opt/parametrization/map_json.hpp"
+#include "shape_opt/reduced_functional.hpp"
+
+#include <fcntl.h>
+#include <signal.h>
+#include <spawn.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <atomic>
+#include <cerrno>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <iomanip>
+#include <map>
+#include <thread>
+
+extern char** environ;
+
+namespace fs = std::filesystem;
+
+namespace diffipc {
+
+RemeshSettings parse_remesh_settings(const JsonField& f)
+{
+    f.require_object({ "quality", "size", "max", "surface" });
+    RemeshSettings s;
+    s.quality = f["quality"].number();
+    if (!(s.quality > 0 && s.quality < 1))
+        f["quality"].fail("must lie in (0, 1): the worst element's mean ratio below which the mesh is renewed");
+    if (f.has("size"))
+        s.size = f["size"].positive();
+    if (f.has("max"))
+        s.max_remeshes = f["max"].integer(0);
+    if (f.has("surface")) {
+        const std::string surface = f["surface"].string();
+        if (surface != "remesh" && surface != "keep")
+            f["surface"].fail("expected \"remesh\" or \"keep\", got '" + surface + "'");
+        s.remesh_surface = surface == "remesh";
+    }
+    return s;
+}
+
+namespace {
+
+    std::string find_vertices(const nlohmann::json& j, const std::string& path)
+    {
+        if (j.is_object()) {
+            for (const auto& [key, value] : j.items()) {
+                const std::string here = path.empty() ? key : path + "." + key;
+                if (key == "vertices" && value.is_array())
+                    return here;
+                if (std::string found = find_vertices(value, here); !found.empty())
+                    return found;
+            }
+        } else if (j.is_array())
+            for (size_t i = 0; i < j.size(); ++i)
+                if (std::string found = find_vertices(j[i], path + "[" + std::to_string(i) + "]"); !found.empty())
+                    return found;
+        return "";
+    }
+
+} // namespace
+
+std::string vertex_selection(const nlohmann::json& problem)
+{
+    for (const char* key : { "objective", "constraints", "parameters" })
+        if (problem.contains(key))
+            if (std::string found = find_vertices(problem[key], key); !found.empty())
+                return found;
+    if (problem.contains("scenes") && problem["scenes"].is_array())
+        for (size_t i = 0; i < problem["scenes"].size(); ++i)
+            if (problem["scenes"][i].is_object() && problem["scenes"][i].contains("objective"))
+                if (std::string found
+                    = find_vertices(problem["scenes"][i]["objective"], "scenes[" + std::to_string(i) + "].objective");
+                    !found.empty())
+                    return found;
+    return "";
+}
+
+double element_quality(const Positions& x, const MatrixXi& elements, Index e)
+{
+    const int n = int(elements.cols());
+    double edges = 0;
+    for (int a = 0; a < n; ++a)
+        for (int b = a + 1; b < n; ++b)
+            edges += (x.row(elements(e, a)) - x.row(elements(e, b))).squaredNorm();
+    if (!(edges > 0))
+        return 0;
+    const double size = std::max(0.0, signed_volume(x, elements, e));
+    if (n == 3)
+        return 4 * std::sqrt(3.0) * size / edges;
+    return 12 * std::pow(3 * size, 2.0 / 3.0) / edges;
+}
+
+double min_quality(const Positions& x, const MatrixXi& elements)
+{
+    double q = 1;
+    for (Index e = 0; e < elements.rows(); ++e)
+        q = std::min(q, element_quality(x, elements, e));
+    return q;
+}
+
+double mean_edge_length(const Positions& x, const MatrixXi& elements)
+{
+    double sum = 0;
+    Index count = 0;
+    for (Index e = 0; e < elements.rows(); ++e)
+        for (Index a = 0; a < elements.cols(); ++a)
+            for (Index b = a + 1; b < elements.cols(); ++b, ++count)
+                sum += (x.row(elements(e, a)) - x.row(elements(e, b))).norm();
+    return count > 0 ? sum / double(count) : 0.0;
+}
+
+namespace {
+
+    /// The remesher program: $DIFFIPC_GMSH_REMESHER, else the one built with this library.
+    std::string remesher_path()
+    {
+        const char* from_environment = std::getenv("DIFFIPC_GMSH_REMESHER");
+        return from_environment && *from_environment ? from_environment : DIFFIPC_GMSH_REMESHER;
+    }
+
+    /// The last line of `path` that holds "Error" (gmsh's message before it ended), or "".
+    std::string last_error_line(const std::string& path)
+    {
+        std::ifstream in(path);
+        std::string line, found;
+        while (std::getline(in, line))
+            if (line.find("Error") != std::string::npos)
+                found = line;
+        return found;
+    }
+
+    /// Runs the remesher on IN, OUT with its output in LOG; kills it after `seconds`.
+    void run_remesher(const std::string& in, const std::string& out, const std::string& log, double seconds)
+    {
+        const std::string program = remesher_path();
+        posix_spawn_file_actions_t actions;
+        posix_spawn_file_actions_init(&actions);
+        posix_spawn_file_actions_addopen(&actions, 1, log.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+        posix_spawn_file_actions_adddup2(&actions, 1, 2);
+        std::vector<char*> args { const_cast<char*>(program.c_str()), const_cast<char*>(in.c_str()),
+            const_cast<char*>(out.c_str()), nullptr };
+        pid_t pid = 0;
+        const int spawned = posix_spawn(&pid, program.c_str(), &actions, nullptr, args.data(), environ);
+        posix_spawn_file_actions_destroy(&actions);
+        if (spawned != 0)
+            throw RemeshError("cannot run the remesher '" + program + "' (" + std::strerror(spawned)
+                + "); set DIFFIPC_GMSH_REMESHER to diffipc-gmsh-remesh of the build");
+        const auto start = std::chrono::steady_clock::now();
+        int status = 0;
+        while (true) {
+            const pid_t done = waitpid(pid, &status, WNOHANG);
+            if (done == pid)
+                break;
+            if (done < 0 && errno != EINTR)
+                throw RemeshError("lost the remesher process");
+            if (std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count() > seconds) {
+                kill(pid, SIGKILL);
+                waitpid(pid, &status, 0);
+                throw RemeshError("gmsh did not finish within " + std::to_string(int(seconds)) + " s");
+            }
+            std::this_thread::sleep_for(std::chrono::milliseconds(2));
+        }
+        if (WIFSIGNALED(status)) {
+            const std::string gmsh = last_error_line(log);
+            throw RemeshError("gmsh ended with signal " + std::to_string(WTERMSIG(status))
+                + (gmsh.empty() ? std::string() : " (" + gmsh + ")"));
+        }
+    }
+
+} // namespace
+
+Mesh remesh_domain(const Positions& x, const MatrixXi& boundary, int dim, double size, bool remesh_surface)
+{
+    if (!(size > 0) || !std::isfinite(size))
+        throw RemeshError("the target size must be positive");
+    if (boundary.rows() == 0 || boundary.cols() != dim || x.cols() != dim)
+        throw RemeshError("no boundary to mesh");
+    // Row-major copies for the module's plain arrays.
+    std::vector<double> points(size_t(x.rows()) * size_t(dim));
+    for (Index v = 0; v < x.rows(); ++v)
+        for (int a = 0; a < dim; ++a)
+            points[size_t(v * dim + a)] = x(v, a);
+    std::vector<int> facets(size_t(boundary.rows()) * size_t(dim));
+    for (Index f = 0; f < boundary.rows(); ++f)
+        for (int a = 0; a < dim; ++a)
+            facets[size_t(f * dim + a)] = boundary(f, a);
+    // The remesher's files, unique per process and call.
+    static std::atomic<int> calls { 0 };
+    const std::string stem
+        = (fs::temp_directory_path() / ("diffipc_remesh_" + std::to_string(::getpid()) + "_" + std::to_string(calls++)))
+              .string();
+    const std::string in_path = stem + "_in.txt", out_path = stem + "_out.txt", log_path = stem + "_log.txt";
+    {
+        std::ofstream in(in_path);
+        in << std::setprecision(17) << dim << " " << size << " " << (remesh_surface ? 1 : 0) << " " << x.rows() << " "
+           << boundary.rows() << "\n";
+        for (Index v = 0; v < x.rows(); ++v)
+            for (int a = 0; a < dim; ++a)
+                in << x(v, a) << (a + 1 < dim ? " " : "\n");
+        for (Index f = 0; f < boundary.rows(); ++f)
+            for (int a = 0; a < dim; ++a)
+                in << boundary(f, a) << (a + 1 < dim ? " " : "\n");
+        if (!in)
+            throw RemeshError("cannot write " + in_path);
+    }
+    std::vector<double> new_points;
+    std::vector<int> new_elements;
+    std::string failure;
+    try {
+        run_remesher(in_path, out_path, log_path, 600);
+        std::ifstream out(out_path);
+        std::string word;
+        out >> word;
+        if (word == "error") {
+            std::getline(out, failure);
+            failure = failure.empty() ? "gmsh failed" : failure.substr(1);
+        } else if (word == "ok") {
+            size_t np = 0, ne = 0;
+            out >> np >> ne;
+            new_points.resize(np * size_t(dim));
+            new_elements.resize(ne * size_t(dim + 1));
+            for (double& v : new_points)
+                out >> v;
+            for (int& v : new_elements)
+                out >> v;
+            if (!out || np == 0 || ne == 0)
+                failure = "the remesher's output is incomplete";
+            for (int v : new_elements)
+                if (v < 0 || size_t(v) >= np)
+                    failure = "the remesher returned an element with an unknown vertex";
+        } else
+            failure = "the remesher wrote no result";
+    } catch (const RemeshError& e) {
+        failure = e.what();
+    }
+    for (const std::string& path : { in_path, out_path, log_path })
+        std::remove(path.c_str());
+    if (!failure.empty())
+        throw RemeshError(failure);
+    Mesh mesh;
+    mesh.dim = dim;
+    const Index nv = Index(new_points.size()) / dim, ne = Index(new_elements.size()) / (dim + 1);
+    mesh.rest_positions.resize(nv, dim);
+    for (Index v = 0; v < nv; ++v)
+        for (int a = 0; a < dim; ++a)
+            mesh.rest_positions(v, a) = new_points[size_t(v * dim + a)];
+    mesh.elements.resize(ne, dim + 1);
+    for (Index e = 0; e < ne; ++e)
+        for (int a = 0; a <= dim; ++a)
+            mesh.elements(e, a) = new_elements[size_t(e * (dim + 1) + a)];
+    for (Index e = 0; e < ne; ++e)
+        if (signed_volume(mesh.rest_positions, mesh.elements, e) < 0)
+            std::swap(mesh.elements(e, 0), mesh.elements(e, 1));
+    mesh.vertex_body = VectorXi::Zero(nv);
+    mesh.element_body = VectorXi::Zero(ne);
+    compute_boundary(mesh);
+    return mesh;
+}
+
+void write_gmsh(const std::string& path, const Mesh& mesh)
+{
+    FILE* out = std::fopen(path.c_str(), "w");
+    if (!out)
+        throw InputError(path, "cannot write");
+    const int d = mesh.dim;
+    std::fprintf(out, "$MeshFormat\n2.2 0 8\n$EndMeshFormat\n$Nodes\n%ld\n", long(mesh.rest_positions.rows()));
+    for (Index v = 0; v < mesh.rest_positions.rows(); ++v)
+        std::fprintf(out, "%ld %.17g %.17g %.17g\n", long(v + 1), mesh.rest_positions(v, 0), mesh.rest_positions(v, 1),
+            d == 3 ? mesh.rest_positions(v, 2) : 0.0);
+    std::fprintf(out, "$EndNodes\n$Elements\n%ld\n", long(mesh.elements.rows()));
+    for (Index e = 0; e < mesh.elements.rows(); ++e) {
+        std::fprintf(out, "%ld %d 2 1 1", long(e + 1), d == 2 ? 2 : 4);
+        for (Index a = 0; a < mesh.elements.cols(); ++a)
+            std::fprintf(out, " %d", mesh.elements(e, a) + 1);
+        std::fprintf(out, "\n");
+    }
+    std::fprintf(out, "$EndElements\n");
+    const bool ok = std::ferror(out) == 0;
+    if (std::fclose(out) != 0 || !ok)
+        throw InputError(path, "cannot write");
+}
+
+namespace {
+
+    void absolute_mesh_paths(nlohmann::json& scene, const fs::path& base)
+    {
+        for (const char* list : { "bodies", "obstacles" })
+            if (scene.contains(list) && scene[list].is_array())
+                for (auto& item : scene[list])
+                    if (item.is_object() && item.contains("mesh") && item["mesh"].is_object()
+                        && item["mesh"].contains("file") && item["mesh"]["file"].is_string()) {
+                        const fs::path file = item["mesh"]["file"].get<std::string>();
+                        if (file.is_relative())
+                            item["mesh"]["file"] = fs::absolute(base / file).lexically_normal().string();
+                    }
+    }
+
+    /// Every load case's scene object of a problem document.
+    std::vector<nlohmann::json*> case_scenes(nlohmann::json& doc)
+    {
+        std::vector<nlohmann::json*> scenes;
+        if (doc.contains("scenes"))
+            for (auto& c : doc["scenes"])
+                scenes.push_back(&c["scene"]);
+        else
+            scenes.push_back(&doc["scene"]);
+        return scenes;
+    }
+
+} // namespace
+
+nlohmann::json self_contained_document(const ReducedFunctional& functional)
+{
+    nlohmann::json doc = functional.document();
+    const fs::path base = functional.base_directory().empty() ? fs::path(".") : fs::path(functional.base_directory());
+    for (nlohmann::json* scene : case_scenes(doc)) {
+        if (scene->is_string()) {
+            const fs::path file = base / scene->get<std::string>();
+            nlohmann::json inlined = parse_json_text(read_input_file(file.string(), "scene file"), file.string());
+            absolute_mesh_paths(inlined, file.parent_path().empty() ? fs::path(".") : file.parent_path());
+            *scene = std::move(inlined);
+        } else
+            absolute_mesh_paths(*scene, base);
+    }
+    return doc;
+}
+
+nlohmann::json remeshed_document(const ReducedFunctional& functional, const VectorXd& x, double size,
+    const std::string& directory, int count, RemeshRecord& record)
+{
+    const Scene& scene = functional.scene();
+    const int d = scene.dim;
+    const Mesh bodies = bodies_mesh(scene);
+    Positions current(bodies.rest_positions.rows(), d);
+    {
+        const VectorXd X = functional.rest_positions_of(functional.parameters_of(x));
+        for (Index v = 0; v < current.rows(); ++v)
+            current.row(v) = X.segment(v * d, d).transpose();
+    }
+    record.quality_before = min_quality(current, bodies.elements);
+    record.elements_before = bodies.elements.rows();
+    record.elements_after = 0;
+    record.quality_after = 1;
+    record.files.clear();
+    nlohmann::json doc = self_contained_document(functional);
+    const int body_count = int(scene.bodies.size());
+    for (int b = 0; b < body_count; ++b) {
+        // The body's boundary facets in a local numbering of its vertices.
+        std::map<Index, Index> local;
+        std::vector<Index> global;
+        std::vector<Index> facets;
+        for (Index f = 0; f < bodies.boundary_facets.rows(); ++f) {
+            if (bodies.facet_body[f] != b)
+                continue;
+            for (int a = 0; a < d; ++a) {
+                const Index v = bodies.boundary_facets(f, a);
+                auto [it, inserted] = local.emplace(v, Index(global.size()));
+                if (inserted)
+                    global.push_back(v);
+                facets.push_back(it->second);
+            }
+        }
+        if (facets.empty())
+            throw RemeshError("body " + std::to_string(b) + " has no boundary");
+        Positions points(Index(global.size()), d);
+        for (size_t i = 0; i < global.size(); ++i)
+            points.row(Index(i)) = current.row(global[i]);
+        MatrixXi boundary(Index(facets.size()) / d, d);
+        for (Index f = 0; f < boundary.rows(); ++f)
+            for (int a = 0; a < d; ++a)
+                boundary(f, a) = int(facets[size_t(f * d + a)]);
+        Mesh fresh = remesh_domain(points, boundary, d, size, functional.remesh_settings().remesh_surface);
+        record.quality_after = std::min(record.quality_after, min_quality(fresh.rest_positions, fresh.elements));
+        record.elements_after += fresh.elements.rows();
+        // The rest mesh whose image under x is the new mesh.
+        try {
+            fresh.rest_positions = functional.pull_back_shape(x, fresh.rest_positions);
+        } catch (const std::runtime_error& e) {
+            throw RemeshError(e.what());
+        }
+        const std::string file
+            = (fs::path(directory) / ("remesh_" + std::to_string(count) + "_body" + std::to_string(b) + ".msh"))
+                  .string();
+        write_gmsh(file, fresh);
+        record.files.push_back(file);
+        for (nlohmann::json* s : case_scenes(doc)) {
+            nlohmann::json& body = (*s)["bodies"][size_t(b)];
+            body["mesh"] = { { "file", fs::absolute(file).lexically_normal().string() } };
+            body.erase("translation");
+            body.erase("rotation");
+        }
+    }
+    return doc;
+}
+
+} // namespace diffipc
