@@ -1,8 +1,8 @@
 // diffipc command-line interface: simulate, validate, bench.
 // Exit codes: 0 success, 1 bad input (one line naming the field or file),
 // 2 a simulation step failed (outputs of the committed steps are still written),
-// 3 internal error, 4 gradcheck: a direction failed, 130 / 143 simulate stopped by
-// SIGINT / SIGTERM (committed steps written, summary status INTERRUPTED).
+// 3 internal error, 4 gradcheck: a direction failed, 130 / 143 simulate or optimize stopped by
+// SIGINT / SIGTERM (committed steps or iterations written; simulate's summary status INTERRUPTED).
 
 #include "adjoint/adjoint.hpp"
 #include "cli/bench.hpp"
@@ -113,14 +113,26 @@ int main(int argc, char** argv)
     grad_cmd->add_option("--directions", directions, "random directions (default: the file's, else 2)")
         ->check(CLI::Range(1, 1 << 20));
 
-    std::string optimize_path, optimize_out;
-    bool optimize_quiet = false;
+    OptimizeOptions optimize_options;
     auto* opt_cmd = app.add_subcommand("optimize",
-        "Optimize a problem file's design (docs/optimization.md); writes history.csv, summary.json, designs.pvd "
-        "and optimal_problem.json");
-    opt_cmd->add_option("problem", optimize_path, "problem file (JSON) with an \"optimizer\"")->required();
-    opt_cmd->add_option("-o,--output", optimize_out, "output directory (default: the file's output.directory)");
-    opt_cmd->add_flag("-q,--quiet", optimize_quiet, "no progress output");
+        "Optimize a problem file's design (docs/optimization.md); writes history.h5, history.csv, summary.json, "
+        "designs.pvd and optimal_problem.json");
+    opt_cmd->add_option("problem", optimize_options.problem_path,
+        "problem file (JSON) with an \"optimizer\"; with --resume, default: the run's initial_problem.json");
+    auto* resume_option = opt_cmd->add_option("--resume", optimize_options.resume_dir,
+        "continue the stopped run in this output directory from the last iteration in its history.h5");
+    opt_cmd
+        ->add_option("-o,--output", optimize_options.out_dir, "output directory (default: the file's output.directory)")
+        ->excludes(resume_option);
+    opt_cmd
+        ->add_option("--max-iterations", optimize_options.max_iterations,
+            "iteration budget of the whole run, replacing the file's optimizer.max_iterations (0: none)")
+        ->check(CLI::Range(0, 1 << 30));
+    opt_cmd
+        ->add_option("--max-seconds", optimize_options.max_seconds,
+            "wall-time budget of the whole run, s, replacing the file's optimizer.max_seconds (0: none)")
+        ->check(CLI::Range(0.0, 1e12));
+    opt_cmd->add_flag("-q,--quiet", optimize_options.quiet, "no progress output");
 
     try {
         app.parse(argc, argv);
@@ -148,8 +160,11 @@ int main(int argc, char** argv)
             return simulate(scene_path, out_dir, vtu_every, quiet, restart_dir);
         if (*val_cmd)
             return validate(validate_path);
-        if (*opt_cmd)
-            return optimize(optimize_path, optimize_out, optimize_quiet);
+        if (*opt_cmd) {
+            if (optimize_options.problem_path.empty() && optimize_options.resume_dir.empty())
+                throw InputError("problem", "a problem file is required (or --resume DIR)");
+            return optimize(optimize_options);
+        }
         if (*bench_cmd)
             return run_bench(bench_options);
         if (*grad_cmd)

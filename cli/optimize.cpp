@@ -1,4 +1,4 @@
-// diffipc optimize: a problem file's optimization run with its outputs (docs/optimization.md).
+// diffipc optimize: a problem file's optimization run with its outputs, and its resume (docs/optimization.md).
 
 #include "cli/optimize.hpp"
 
@@ -10,6 +10,7 @@
 #include "forward/io/replace_file.hpp"
 #include "forward/io/vtu_writer.hpp"
 #include "shape_opt/design_problem.hpp"
+#include "shape_opt/optimization_history.hpp"
 #include "shape_opt/optimizer/optimizer_json.hpp"
 #include "shape_opt/reduced_functional.hpp"
 #include "shape_opt/remesh.hpp"
@@ -20,7 +21,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
-#include <sstream>
+#include <memory>
 
 namespace fs = std::filesystem;
 
@@ -79,22 +80,130 @@ namespace {
         return doc;
     }
 
-    std::string csv_number(double v)
+    /// Stop reasons after which a run is over: a resume has nothing to do.
+    bool converged(const std::string& reason)
     {
-        char text[32];
-        std::snprintf(text, sizeof text, "%.17g", v);
-        return text;
+        return reason == "gradient_tolerance" || reason == "x_tolerance" || reason == "f_tolerance";
+    }
+
+    /// Stop reasons from which a resume would start in the state that ended the run.
+    bool ended_by_optimizer(const std::string& reason)
+    {
+        return reason == "line_search_stalled" || reason == "infeasible" || reason == "invalid_start"
+            || reason == "failed";
+    }
+
+    std::string join(const std::vector<std::string>& names)
+    {
+        std::string text = "[";
+        for (size_t i = 0; i < names.size(); ++i)
+            text += (i ? ", \"" : "\"") + names[i] + "\"";
+        return text + "]";
+    }
+
+    /// What a resumed run takes over from the run in its directory.
+    struct Resume {
+        std::string directory;
+        StoredHistory history; ///< rows up to the state's iteration only
+        RunState state;
+        std::string summary_reason; ///< the last summary.json's stop_reason ("" without one)
+    };
+
+    /// @brief Reads the run in `directory`, checks that it can go on, and finds its problem.
+    /// @return false (after a message) when the run already converged: nothing to do
+    /// @throws InputError naming the file or field when it cannot be resumed
+    bool read_resume(Resume& r, std::string& problem_path)
+    {
+        const fs::path dir = r.directory;
+        std::error_code ec;
+        if (!fs::is_directory(dir, ec))
+            throw InputError(
+                r.directory, "no such directory (--resume takes the output directory of a run of diffipc optimize)");
+        const std::string history_path = (dir / "history.h5").string();
+        if (!fs::exists(history_path, ec))
+            throw InputError(history_path,
+                "missing: " + r.directory
+                    + " holds no optimization history to resume (not an output directory of "
+                      "diffipc optimize, or a run that was stopped before it started)");
+        const std::string summary_path = (dir / "summary.json").string();
+        if (fs::exists(summary_path, ec)) {
+            nlohmann::json summary;
+            try {
+                std::ifstream in(summary_path);
+                summary = nlohmann::json::parse(in);
+            } catch (const nlohmann::json::exception& e) {
+                throw InputError(summary_path, std::string("cannot be read: ") + e.what());
+            }
+            if (summary.contains("stop_reason") && summary["stop_reason"].is_string())
+                r.summary_reason = summary["stop_reason"].get<std::string>();
+            const std::string message = summary.value("message", std::string());
+            const int iterations = summary.value("iterations", -1);
+            if (converged(r.summary_reason)) {
+                std::printf("diffipc: the run in %s converged (stop_reason %s after %d iterations: %s); nothing to "
+                            "resume\n",
+                    r.directory.c_str(), r.summary_reason.c_str(), iterations, message.c_str());
+                return false;
+            }
+            if (ended_by_optimizer(r.summary_reason))
+                throw InputError(summary_path,
+                    "the run ended with stop_reason " + r.summary_reason + " (" + message
+                        + "): a resume would start from the state that ended it; start a new run from "
+                        + (dir / "optimal_problem.json").string() + " instead");
+        }
+        r.history = read_history(history_path);
+        const std::string state_path = (dir / "optimizer_state.h5").string();
+        if (!fs::exists(state_path, ec))
+            throw InputError(state_path, "missing: the run completed no iteration to continue from");
+        r.state = read_run_state(state_path);
+        const int k = r.state.checkpoint.iteration;
+        auto& rows = r.history.rows;
+        if (k < 0 || k >= int(rows.size()))
+            throw InputError(history_path,
+                "holds iterations 0 to " + std::to_string(int(rows.size()) - 1)
+                    + ", but optimizer_state.h5 is at iteration " + std::to_string(k)
+                    + ": the files do not belong together");
+        if (r.state.checkpoint.x.size() != r.history.header.design_size || rows[size_t(k)].x != r.state.checkpoint.x)
+            throw InputError(state_path,
+                "its x differs from history.h5's at iteration " + std::to_string(k)
+                    + ": the files do not belong together");
+        rows.resize(size_t(k) + 1); // rows after the state's iteration are done again
+        if (problem_path.empty()) {
+            // The problem on the newest mesh when the run remeshed, else as it started.
+            problem_path = (dir
+                / (fs::exists(dir / "current_problem.json", ec) ? "current_problem.json" : "initial_problem.json"))
+                               .string();
+            if (!fs::exists(problem_path, ec))
+                throw InputError(problem_path, "missing: give the problem file of the run");
+        }
+        return true;
     }
 
 } // namespace
 
-int optimize(const std::string& problem_path, std::string out_dir, bool quiet)
+int optimize(const OptimizeOptions& options)
 {
     const Timer wall;
+    std::string problem_path = options.problem_path, out_dir = options.out_dir;
+    std::unique_ptr<Resume> resume;
+    if (!options.resume_dir.empty()) {
+        if (!out_dir.empty() && fs::path(out_dir).lexically_normal() != fs::path(options.resume_dir).lexically_normal())
+            throw InputError("--resume", "continues the run in its own directory; leave -o out");
+        resume = std::make_unique<Resume>();
+        resume->directory = out_dir = options.resume_dir;
+        if (!read_resume(*resume, problem_path))
+            return 0;
+    }
+    if (problem_path.empty())
+        throw InputError("problem", "a problem file is required (or --resume DIR)");
+
     const ReducedFunctional rf = ReducedFunctional::load(problem_path);
     OptimizerSettings settings = parse_optimizer_settings(JsonField(rf.optimizer_spec(), "optimizer"));
     settings.lower = rf.design_lower();
     settings.upper = rf.design_upper();
+    if (options.max_iterations >= 0)
+        settings.max_iterations = options.max_iterations;
+    if (options.max_seconds >= 0)
+        settings.max_seconds = options.max_seconds;
     int design_every = 1;
     {
         const nlohmann::json& doc = rf.document();
@@ -109,24 +218,90 @@ int optimize(const std::string& problem_path, std::string out_dir, bool quiet)
     }
     if (out_dir.empty())
         out_dir = (fs::path("output") / fs::path(problem_path).stem()).string();
-    std::error_code ec;
-    fs::create_directories(out_dir, ec);
-    if (ec || !fs::is_directory(out_dir))
-        throw InputError(out_dir, "cannot create output directory");
 
-    DesignProblem problem(rf);
-    problem.set_remesh_directory(out_dir);
     const auto& constraints = rf.constraints();
-    const std::string history_path = (fs::path(out_dir) / "history.csv").string();
-    std::ofstream history(history_path);
-    if (!history)
-        throw InputError(history_path, "cannot write");
-    history << "iteration,J";
+    HistoryHeader header;
+    header.problem = fs::absolute(problem_path).lexically_normal().string();
+    header.algorithm = to_string(settings.algorithm);
+    header.design_size = rf.design_size();
     for (const ConstraintSpec& c : constraints)
-        history << "," << c.name;
-    history << ",gradient_norm,step_norm,evaluations,rejected,evaluation_seconds,optimizer_seconds,wall_seconds\n";
+        header.constraint_names.push_back(c.name);
+
+    const fs::path dir = out_dir;
+    const std::string state_path = (dir / "optimizer_state.h5").string();
+    std::error_code ec;
+    if (resume) {
+        // The problem must be the run's: the same design variables and constraints (its
+        // settings may differ: a larger budget, other tolerances).
+        const HistoryHeader& stored = resume->history.header;
+        if (header.design_size != stored.design_size)
+            throw InputError(problem_path,
+                "has " + std::to_string(header.design_size) + " design variables, the run in " + out_dir + " "
+                    + std::to_string(stored.design_size) + ": not the problem of that run");
+        if (header.constraint_names != stored.constraint_names)
+            throw InputError(problem_path,
+                "has the constraints " + join(header.constraint_names) + ", the run in " + out_dir + " "
+                    + join(stored.constraint_names) + ": not the problem of that run");
+        if (settings.algorithm != resume->state.checkpoint.algorithm)
+            throw InputError("optimizer.algorithm",
+                "\"" + header.algorithm + "\" cannot continue the run in " + out_dir + " of \""
+                    + to_string(resume->state.checkpoint.algorithm)
+                    + "\" (start a new run from its optimal_problem.json instead)");
+        const OptimizerCheckpoint& c = resume->state.checkpoint;
+        if (settings.max_iterations > 0 && c.iteration >= settings.max_iterations)
+            throw InputError("optimizer.max_iterations",
+                "the run in " + out_dir + " has done " + std::to_string(c.iteration) + " iterations of its budget of "
+                    + std::to_string(settings.max_iterations)
+                    + ": raise it (--max-iterations N, or optimizer.max_iterations in " + problem_path + ") to go on");
+        if (settings.max_seconds > 0 && c.elapsed_seconds >= settings.max_seconds)
+            throw InputError("optimizer.max_seconds",
+                "the run in " + out_dir + " has run " + format_number(c.elapsed_seconds) + " s of its budget of "
+                    + format_number(settings.max_seconds)
+                    + " s: raise it (--max-seconds S, or optimizer.max_seconds in " + problem_path + ") to go on");
+        header.problem = stored.problem; // the run's, not the file it is resumed with
+    } else {
+        fs::create_directories(dir, ec);
+        if (ec || !fs::is_directory(dir))
+            throw InputError(out_dir, "cannot create output directory");
+        // What an earlier run in the directory left would describe another run.
+        for (const char* stale : { "summary.json", "optimizer_state.h5", "current_problem.json" })
+            fs::remove(dir / stale, ec);
+        // The problem as started, for a resume: written unless it is the file being run.
+        const fs::path copy = dir / "initial_problem.json";
+        if (!(fs::exists(copy, ec) && fs::equivalent(copy, problem_path, ec)))
+            write_json(copy.string(), self_contained_document(rf));
+    }
+
+    DesignProblem design_problem(rf);
+    design_problem.set_remesh_directory(out_dir);
+    if (resume)
+        design_problem.set_objective_scale(resume->state.objective_scale);
+    const auto objective_scale = [&]() { return design_problem.objective_scale(); };
+    const auto last_rejection = [&]() {
+        return design_problem.last_rejection().empty() && resume ? resume->state.last_rejection
+                                                                 : design_problem.last_rejection();
+    };
+
+    // A resumed run's outputs start with what the stopped run did up to the state's iteration.
+    const double wall_before = resume ? resume->history.rows.back().wall_seconds : 0.0;
+    HistoryWriter history(out_dir, header, resume ? resume->history.rows : std::vector<HistoryRow>());
     std::vector<PvdEntry> designs;
-    if (!quiet) {
+    double initial_value = std::nan("");
+    if (resume) {
+        initial_value = resume->history.rows.front().J;
+        for (const HistoryRow& row : resume->history.rows) {
+            const std::string name = "design_" + std::to_string(row.iteration) + ".vtu";
+            if (fs::exists(dir / name, ec))
+                designs.push_back({ double(row.iteration), 0, name });
+        }
+        if (!designs.empty())
+            write_pvd((dir / "designs.pvd").string(), designs);
+    }
+
+    if (!options.quiet) {
+        if (resume)
+            std::printf("diffipc: resuming %s at iteration %d (J = %.6e)\n", out_dir.c_str(),
+                resume->state.checkpoint.iteration, resume->history.rows.back().J);
         std::printf("diffipc: %s: %ld design variables, %zu constraints, %s\n", problem_path.c_str(),
             long(rf.design_size()), constraints.size(), to_string(settings.algorithm).c_str());
         std::printf("  %4s  %-13s", "iter", "J");
@@ -134,38 +309,49 @@ int optimize(const std::string& problem_path, std::string out_dir, bool quiet)
             std::printf("  %-12.12s", c.name.c_str());
         std::printf("  %-9s  %-9s  %4s  %8s  %8s\n", "|grad|", "step", "rej", "eval s", "opt s");
     }
-    double initial_value = std::nan("");
-    problem.on_iteration = [&](const IterationInfo& info) {
-        const double J = info.values->f * problem.objective_scale();
+    design_problem.on_iteration = [&](const IterationInfo& info) {
+        HistoryRow row;
+        row.iteration = info.iteration;
+        row.x = *info.x;
+        row.J = info.values->f * objective_scale();
         if (info.iteration == 0)
-            initial_value = J;
-        history << info.iteration << "," << csv_number(J);
-        const VectorXd& g = problem.last_constraint_values();
+            initial_value = row.J;
+        const VectorXd& g = design_problem.last_constraint_values();
+        row.constraints.resize(Index(constraints.size()));
         for (size_t i = 0; i < constraints.size(); ++i)
-            history << "," << csv_number(Index(i) < g.size() ? g[Index(i)] : std::nan(""));
-        history << "," << csv_number(info.gradient_norm) << "," << csv_number(info.step_norm) << "," << info.evaluations
-                << "," << info.rejected << "," << csv_number(info.evaluation_seconds) << ","
-                << csv_number(info.optimizer_seconds) << "," << csv_number(wall.seconds()) << "\n";
-        history.flush();
-        if (!quiet) {
-            std::printf("  %4d  %-13.6e", info.iteration, J);
-            for (size_t i = 0; i < constraints.size(); ++i)
-                std::printf("  %-12.5e", Index(i) < g.size() ? g[Index(i)] : std::nan(""));
+            row.constraints[Index(i)] = Index(i) < g.size() ? g[Index(i)] : std::nan("");
+        row.gradient_norm = info.gradient_norm;
+        row.step_norm = info.step_norm;
+        row.evaluations = info.evaluations;
+        row.rejected = info.rejected;
+        row.evaluation_seconds = info.evaluation_seconds;
+        row.optimizer_seconds = info.optimizer_seconds;
+        row.wall_seconds = wall_before + wall.seconds();
+        // The row first, then the state: a run killed in between resumes from the iteration before.
+        history.append(row);
+        if (info.checkpoint)
+            write_run_state(state_path, { *info.checkpoint, objective_scale(), last_rejection() });
+        if (!options.quiet) {
+            std::printf("  %4d  %-13.6e", info.iteration, row.J);
+            for (Index i = 0; i < row.constraints.size(); ++i)
+                std::printf("  %-12.5e", row.constraints[i]);
             std::printf("  %-9.2e  %-9.2e  %4d  %8.2f  %8.3f\n", info.gradient_norm, info.step_norm, info.rejected,
                 info.evaluation_seconds, info.optimizer_seconds);
             std::fflush(stdout);
         }
         if (design_every > 0 && info.iteration % design_every == 0) {
             const std::string name = "design_" + std::to_string(info.iteration) + ".vtu";
-            const ReducedFunctional& now = problem.functional();
-            write_design_vtu((fs::path(out_dir) / name).string(), now, now.parameters_of(*info.x));
+            const ReducedFunctional& now = design_problem.functional();
+            write_design_vtu((dir / name).string(), now, now.parameters_of(*info.x));
             designs.push_back({ double(info.iteration), 0, name });
-            write_pvd((fs::path(out_dir) / "designs.pvd").string(), designs);
+            write_pvd((dir / "designs.pvd").string(), designs);
         }
         return stop_signal() == 0;
     };
-    problem.on_remesh = [&](const RemeshRecord& r) {
-        if (!quiet) {
+    design_problem.on_remesh = [&](const RemeshRecord& r) {
+        // The problem on the new mesh, for a resume (read_resume prefers it).
+        write_json((dir / "current_problem.json").string(), self_contained_document(design_problem.functional()));
+        if (!options.quiet) {
             std::printf("  remeshed after iteration %d: quality %.3f -> %.3f, %ld -> %ld elements, J %.6e -> %.6e "
                         "(%.2f s)\n",
                 r.iteration, r.quality_before, r.quality_after, long(r.elements_before), long(r.elements_after),
@@ -175,34 +361,37 @@ int optimize(const std::string& problem_path, std::string out_dir, bool quiet)
     };
 
     catch_stop_signals(); // the run stops after the current iteration
-    const OptimizerResult result = minimize(problem, rf.design_initial(), settings);
+    const OptimizerResult result
+        = minimize_design(design_problem, rf.design_initial(), settings, resume ? &resume->state.checkpoint : nullptr);
     const int stopped_by = release_stop_signals();
     history.close();
 
     nlohmann::json summary;
-    summary["problem"] = problem_path;
+    summary["problem"] = header.problem;
     summary["algorithm"] = to_string(settings.algorithm);
     summary["stop_reason"] = to_string(result.reason);
     summary["message"] = result.message;
     summary["iterations"] = result.iterations;
     summary["evaluations"] = result.evaluations;
     summary["rejected"] = result.rejected;
-    if (!problem.last_rejection().empty())
-        summary["last_rejection"] = problem.last_rejection();
+    if (!last_rejection().empty())
+        summary["last_rejection"] = last_rejection();
+    if (resume)
+        summary["resumed_at_iteration"] = resume->state.checkpoint.iteration;
     if (std::isfinite(initial_value))
         summary["initial_J"] = initial_value;
     const bool have_point = result.x.size() == rf.design_size() && result.values.gradient.size() > 0;
     if (have_point) {
-        summary["final_J"] = result.values.f * problem.objective_scale();
+        summary["final_J"] = result.values.f * objective_scale();
         summary["max_violation"] = result.max_violation;
         summary["design"] = std::vector<double>(result.x.data(), result.x.data() + result.x.size());
-        const ReducedFunctional& now = problem.functional();
-        write_json((fs::path(out_dir) / "optimal_problem.json").string(), optimal_problem(now, result.x));
-        write_design_vtu((fs::path(out_dir) / "design_final.vtu").string(), now, now.parameters_of(result.x));
+        const ReducedFunctional& now = design_problem.functional();
+        write_json((dir / "optimal_problem.json").string(), optimal_problem(now, result.x));
+        write_design_vtu((dir / "design_final.vtu").string(), now, now.parameters_of(result.x));
     }
     if (rf.remesh_settings().enabled()) {
         nlohmann::json list = nlohmann::json::array();
-        for (const RemeshRecord& r : problem.remeshes())
+        for (const RemeshRecord& r : design_problem.remeshes())
             list.push_back({ { "iteration", r.iteration }, { "quality_before", r.quality_before },
                 { "quality_after", r.quality_after }, { "elements_before", r.elements_before },
                 { "elements_after", r.elements_after }, { "J_before", r.J_before }, { "J_after", r.J_after },
@@ -214,22 +403,23 @@ int optimize(const std::string& problem_path, std::string out_dir, bool quiet)
                         r.constraints_after.data(), r.constraints_after.data() + r.constraints_after.size()) },
                 { "files", r.files }, { "seconds", r.seconds } });
         summary["remeshes"] = list;
-        if (!problem.remesh_failure().empty())
-            summary["remesh_failure"] = problem.remesh_failure();
+        if (!design_problem.remesh_failure().empty())
+            summary["remesh_failure"] = design_problem.remesh_failure();
     }
-    summary["wall_time"] = { { "total", wall.seconds() }, { "evaluation", result.evaluation_seconds },
+    const double total_seconds = wall_before + wall.seconds();
+    summary["wall_time"] = { { "total", total_seconds }, { "evaluation", result.evaluation_seconds },
         { "optimizer", result.optimizer_seconds } };
-    write_json((fs::path(out_dir) / "summary.json").string(), summary);
+    write_json((dir / "summary.json").string(), summary);
 
-    if (!quiet)
+    if (!options.quiet)
         std::printf("diffipc: %s after %d iterations (%d evaluations, %d rejected): J %.6e -> %.6e; wrote %s\n",
             to_string(result.reason).c_str(), result.iterations, result.evaluations, result.rejected, initial_value,
-            have_point ? result.values.f * problem.objective_scale() : std::nan(""), out_dir.c_str());
+            have_point ? result.values.f * objective_scale() : std::nan(""), out_dir.c_str());
     if (stopped_by != 0)
         return interrupted_exit_code(stopped_by);
     if (result.reason == StopReason::INVALID_START || result.reason == StopReason::FAILED) {
         std::fprintf(stderr, "diffipc: %s: %s%s\n", to_string(result.reason).c_str(), result.message.c_str(),
-            problem.last_rejection().empty() ? "" : (" (" + problem.last_rejection() + ")").c_str());
+            last_rejection().empty() ? "" : (" (" + last_rejection() + ")").c_str());
         return 2;
     }
     return 0;

@@ -114,8 +114,10 @@ double DesignProblem::max_valid_step(const VectorXd& x, const VectorXd& dx)
 bool DesignProblem::iteration(const IterationInfo& info)
 {
     const bool go_on = on_iteration ? on_iteration(info) : true;
-    if (go_on && info.x)
-        remesh_if_needed(*info.x, info.iteration);
+    if (go_on && info.x && remesh_if_needed(*info.x, info.iteration) && info.checkpoint) {
+        m_restart = std::make_unique<OptimizerCheckpoint>(*info.checkpoint);
+        return false; // minimize_design() goes on with the values on the new mesh
+    }
     return go_on;
 }
 
@@ -185,6 +187,40 @@ bool DesignProblem::remesh_if_needed(const VectorXd& x, int iteration, bool forc
     if (on_remesh)
         on_remesh(m_remeshes.back());
     return true;
+}
+
+} // namespace diffipc
+
+namespace diffipc {
+
+OptimizerResult minimize_design(
+    DesignProblem& problem, const VectorXd& x0, const OptimizerSettings& settings, const OptimizerCheckpoint* resume)
+{
+    OptimizerResult result = resume ? resume_minimize(problem, *resume, settings) : minimize(problem, x0, settings);
+    while (problem.restart_pending()) {
+        std::unique_ptr<OptimizerCheckpoint> c = problem.take_restart();
+        const Timer timer;
+        OptimizationValues values;
+        const bool ok = problem.evaluate(c->x, values);
+        c->evaluations += 1;
+        c->evaluation_seconds += timer.seconds();
+        if (!ok) {
+            // The new mesh cannot be evaluated where the old one could: end the run with the
+            // old mesh's result (the remesh is in remeshes(), the reason in last_rejection()).
+            result.reason = StopReason::FAILED;
+            result.message
+                = "the problem on the new mesh cannot be evaluated at the remesh's design: " + problem.last_rejection();
+            break;
+        }
+        c->values = values;
+        c->previous_f = std::nan(""); // f on the old mesh does not compare with the new
+        if (c->has_best) { // the remesh's iterate stands in for the best point: values on the old mesh do not compare
+            c->best_x = c->x;
+            c->best_values = values;
+        }
+        result = resume_minimize(problem, *c, settings);
+    }
+    return result;
 }
 
 } // namespace diffipc

@@ -68,6 +68,14 @@ public:
     int rejections() const { return m_rejections; }
     /// J = objective_scale() * f (1 until the first successful evaluation).
     double objective_scale() const { return m_objective_scale > 0 ? m_objective_scale : 1.0; }
+    /// Fixes the scale (a resumed run keeps its first run's |J(x0)|).
+    void set_objective_scale(double scale) { m_objective_scale = scale; }
+
+    /// After a remesh iteration() stops the optimizer (its stored values belong to the old
+    /// mesh); minimize_design() continues the run from this checkpoint with the values on the
+    /// new mesh.
+    bool restart_pending() const { return m_restart != nullptr; }
+    std::unique_ptr<OptimizerCheckpoint> take_restart() { return std::move(m_restart); }
 
     /// @brief Remeshes at the accepted design x if the problem's "remesh" settings ask for it
     /// (worst quality below the threshold, remeshes left); iteration() calls it after
@@ -86,6 +94,7 @@ private:
     std::string m_remesh_failure;
     double m_remesh_size = 0;
     double m_remesh_trigger = 0; ///< remesh below this worst quality (remesh.hpp)
+    std::unique_ptr<OptimizerCheckpoint> m_restart;
     std::unique_ptr<RestValidity> m_validity; ///< with a shape entry
     std::vector<size_t> m_inequality, m_equality;
     VectorXd m_scale; ///< per constraint: |bound|, or 1
@@ -95,5 +104,13 @@ private:
     int m_rejections = 0;
     double m_objective_scale = 0;
 };
+
+/// @brief minimize() (or resume_minimize() from `resume`) of a design problem, continued
+/// across remeshes: after each, the run goes on from the remesh's iterate with J, the
+/// constraints and the gradients evaluated on the new mesh (one evaluation, counted), its
+/// iteration numbers, counts, budgets and (L-BFGS-B) correction pairs kept; the best point
+/// so far becomes the remesh's iterate (values on the old mesh do not compare with the new).
+OptimizerResult minimize_design(DesignProblem& problem, const VectorXd& x0, const OptimizerSettings& settings,
+    const OptimizerCheckpoint* resume = nullptr);
 
 } // namespace diffipc

@@ -177,6 +177,7 @@ namespace {
         {
             m_cache.push_back({ x0, true, values0 });
             m_gradient_x = x0;
+            m_rejected_before = run.rejected();
         }
 
         bool get_nlp_info(
@@ -296,11 +297,16 @@ namespace {
             m_previous_f = e->values.f;
             m_previous_feasible = feasible;
             m_has_previous = true;
+            // A resumed run's iteration 0 is the iterate it continues from (moved into the
+            // interior by Ipopt's bound_push where it sat on a bound), reported already.
+            const int number = m_run.first_iteration() + int(iter);
+            if (iter == 0 && m_run.resumed())
+                return true;
             ++m_reported;
             try {
-                if (!m_run.iteration(int(iter), e->x, e->values, inf_du, step_norm))
+                if (!m_run.iteration(number, e->x, e->values, inf_du, step_norm))
                     return stop(StopReason::USER_STOP,
-                        "stopped by the iteration callback at iteration " + std::to_string(iter));
+                        "stopped by the iteration callback at iteration " + std::to_string(number));
             } catch (...) {
                 m_exception = std::current_exception();
                 return false;
@@ -406,18 +412,21 @@ namespace {
         double m_previous_f = 0;
     };
 
-    /// Our defaults, then settings.options over them.
-    void set_options(Ipopt::IpoptApplication& app, const OptimizerSettings& settings, double tol)
+    /// Our defaults, then settings.options over them. A resumed run has the budgets' rest:
+    /// max_iterations less the iterations done, max_seconds less the time spent.
+    void set_options(Ipopt::IpoptApplication& app, const optimizer_detail::Run& run, double tol)
     {
+        const OptimizerSettings& settings = run.settings();
         Ipopt::OptionsList& options = *app.Options();
         options.SetStringValue("hessian_approximation", "limited-memory");
         options.SetIntegerValue("limited_memory_max_history", settings.lbfgs_memory);
         if (tol > 0)
             options.SetNumericValue("tol", tol);
         options.SetNumericValue("constr_viol_tol", std::max(settings.constraint_tolerance, 1e-14));
-        options.SetIntegerValue("max_iter", settings.max_iterations > 0 ? settings.max_iterations : INT_MAX);
+        options.SetIntegerValue("max_iter",
+            settings.max_iterations > 0 ? std::max(0, settings.max_iterations - run.first_iteration()) : INT_MAX);
         if (settings.max_seconds > 0)
-            options.SetNumericValue("max_cpu_time", settings.max_seconds);
+            options.SetNumericValue("max_cpu_time", std::max(run.remaining_seconds(), 1e-3));
         // Every trial point inside the bounds the user gave (a design outside them may be invalid).
         options.SetNumericValue("bound_relax_factor", 0.0);
         options.SetIntegerValue("print_level", 0);
@@ -438,12 +447,11 @@ void check_ipopt_options(const OptimizerSettings& settings)
 OptimizerResult minimize_ipopt(optimizer_detail::Run& run, const VectorXd& x0, const OptimizationValues& values0)
 {
     const OptimizerSettings& settings = run.settings();
-    const double gradient_norm0
-        = optimizer_detail::projected_gradient_norm(x0, values0.gradient, run.lower(), run.upper());
+    const double gradient_norm0 = run.initial_gradient_norm(); // the run's start, also when resumed
     const double tol = std::max(settings.gradient_tolerance, settings.relative_gradient_tolerance * gradient_norm0);
 
     Ipopt::SmartPtr<Ipopt::IpoptApplication> app = make_application();
-    set_options(*app, settings, tol);
+    set_options(*app, run, tol);
     IpIndex print_level = 0;
     app->Options()->GetIntegerValue("print_level", print_level, "");
     if (print_level > 0) // the console journal, created only on request (Initialize sets its level)
@@ -470,6 +478,7 @@ OptimizerResult minimize_ipopt(optimizer_detail::Run& run, const VectorXd& x0, c
     int iterations = nlp->m_iterations;
     if (Ipopt::IsValid(app->Statistics()))
         iterations = app->Statistics()->IterationCount();
+    iterations += run.first_iteration();
     if (nlp->m_stopped)
         return run.finish(
             nlp->m_stop_reason, "ipopt: " + nlp->m_stop_message + " (" + status_name(status) + ")", iterations);

@@ -15,6 +15,13 @@
 /// Ipopt asks for f, its gradient, c and h and their Jacobians separately: they come from one
 /// evaluate() per point (a small cache keyed by x). At an invalid point the eval_* calls
 /// return false and Ipopt cuts its step back; max_valid_step() is not used.
+///
+/// A resumed run (resume_minimize) starts Ipopt afresh at the checkpoint's x, with the values
+/// stored there (a warm start of x only: Ipopt's multipliers, barrier parameter and quasi-Newton
+/// memory start anew, so its iterates differ from an uninterrupted run's). Ipopt's iteration i
+/// is reported as the checkpoint's iteration + i (its iteration 0, the point resumed from, is
+/// not reported again); tol keeps the first run's initial gradient; max_iter and max_cpu_time
+/// are what is left of the budgets.
 
 #include "shape_opt/optimizer/optimizer.hpp"
 

@@ -4,7 +4,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <deque>
 #include <limits>
 #include <vector>
 
@@ -18,17 +17,13 @@ namespace {
     constexpr double ACTIVE_WIDTH = 1e-6; ///< relative distance to a bound that counts as "at" it
     constexpr int MAX_TRIALS = 40; ///< trial steps of one line search without progress
 
-    struct CorrectionPair {
-        VectorXd s, y; ///< x_{k+1} - x_k and g_{k+1} - g_k
-    };
-
     /// @brief The search direction: -H g on the free variables by the two-loop recursion over
     /// the pairs restricted to them, -gamma g on the active ones that can still move, 0 on those
     /// held by a bound.
     /// @param free    n: 1 for a free variable, 0 for an active one
     /// @param held    n: 1 where the variable sits on the bound its gradient pushes it through
     VectorXd search_direction(
-        const std::deque<CorrectionPair>& pairs, const VectorXd& gradient, const VectorXd& free, const VectorXd& held)
+        const std::vector<CorrectionPair>& pairs, const VectorXd& gradient, const VectorXd& free, const VectorXd& held)
     {
         const size_t m = pairs.size();
         std::vector<VectorXd> s(m), y(m);
@@ -80,10 +75,17 @@ OptimizerResult minimize_lbfgsb(optimizer_detail::Run& run, const VectorXd& x0, 
     VectorXd x = x0;
     OptimizationValues values = values0;
     double gradient_norm = projected_gradient_norm(x, values.gradient, lower, upper);
-    const double gradient_norm0 = gradient_norm;
-    int k = 0;
+    const double gradient_norm0 = run.initial_gradient_norm();
+    const OptimizerCheckpoint* resumed = run.resumed();
+    int k = run.first_iteration();
+    std::vector<CorrectionPair> pairs; // oldest first
+    if (resumed) {
+        pairs = resumed->lbfgs_pairs;
+        if (int(pairs.size()) > settings.lbfgs_memory) // a smaller memory than the first run's
+            pairs.erase(pairs.begin(), pairs.end() - settings.lbfgs_memory);
+    }
 
-    if (!run.iteration(0, x, values, gradient_norm, 0))
+    if (!resumed && !run.iteration(0, x, values, gradient_norm, 0, &pairs))
         return run.finish(StopReason::USER_STOP, name + ": stopped by the iteration callback at the initial point", 0);
     const auto gradient_converged = [&]() -> std::string {
         if (gradient_norm == 0 || gradient_norm <= settings.gradient_tolerance)
@@ -95,10 +97,29 @@ OptimizerResult minimize_lbfgsb(optimizer_detail::Run& run, const VectorXd& x0, 
                 + " x initial " + format_number(gradient_norm0);
         return "";
     };
-    if (const std::string message = gradient_converged(); !message.empty())
-        return run.finish(StopReason::GRADIENT_TOLERANCE, message, 0);
+    // The checks after an iteration's callback; f_previous is NaN at iteration 0 (no f check).
+    const auto converged = [&](double step_norm, double f_previous) -> std::pair<StopReason, std::string> {
+        if (std::string message = gradient_converged(); !message.empty())
+            return { StopReason::GRADIENT_TOLERANCE, message };
+        if (k > 0 && settings.x_tolerance > 0 && step_norm <= settings.x_tolerance)
+            return { StopReason::X_TOLERANCE,
+                name + ": step inf-norm " + format_number(step_norm) + " <= x_tolerance "
+                    + format_number(settings.x_tolerance) };
+        if (k > 0 && settings.f_tolerance > 0
+            && optimizer_detail::relative_change(f_previous, values.f) <= settings.f_tolerance)
+            return { StopReason::F_TOLERANCE,
+                name + ": relative change of f "
+                    + format_number(optimizer_detail::relative_change(f_previous, values.f)) + " <= f_tolerance "
+                    + format_number(settings.f_tolerance) };
+        return { StopReason::USER_STOP, "" };
+    };
+    // A resumed run repeats the checks that followed its last iteration (a run stopped by its
+    // callback there did not make them).
+    if (const auto [reason, message]
+        = resumed ? converged(resumed->step_norm, resumed->previous_f) : converged(0, std::nan(""));
+        !message.empty())
+        return run.finish(reason, message, k);
 
-    std::deque<CorrectionPair> pairs;
     VectorXd free(n), held(n), trial_x, dx;
     OptimizationValues trial;
     while (true) {
@@ -193,7 +214,7 @@ OptimizerResult minimize_lbfgsb(optimizer_detail::Run& run, const VectorXd& x0, 
         if (dx.dot(y) > CURVATURE_EPS * dx.norm() * y.norm()) {
             pairs.push_back({ dx, std::move(y) });
             if (int(pairs.size()) > settings.lbfgs_memory)
-                pairs.pop_front();
+                pairs.erase(pairs.begin());
         }
         const double f_previous = values.f;
         x = trial_x;
@@ -202,22 +223,11 @@ OptimizerResult minimize_lbfgsb(optimizer_detail::Run& run, const VectorXd& x0, 
         gradient_norm = projected_gradient_norm(x, values.gradient, lower, upper);
         const double step_norm = dx.lpNorm<Eigen::Infinity>();
 
-        if (!run.iteration(k, x, values, gradient_norm, step_norm))
+        if (!run.iteration(k, x, values, gradient_norm, step_norm, &pairs))
             return run.finish(StopReason::USER_STOP,
                 name + ": stopped by the iteration callback at iteration " + std::to_string(k), k);
-        if (const std::string message = gradient_converged(); !message.empty())
-            return run.finish(StopReason::GRADIENT_TOLERANCE, message, k);
-        if (settings.x_tolerance > 0 && step_norm <= settings.x_tolerance)
-            return run.finish(StopReason::X_TOLERANCE,
-                name + ": step inf-norm " + format_number(step_norm) + " <= x_tolerance "
-                    + format_number(settings.x_tolerance),
-                k);
-        if (settings.f_tolerance > 0 && optimizer_detail::relative_change(f_previous, values.f) <= settings.f_tolerance)
-            return run.finish(StopReason::F_TOLERANCE,
-                name + ": relative change of f "
-                    + format_number(optimizer_detail::relative_change(f_previous, values.f)) + " <= f_tolerance "
-                    + format_number(settings.f_tolerance),
-                k);
+        if (const auto [reason, message] = converged(step_norm, f_previous); !message.empty())
+            return run.finish(reason, message, k);
     }
 }
 

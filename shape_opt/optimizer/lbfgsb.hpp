@@ -15,6 +15,12 @@
 /// s.y <= 1e-10 |s| |y| (restricted to the free variables in the recursion). A line search that
 /// makes no progress in 40 trials is retried once from steepest descent with the memory cleared,
 /// then ends the run with LINE_SEARCH_STALLED.
+///
+/// Its state between iterations is x, the values there, the correction pairs, the iteration
+/// number and the initial gradient norm: the checkpoint (IterationInfo::checkpoint) holds all of
+/// them, so that a resumed run (resume_minimize) repeats the checks that follow its last
+/// iteration and then takes the uninterrupted run's steps, to the last bit for a deterministic
+/// problem (tests/shape_opt/optimizer/test_optimizer_resume.cpp).
 
 #include "shape_opt/optimizer/optimizer.hpp"
 

@@ -137,8 +137,8 @@ namespace {
             , m_f_min(values0.f)
             , m_previous_x(x0)
         {
-            m_gradient_norm0
-                = optimizer_detail::projected_gradient_norm(x0, values0.gradient, run.lower(), run.upper());
+            m_iterations = run.first_iteration();
+            m_gradient_norm0 = run.initial_gradient_norm();
             const double violation = run.violation(x0, values0);
             if (violation <= m_settings.constraint_tolerance) {
                 m_has_feasible = true;
@@ -360,7 +360,8 @@ OptimizerResult minimize_nlopt(optimizer_detail::Run& run, const VectorXd& x0, c
 
     nlopt::opt opt(nlopt_algorithm(settings.algorithm), n);
     NloptContext context(run, opt, x0, values0);
-    if (!run.iteration(0, x0, values0,
+    if (!run.resumed()
+        && !run.iteration(0, x0, values0,
             optimizer_detail::projected_gradient_norm(x0, values0.gradient, run.lower(), run.upper()), 0))
         return run.finish(StopReason::USER_STOP, name + ": stopped by the iteration callback at the initial point", 0);
 
@@ -378,7 +379,7 @@ OptimizerResult minimize_nlopt(optimizer_detail::Run& run, const VectorXd& x0, c
     if (settings.x_tolerance > 0)
         opt.set_xtol_abs(settings.x_tolerance);
     if (settings.max_seconds > 0)
-        opt.set_maxtime(settings.max_seconds);
+        opt.set_maxtime(std::max(run.remaining_seconds(), 1e-3)); // a resumed run: the budget's rest
     apply_options(settings, &opt);
 
     std::vector<double> x(x0.data(), x0.data() + n);

@@ -26,6 +26,11 @@
 /// violated value (max(c, 0) + 1e3 (|c| + 1), from the last valid c) with the last valid Jacobian.
 /// CCSA's conservative check then fails and it retries closer to the iterate; SLSQP's line
 /// search backtracks. max_valid_step() is not used.
+///
+/// A resumed run (resume_minimize) starts NLopt afresh at the checkpoint's x, which is the
+/// best point so far (a warm start: MMA's asymptotes and SLSQP's quasi-Newton matrix start
+/// anew, so its iterates differ from an uninterrupted run's); the iterations are counted on
+/// from the checkpoint's, maxtime is what is left of max_seconds.
 
 #include "shape_opt/optimizer/optimizer.hpp"
 

@@ -191,16 +191,41 @@ namespace optimizer_detail {
         return std::abs(f1 - f0) / std::max({ std::abs(f0), std::abs(f1), 1e-300 });
     }
 
-    Run::Run(OptimizationProblem& problem, const OptimizerSettings& settings)
+    Run::Run(OptimizationProblem& problem, const OptimizerSettings& settings, const OptimizerCheckpoint* resume)
         : m_problem(problem)
         , m_settings(settings)
+        , m_resume(resume)
         , m_start(now_seconds())
         , m_best_f(INF)
     {
         const Index n = problem.size();
         m_lower = settings.lower.size() ? settings.lower : VectorXd::Constant(n, -INF);
         m_upper = settings.upper.size() ? settings.upper : VectorXd::Constant(n, INF);
+        if (resume) {
+            // The earlier part of the run as if it had been this one: its wall time, of which
+            // the part neither in evaluations nor in the optimizer was spent in the callback.
+            m_start -= resume->elapsed_seconds;
+            m_evaluation_seconds = resume->evaluation_seconds;
+            m_callback_seconds
+                = std::max(0.0, resume->elapsed_seconds - resume->evaluation_seconds - resume->optimizer_seconds);
+            m_evaluations = resume->evaluations;
+            m_rejected = resume->rejected;
+            m_initial_gradient_norm = resume->initial_gradient_norm;
+            m_first_x = resume->x;
+            m_has_accepted = true;
+            m_accepted_x = resume->x;
+            m_accepted_values = resume->values;
+            m_step_norm = resume->step_norm;
+            m_has_best = resume->has_best;
+            if (m_has_best) {
+                m_best_x = resume->best_x;
+                m_best_values = resume->best_values;
+                m_best_f = resume->best_values.f;
+            }
+        }
     }
+
+    int Run::first_iteration() const { return m_resume ? m_resume->iteration : 0; }
 
     bool Run::evaluate(const VectorXd& x, OptimizationValues& out)
     {
@@ -271,12 +296,14 @@ namespace optimizer_detail {
         return v;
     }
 
-    bool Run::iteration(
-        int iteration, const VectorXd& x, const OptimizationValues& values, double gradient_norm, double step_norm)
+    bool Run::iteration(int iteration, const VectorXd& x, const OptimizationValues& values, double gradient_norm,
+        double step_norm, const std::vector<CorrectionPair>* pairs)
     {
+        const double previous_f = m_has_accepted ? m_accepted_values.f : std::nan("");
         m_has_accepted = true;
         m_accepted_x = x;
         m_accepted_values = values;
+        m_step_norm = step_norm;
         IterationInfo info;
         info.iteration = iteration;
         info.x = &x;
@@ -288,6 +315,30 @@ namespace optimizer_detail {
         info.evaluation_seconds = m_evaluation_seconds;
         const double t0 = now_seconds();
         info.optimizer_seconds = std::max(0.0, t0 - m_start - m_evaluation_seconds - m_callback_seconds);
+
+        OptimizerCheckpoint& c = m_checkpoint;
+        c.algorithm = m_settings.algorithm;
+        c.iteration = iteration;
+        c.x = x;
+        c.values = values;
+        c.gradient_norm = gradient_norm;
+        c.step_norm = step_norm;
+        c.previous_f = previous_f;
+        c.initial_gradient_norm = m_initial_gradient_norm;
+        c.evaluations = m_evaluations;
+        c.rejected = m_rejected;
+        c.evaluation_seconds = m_evaluation_seconds;
+        c.optimizer_seconds = info.optimizer_seconds;
+        c.elapsed_seconds = t0 - m_start;
+        c.has_best = m_has_best;
+        c.best_x = m_has_best ? m_best_x : VectorXd();
+        c.best_values = m_has_best ? m_best_values : OptimizationValues();
+        if (pairs)
+            c.lbfgs_pairs = *pairs;
+        else
+            c.lbfgs_pairs.clear();
+        info.checkpoint = &c;
+
         const bool go_on = m_problem.iteration(info);
         m_callback_seconds += now_seconds() - t0;
         return go_on;
@@ -296,6 +347,11 @@ namespace optimizer_detail {
     bool Run::out_of_time() const { return m_settings.max_seconds > 0 && elapsed() >= m_settings.max_seconds; }
 
     double Run::elapsed() const { return now_seconds() - m_start; }
+
+    double Run::remaining_seconds() const
+    {
+        return m_settings.max_seconds > 0 ? m_settings.max_seconds - elapsed() : INF;
+    }
 
     OptimizerResult Run::finish(StopReason reason, const std::string& message, int iterations)
     {
@@ -330,6 +386,97 @@ namespace optimizer_detail {
 
 } // namespace optimizer_detail
 
+namespace {
+
+    OptimizerResult run_driver(optimizer_detail::Run& run, const VectorXd& x0, const OptimizationValues& values0)
+    {
+        const OptimizerSettings& settings = run.settings();
+        const bool lbfgs
+            = settings.algorithm == OptimizerAlgorithm::LBFGS || settings.algorithm == OptimizerAlgorithm::LBFGSB;
+        // A resumed run whose budget is spent ends here (L-BFGS checks its budgets itself, after
+        // the convergence checks, as the uninterrupted run does); the libraries would start anyway.
+        if (run.resumed() && !lbfgs) {
+            const int done = run.first_iteration();
+            if (settings.max_iterations > 0 && done >= settings.max_iterations)
+                return run.finish(StopReason::ITERATION_BUDGET,
+                    to_string(settings.algorithm) + ": iteration budget of " + std::to_string(settings.max_iterations)
+                        + " reached",
+                    done);
+            if (run.out_of_time())
+                return run.finish(StopReason::TIME_BUDGET,
+                    to_string(settings.algorithm) + ": wall-time budget of " + format_number(settings.max_seconds)
+                        + " s reached",
+                    done);
+        }
+        switch (settings.algorithm) {
+        case OptimizerAlgorithm::LBFGS:
+        case OptimizerAlgorithm::LBFGSB:
+            return minimize_lbfgsb(run, x0, values0);
+        case OptimizerAlgorithm::IPOPT:
+            return minimize_ipopt(run, x0, values0);
+        case OptimizerAlgorithm::MMA:
+        case OptimizerAlgorithm::CCSAQ:
+        case OptimizerAlgorithm::SLSQP:
+            return minimize_nlopt(run, x0, values0);
+        }
+        throw InputError("optimizer.algorithm", "unknown algorithm");
+    }
+
+    /// @brief A checkpoint's sizes against the problem's; its numbers finite.
+    /// @throws InputError naming "optimizer.checkpoint"
+    void check_checkpoint(const OptimizationProblem& problem, const OptimizerCheckpoint& c)
+    {
+        const Index n = problem.size();
+        const auto fail = [](const std::string& why) { throw InputError("optimizer.checkpoint", why); };
+        const auto check_values = [&](const OptimizationValues& v, const std::string& where) {
+            if (v.gradient.size() != n || v.inequality.size() != problem.inequalities()
+                || v.equality.size() != problem.equalities()
+                || (problem.inequalities() > 0
+                    && (v.inequality_jacobian.rows() != problem.inequalities() || v.inequality_jacobian.cols() != n))
+                || (problem.equalities() > 0
+                    && (v.equality_jacobian.rows() != problem.equalities() || v.equality_jacobian.cols() != n)))
+                fail("the values " + where + " do not fit the problem (" + std::to_string(n) + " variables, "
+                    + std::to_string(problem.inequalities()) + " inequalities, " + std::to_string(problem.equalities())
+                    + " equalities)");
+            if (!std::isfinite(v.f) || !v.gradient.allFinite() || !v.inequality.allFinite() || !v.equality.allFinite())
+                fail("the values " + where + " are not finite");
+        };
+        if (c.iteration < 0)
+            fail("negative iteration " + std::to_string(c.iteration));
+        if (c.x.size() != n)
+            fail("x has " + std::to_string(c.x.size()) + " entries, the problem has " + std::to_string(n)
+                + " variables");
+        check_values(c.values, "at x");
+        if (c.has_best) {
+            if (c.best_x.size() != n)
+                fail("the best point has " + std::to_string(c.best_x.size()) + " entries, the problem has "
+                    + std::to_string(n) + " variables");
+            check_values(c.best_values, "at the best point");
+        }
+        for (const CorrectionPair& pair : c.lbfgs_pairs)
+            if (pair.s.size() != n || pair.y.size() != n || !pair.s.allFinite() || !pair.y.allFinite())
+                fail("an L-BFGS correction pair does not have " + std::to_string(n) + " finite entries");
+        if (!(c.evaluations >= 0 && c.rejected >= 0 && c.evaluation_seconds >= 0 && c.optimizer_seconds >= 0
+                && c.elapsed_seconds >= 0 && std::isfinite(c.elapsed_seconds) && std::isfinite(c.initial_gradient_norm)
+                && c.initial_gradient_norm >= 0))
+            fail("negative or non-finite counts, times or initial gradient norm");
+    }
+
+} // namespace
+
+OptimizerResult resume_minimize(
+    OptimizationProblem& problem, const OptimizerCheckpoint& checkpoint, const OptimizerSettings& settings)
+{
+    optimizer_detail::validate(problem, checkpoint.x, settings);
+    if (checkpoint.algorithm != settings.algorithm)
+        throw InputError("optimizer.algorithm",
+            "\"" + to_string(settings.algorithm) + "\" cannot continue a run of \"" + to_string(checkpoint.algorithm)
+                + "\" (start a new run from its last design instead)");
+    check_checkpoint(problem, checkpoint);
+    optimizer_detail::Run run(problem, settings, &checkpoint);
+    return run_driver(run, checkpoint.x, checkpoint.values);
+}
+
 OptimizerResult minimize(OptimizationProblem& problem, const VectorXd& x0, const OptimizerSettings& settings)
 {
     optimizer_detail::validate(problem, x0, settings);
@@ -338,18 +485,9 @@ OptimizerResult minimize(OptimizationProblem& problem, const VectorXd& x0, const
     if (!run.evaluate(x0, values0))
         return run.finish(StopReason::INVALID_START,
             "the initial point is invalid: evaluate() returned false or a non-finite value there", 0);
-    switch (settings.algorithm) {
-    case OptimizerAlgorithm::LBFGS:
-    case OptimizerAlgorithm::LBFGSB:
-        return minimize_lbfgsb(run, x0, values0);
-    case OptimizerAlgorithm::IPOPT:
-        return minimize_ipopt(run, x0, values0);
-    case OptimizerAlgorithm::MMA:
-    case OptimizerAlgorithm::CCSAQ:
-    case OptimizerAlgorithm::SLSQP:
-        return minimize_nlopt(run, x0, values0);
-    }
-    throw InputError("optimizer.algorithm", "unknown algorithm");
+    run.set_initial_gradient_norm(
+        optimizer_detail::projected_gradient_norm(x0, values0.gradient, run.lower(), run.upper()));
+    return run_driver(run, x0, values0);
 }
 
 } // namespace diffipc

@@ -34,8 +34,10 @@ struct OptimizationValues {
     MatrixXd equality_jacobian; ///< m_h by n
 };
 
-/// What the per-iteration callback sees; `x` and `values` point into the optimizer and are
-/// valid during the call only (copy what you keep).
+struct OptimizerCheckpoint;
+
+/// What the per-iteration callback sees; `x`, `values` and `checkpoint` point into the optimizer
+/// and are valid during the call only (copy what you keep).
 struct IterationInfo {
     int iteration = 0; ///< 0: the initial point
     const VectorXd* x = nullptr;
@@ -46,6 +48,8 @@ struct IterationInfo {
     int rejected = 0; ///< trial points rejected so far (invalid or failed)
     double evaluation_seconds = 0; ///< wall time inside evaluate() and max_valid_step() so far
     double optimizer_seconds = 0; ///< wall time of the optimizer itself so far
+    /// The run's state after this iteration: minimize() continues from it (a resumed run).
+    const OptimizerCheckpoint* checkpoint = nullptr;
 };
 
 /// The problem an optimizer sees.
@@ -134,12 +138,51 @@ struct OptimizerResult {
     double evaluation_seconds = 0, optimizer_seconds = 0;
 };
 
+/// One L-BFGS correction pair: s = x_{k+1} - x_k, y = g_{k+1} - g_k (n values each).
+struct CorrectionPair {
+    VectorXd s, y;
+};
+
+/// @brief A run's state after a completed iteration, from which minimize() continues it (a
+/// resumed run, docs/optimization.md). Every driver continues from x with the values there (no
+/// evaluation), the iteration and evaluation counts, the times, the best point and the
+/// reference gradient norm of the relative tolerance. L-BFGS(-B) also keeps its correction
+/// pairs and repeats the checks that follow an iteration, so that its iterates are the
+/// uninterrupted run's; Ipopt and NLopt cannot take their internal state back and start
+/// afresh from x (a warm start: their later iterates differ from an uninterrupted run's).
+struct OptimizerCheckpoint {
+    OptimizerAlgorithm algorithm = OptimizerAlgorithm::LBFGSB;
+    int iteration = 0; ///< the iteration whose iterate x is
+    VectorXd x; ///< n
+    OptimizationValues values; ///< at x
+    double gradient_norm = 0; ///< as reported at this iteration
+    double step_norm = 0; ///< inf-norm of this iteration's change of x (0 at iteration 0)
+    double previous_f = 0; ///< f at the previous iteration (NaN at iteration 0)
+    double initial_gradient_norm = 0; ///< projected gradient inf-norm at the run's start
+    int evaluations = 0, rejected = 0;
+    double evaluation_seconds = 0, optimizer_seconds = 0;
+    double elapsed_seconds = 0; ///< wall time of the run so far (what max_seconds counts)
+    bool has_best = false; ///< a feasible valid point was seen: the best one
+    VectorXd best_x;
+    OptimizationValues best_values;
+    std::vector<CorrectionPair> lbfgs_pairs; ///< L-BFGS(-B): its memory, oldest first; else empty
+};
+
 /// @brief Minimizes `problem` from `x0` with the settings' algorithm.
 /// @param x0  n initial values, inside the bounds
 /// @throws InputError for settings that do not fit the problem (bound sizes, lower > upper, NaN,
 ///         x0 outside its bounds, constraints given to L-BFGS, equalities given to MMA/CCSAQ, an
 ///         option the library rejects); an exception thrown by the problem passes through.
 OptimizerResult minimize(OptimizationProblem& problem, const VectorXd& x0, const OptimizerSettings& settings);
+
+/// @brief Continues the run that wrote `checkpoint` (IterationInfo::checkpoint) with the same
+/// problem: from its x and values, its iteration numbers and counts going on, the budgets
+/// (max_iterations, max_seconds) counting the whole run; the result describes the whole run.
+/// `settings` may differ from the first run's (a larger budget) but not in the algorithm.
+/// @throws InputError as minimize(), naming "optimizer.algorithm" for another algorithm than the
+///         checkpoint's and "optimizer.checkpoint" for one that does not fit the problem
+OptimizerResult resume_minimize(
+    OptimizationProblem& problem, const OptimizerCheckpoint& checkpoint, const OptimizerSettings& settings);
 
 /// Shared by the drivers (lbfgsb.cpp, ipopt_driver.cpp, nlopt_driver.cpp); not for users.
 namespace optimizer_detail {
@@ -163,7 +206,9 @@ namespace optimizer_detail {
     /// the rest of the wall time, less the time spent in iteration().
     class Run {
     public:
-        Run(OptimizationProblem& problem, const OptimizerSettings& settings);
+        /// @param resume  the state a resumed run continues from (nullptr: a new run)
+        Run(OptimizationProblem& problem, const OptimizerSettings& settings,
+            const OptimizerCheckpoint* resume = nullptr);
 
         OptimizationProblem& problem() { return m_problem; }
         const OptimizerSettings& settings() const { return m_settings; }
@@ -185,15 +230,25 @@ namespace optimizer_detail {
             return violation(x, values) <= m_settings.constraint_tolerance;
         }
 
-        /// @brief problem.iteration() with the counts and times filled in; x becomes the last
-        /// accepted point (the result when no feasible point is found).
+        /// @brief problem.iteration() with the counts, times and the checkpoint filled in; x
+        /// becomes the last accepted point (the result when no feasible point is found).
+        /// @param pairs  L-BFGS: its correction pairs after this iteration (for the checkpoint)
         /// @return false when the callback asks to stop
-        bool iteration(
-            int iteration, const VectorXd& x, const OptimizationValues& values, double gradient_norm, double step_norm);
+        bool iteration(int iteration, const VectorXd& x, const OptimizationValues& values, double gradient_norm,
+            double step_norm, const std::vector<CorrectionPair>* pairs = nullptr);
         /// True once settings.max_seconds (when > 0) of wall time have passed.
         bool out_of_time() const;
-        /// Wall time since the run began, s.
+        /// Wall time since the run began (with a resumed run's earlier part), s.
         double elapsed() const;
+        /// settings.max_seconds less elapsed() (+inf without a budget).
+        double remaining_seconds() const;
+        /// The checkpoint a resumed run continues from (nullptr for a new run).
+        const OptimizerCheckpoint* resumed() const { return m_resume; }
+        /// The iteration number of the first point: 0, or the checkpoint's iteration.
+        int first_iteration() const;
+        /// Projected gradient inf-norm at the run's start (the relative tolerance's reference).
+        double initial_gradient_norm() const { return m_initial_gradient_norm; }
+        void set_initial_gradient_norm(double norm) { m_initial_gradient_norm = norm; }
         int evaluations() const { return m_evaluations; }
         int rejected() const { return m_rejected; }
         /// True once a valid point within constraint_tolerance has been evaluated.
@@ -208,6 +263,8 @@ namespace optimizer_detail {
     private:
         OptimizationProblem& m_problem;
         const OptimizerSettings& m_settings;
+        const OptimizerCheckpoint* m_resume = nullptr;
+        double m_initial_gradient_norm = 0;
         VectorXd m_lower, m_upper;
         double m_start = 0; ///< steady clock at construction, s
         double m_evaluation_seconds = 0, m_callback_seconds = 0;
@@ -216,6 +273,8 @@ namespace optimizer_detail {
         double m_best_f = 0;
         VectorXd m_best_x, m_accepted_x, m_first_x;
         OptimizationValues m_best_values, m_accepted_values;
+        double m_step_norm = 0; ///< of the last accepted iterate
+        OptimizerCheckpoint m_checkpoint; ///< the one passed to the callback
     };
 
 } // namespace optimizer_detail
