@@ -575,6 +575,8 @@ std::string ProblemParameters::remesh_obstacle() const
             return m_entries[k].field
                 + ": a remesh keeps the design variables only with mesh-independent shape controls (a \"ffd\" map); "
                   "these depend on the mesh's vertices";
+        if (at + 1 != m_chains[k]->size())
+            return m_entries[k].field + ".maps: a remesh needs the \"ffd\" map last (it gives the rest positions)";
     }
     if (shapes == 0)
         return "the problem has no \"shape\" parameter (a remesh renews a moving rest mesh)";
@@ -583,7 +585,7 @@ std::string ProblemParameters::remesh_obstacle() const
     return "";
 }
 
-Positions ProblemParameters::pull_back_shape(const VectorXd& x, const Positions& current) const
+ShapeLatticeInput ProblemParameters::shape_lattice_input(const VectorXd& x) const
 {
     const std::string obstacle = remesh_obstacle();
     if (!obstacle.empty())
@@ -593,17 +595,19 @@ Positions ProblemParameters::pull_back_shape(const VectorXd& x, const Positions&
     for (size_t k = 0; k < m_entries.size(); ++k) {
         if (m_entries[k].kind == Kind::SHAPE) {
             const ParameterChain& chain = *m_chains[k];
-            size_t index = 0;
-            const FreeFormDeformation* ffd = find_ffd(chain, index);
+            ShapeLatticeInput out;
+            out.entry = k;
+            find_ffd(chain, out.map);
+            out.design = x.segment(at, m_design_sizes[k]);
             // The lattice's input: the maps before it applied to the entry's design values.
-            VectorXd z = x.segment(at, m_design_sizes[k]);
-            for (size_t i = 0; i < index; ++i)
-                z = chain.map(i).apply(z);
-            return ffd->pull_back(current, z);
+            out.lattice = out.design;
+            for (size_t i = 0; i < out.map; ++i)
+                out.lattice = chain.map(i).apply(out.lattice);
+            return out;
         }
         at += m_design_sizes[k];
     }
-    throw std::logic_error("pull_back_shape: no shape entry");
+    throw std::logic_error("shape_lattice_input: no shape entry");
 }
 
 std::vector<std::pair<std::string, Index>> ProblemParameters::design_layout() const

@@ -23,6 +23,13 @@
 
 namespace diffipc {
 
+/// Where a design puts the shape's free-form deformation (ProblemParameters::shape_lattice_input).
+struct ShapeLatticeInput {
+    size_t entry = 0, map = 0; ///< parameters[entry].maps[map] is the "ffd"
+    VectorXd design; ///< the entry's design values
+    VectorXd lattice; ///< the ffd's input
+};
+
 /// One entry of the problem's "parameters" list.
 struct ParameterSpec {
     enum class Kind {
@@ -99,10 +106,11 @@ public:
     /// shape entry driven by a free-form deformation, whose variables do not depend on the
     /// mesh (shape_opt/remesh.hpp).
     std::string remesh_obstacle() const;
-    /// @brief The body rest positions (#V by dim) that x moves onto `current` through the
-    /// shape entry's free-form deformation (FreeFormDeformation::pull_back).
-    /// @throws std::runtime_error if remesh_obstacle() is not empty or the pull-back fails
-    Positions pull_back_shape(const VectorXd& x, const Positions& current) const;
+    /// @brief Where x puts the shape entry's free-form deformation: the entry, the map's index
+    /// in its chain, the entry's design values and the lattice's input (the maps before it
+    /// applied to them).
+    /// @throws std::runtime_error if remesh_obstacle() is not empty
+    ShapeLatticeInput shape_lattice_input(const VectorXd& x) const;
 
 private:
     void parse_maps(const nlohmann::json& params, const Scene& scene);

@@ -286,9 +286,9 @@ const Scene& ReducedFunctional::scene() const { return m_cases[0]->scene; }
 
 std::string ReducedFunctional::remesh_obstacle() const { return m_parameters->remesh_obstacle(); }
 
-Positions ReducedFunctional::pull_back_shape(const VectorXd& x, const Positions& current) const
+ShapeLatticeInput ReducedFunctional::shape_lattice_input(const VectorXd& x) const
 {
-    return m_parameters->pull_back_shape(x, current);
+    return m_parameters->shape_lattice_input(x);
 }
 
 const VectorXd& ReducedFunctional::design_lower() const { return m_parameters->design_lower(); }

@@ -30,6 +30,7 @@ namespace diffipc {
 
 class JsonField;
 class ProblemParameters;
+struct ShapeLatticeInput;
 
 /// What the checkpointed adjoint of one load case held and recomputed.
 struct LoadCaseCheckpoint {
@@ -102,9 +103,8 @@ public:
     const RemeshSettings& remesh_settings() const { return m_remesh; }
     /// Why a remesh could not keep the design variables ("" if it can).
     std::string remesh_obstacle() const;
-    /// @brief The body rest positions (#V by dim) that x moves onto `current` (the shape
-    /// entry's free-form deformation inverted; ProblemParameters::pull_back_shape).
-    Positions pull_back_shape(const VectorXd& x, const Positions& current) const;
+    /// Where x puts the shape's free-form deformation (ProblemParameters::shape_lattice_input).
+    ShapeLatticeInput shape_lattice_input(const VectorXd& x) const;
     /// The document as loaded and the folder its relative paths start from (for the problem
     /// file an optimization writes with its optimum).
     const nlohmann::json& document() const { return m_document; }

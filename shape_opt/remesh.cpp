@@ -4,6 +4,7 @@
 #include "forward/scene/json_field.hpp"
 #include "forward/scene/json_input.hpp"
 #include "shape_opt/parametrization/map_json.hpp"
+#include "shape_opt/problem_parameters.hpp"
 #include "shape_opt/reduced_functional.hpp"
 
 #include <fcntl.h>
@@ -385,12 +386,6 @@ nlohmann::json remeshed_document(const ReducedFunctional& functional, const Vect
         Mesh fresh = remesh_domain(points, boundary, d, size, functional.remesh_settings().remesh_surface);
         record.quality_after = std::min(record.quality_after, min_quality(fresh.rest_positions, fresh.elements));
         record.elements_after += fresh.elements.rows();
-        // The rest mesh whose image under x is the new mesh.
-        try {
-            fresh.rest_positions = functional.pull_back_shape(x, fresh.rest_positions);
-        } catch (const std::runtime_error& e) {
-            throw RemeshError(e.what());
-        }
         const std::string file
             = (fs::path(directory) / ("remesh_" + std::to_string(count) + "_body" + std::to_string(b) + ".msh"))
                   .string();
@@ -402,6 +397,18 @@ nlohmann::json remeshed_document(const ReducedFunctional& functional, const Vect
             body.erase("translation");
             body.erase("rotation");
         }
+    }
+    // The new meshes are the shape at x: the free-form deformation evaluates its basis at their
+    // pull-back ("mesh_at"), so the same x gives the same domain, and the shape entry starts
+    // at x.
+    try {
+        const ShapeLatticeInput in = functional.shape_lattice_input(x);
+        nlohmann::json& entry = doc["parameters"][in.entry];
+        entry["maps"][in.map]["mesh_at"]
+            = std::vector<double>(in.lattice.data(), in.lattice.data() + in.lattice.size());
+        entry["initial"] = std::vector<double>(in.design.data(), in.design.data() + in.design.size());
+    } catch (const std::runtime_error& e) {
+        throw RemeshError(e.what());
     }
     return doc;
 }

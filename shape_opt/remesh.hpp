@@ -3,9 +3,9 @@
 /// Remeshing inside the optimization loop (issue 12, docs/optimization.md "Remeshing"). A shape
 /// design moves the rest mesh; when its worst element's quality falls below a threshold, the
 /// domain at the current design is meshed anew by gmsh (its C++ API, libgmsh-dev) with the
-/// boundary kept, and the new mesh's rest positions are pulled back through the shape's
-/// free-form deformation, so that the design variables x, and with them the optimizer's
-/// history, carry over unchanged: at x the new mesh covers the same domain as the old.
+/// boundary kept, and the shape's free-form deformation evaluates its basis at the new mesh's
+/// vertices pulled back through it, so that the design variables x, and with them the optimizer's
+/// history, carry over unchanged: for every x the new mesh covers the domain the old one did.
 ///
 /// 2D: each body's boundary polygons (its boundary edges chained into loops) bound a plane
 /// surface meshed by gmsh at the target size; boundary edges longer than the size are split
@@ -92,10 +92,11 @@ struct RemeshRecord {
 };
 
 /// @brief The problem document with every body's mesh replaced by a new mesh of its domain at
-/// design x (the rest positions pulled back through the shape's free-form deformation,
-/// written to `directory`/remesh_<count>_body<b>.msh); scene files are inlined with their
-/// relative paths made absolute, body placements (translation, rotation) folded into the
-/// mesh.
+/// design x (written to `directory`/remesh_<count>_body<b>.msh), the shape's free-form
+/// deformation told that the mesh is the shape at x ("mesh_at": its basis is evaluated at
+/// the pull-back of the new vertices, so that every x gives the domain it gave before) and
+/// the shape entry's "initial" set to x; scene files are inlined with their relative paths
+/// made absolute, body placements (translation, rotation) folded into the mesh.
 /// @throws RemeshError (the run goes on without the remesh)
 nlohmann::json remeshed_document(const ReducedFunctional& functional, const VectorXd& x, double size,
     const std::string& directory, int count, RemeshRecord& record);

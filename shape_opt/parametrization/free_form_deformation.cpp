@@ -72,12 +72,29 @@ FreeFormDeformation::FreeFormDeformation(const Positions& rest, const FfdLattice
             field, "a fixed border leaves no control point: raise a degree to 2 or more along the fixed axes");
 
     const Index axes = Index(lattice.axes.size());
+    // With "mesh_at" the given mesh is the shape at those displacements: the basis is
+    // evaluated at the positions the lattice moves onto it (remesh.hpp).
+    Positions at = rest;
+    if (lattice.mesh_at.size() > 0) {
+        if (lattice.mesh_at.size() != Index(m_points.size()) * axes)
+            throw InputError(field + ".mesh_at",
+                "expected " + std::to_string(Index(m_points.size()) * axes) + " values (one per variable), got "
+                    + std::to_string(lattice.mesh_at.size()));
+        if (!lattice.mesh_at.allFinite())
+            throw InputError(field + ".mesh_at", "non-finite value");
+        try {
+            at = pull_back(rest, lattice.mesh_at);
+        } catch (const std::runtime_error& e) {
+            throw InputError(field + ".mesh_at", e.what());
+        }
+        m_rest = flatten(at);
+    }
     std::vector<Eigen::Triplet<double, int>> triplets;
     std::vector<std::vector<double>> basis(static_cast<size_t>(d));
-    for (Index v = 0; v < rest.rows(); ++v) {
+    for (Index v = 0; v < at.rows(); ++v) {
         bool inside = true;
         for (int a = 0; a < d; ++a) {
-            const double s = (rest(v, a) - lattice.lower[a]) / (lattice.upper[a] - lattice.lower[a]);
+            const double s = (at(v, a) - lattice.lower[a]) / (lattice.upper[a] - lattice.lower[a]);
             inside = inside && s >= 0 && s <= 1;
             basis[size_t(a)].assign(size_t(lattice.degree[a] + 1), 0.0);
             for (int i = 0; i <= lattice.degree[a]; ++i)
@@ -179,7 +196,7 @@ void FreeFormDeformation::displacement(const VectorXd& X, const MatrixXd& contro
 
 Positions FreeFormDeformation::pull_back(const Positions& current, const VectorXd& x) const
 {
-    check_size(x, in_size(), "design", name());
+    check_size(x, Index(m_points.size()) * Index(m_lattice.axes.size()), "design", name());
     if (current.cols() != m_dim)
         throw std::runtime_error("ffd pull-back: expected " + std::to_string(m_dim) + " coordinates per vertex");
     // Every lattice point's displacement (the fixed ones zero).

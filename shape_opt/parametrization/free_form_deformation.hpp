@@ -14,6 +14,7 @@
 /// box's faces; fix it (`fixed_border`) for a deformation that is continuous across them, or
 /// fix the faces normal to some axes only, where the body crosses the box there.
 /// The output is the full rest-position vector X0 + u (#V * dim, vertex-major); linear in x.
+/// With `mesh_at` the mesh given is the shape at those values instead of at 0.
 
 #include "forward/mesh/mesh.hpp"
 #include "shape_opt/parametrization/parameter_map.hpp"
@@ -29,6 +30,10 @@ struct FfdLattice {
     /// The same along some axes only: the control points on the box's faces normal to these
     /// axes stay (with fixed_border, all axes).
     std::vector<int> fixed_border_axes;
+    /// The given mesh is the shape at these variable values (one per variable; empty: at 0):
+    /// the rest positions are X(x) = Y0 + B(Y0) x with Y0 the positions that mesh_at moves onto
+    /// the given mesh (pull_back). A remesh writes the new mesh at the current design with it.
+    VectorXd mesh_at;
 };
 
 class FreeFormDeformation : public ParameterMap {

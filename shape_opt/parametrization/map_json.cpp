@@ -49,7 +49,7 @@ namespace {
         const JsonField& f, const EntryLayout& layout, bool last, Index out, const Scene& scene)
     {
         f.require_object({ "type", "scale", "offset", "radius", "vertices", "axes", "box", "degree", "fixed_border",
-            "positions", "values" });
+            "mesh_at", "positions", "values" });
         const std::string type = f["type"].string();
         const int dim = scene.dim;
         const auto keys = [&](std::initializer_list<const char*> allowed) {
@@ -117,7 +117,7 @@ namespace {
                 "\"components\")");
             const Mesh mesh = bodies_mesh(scene);
             if (type == "ffd") {
-                keys({ "box", "degree", "axes", "fixed_border" });
+                keys({ "box", "degree", "axes", "fixed_border", "mesh_at" });
                 const JsonField box = f["box"];
                 box.require_object({ "min", "max" });
                 FfdLattice lattice;
@@ -125,6 +125,13 @@ namespace {
                 lattice.upper = box["max"].vector(dim);
                 lattice.degree = f["degree"].int_vector(dim, 1);
                 lattice.axes = parse_axes(f, dim);
+                if (f.has("mesh_at")) {
+                    const JsonField at = f["mesh_at"];
+                    at.require_array();
+                    lattice.mesh_at.resize(Index(at.size()));
+                    for (size_t i = 0; i < at.size(); ++i)
+                        lattice.mesh_at[Index(i)] = at.at(i).number();
+                }
                 if (f.has("fixed_border")) {
                     // true (every face), false, or a list of the axes whose faces stay.
                     const JsonField fb = f["fixed_border"];

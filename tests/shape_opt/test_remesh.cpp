@@ -210,6 +210,15 @@ TEST(Remesh, FreeFormDeformationPullBackInvertsTheMap)
             current.row(v) = moved.segment(v * dim, dim).transpose();
         const Positions back = ffd.pull_back(current, x);
         EXPECT_LT((back - m.rest_positions).cwiseAbs().maxCoeff(), 1e-12) << dim << "D";
+        // A lattice told that the moved mesh is the shape at x ("mesh_at") is the same map of x.
+        FfdLattice at_x = lattice;
+        at_x.mesh_at = x;
+        const FreeFormDeformation rebased(current, at_x, "ffd");
+        EXPECT_LT((rebased.apply(x) - moved).cwiseAbs().maxCoeff(), 1e-12);
+        VectorXd other(x.size());
+        for (Index i = 0; i < x.size(); ++i)
+            other[i] = u(rng);
+        EXPECT_LT((rebased.apply(other) - ffd.apply(other)).cwiseAbs().maxCoeff(), 1e-12) << dim << "D";
     }
 }
 
