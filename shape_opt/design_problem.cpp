@@ -113,6 +113,7 @@ double DesignProblem::max_valid_step(const VectorXd& x, const VectorXd& dx)
 
 bool DesignProblem::iteration(const IterationInfo& info)
 {
+    m_restart_clock = Timer();
     const bool go_on = on_iteration ? on_iteration(info) : true;
     if (go_on && info.x && remesh_if_needed(*info.x, info.iteration) && info.checkpoint) {
         m_restart = std::make_unique<OptimizerCheckpoint>(*info.checkpoint);
@@ -204,6 +205,8 @@ OptimizerResult minimize_design(
         const bool ok = problem.evaluate(c->x, values);
         c->evaluations += 1;
         c->evaluation_seconds += timer.seconds();
+        // The run's wall time goes on through the callback, the remesh and this evaluation.
+        c->elapsed_seconds += problem.seconds_since_iteration();
         if (!ok) {
             // The new mesh cannot be evaluated where the old one could: end the run with the
             // old mesh's result (the remesh is in remeshes(), the reason in last_rejection()).

@@ -17,6 +17,7 @@
 /// a failed forward step, a value outside a map's domain. Shape steps are bounded by
 /// RestValidity::max_step along the rest positions' motion.
 
+#include "forward/common/timer.hpp"
 #include "shape_opt/optimizer/optimizer.hpp"
 #include "shape_opt/reduced_functional.hpp"
 #include "shape_opt/rest_validity.hpp"
@@ -76,6 +77,8 @@ public:
     /// new mesh.
     bool restart_pending() const { return m_restart != nullptr; }
     std::unique_ptr<OptimizerCheckpoint> take_restart() { return std::move(m_restart); }
+    /// Wall time since the last iteration() began (s).
+    double seconds_since_iteration() const { return m_restart_clock.seconds(); }
 
     /// @brief Remeshes at the accepted design x if the problem's "remesh" settings ask for it
     /// (worst quality below the threshold, remeshes left); iteration() calls it after
@@ -95,6 +98,7 @@ private:
     double m_remesh_size = 0;
     double m_remesh_trigger = 0; ///< remesh below this worst quality (remesh.hpp)
     std::unique_ptr<OptimizerCheckpoint> m_restart;
+    Timer m_restart_clock;
     std::unique_ptr<RestValidity> m_validity; ///< with a shape entry
     std::vector<size_t> m_inequality, m_equality;
     VectorXd m_scale; ///< per constraint: |bound|, or 1

@@ -206,35 +206,58 @@ Positions FreeFormDeformation::pull_back(const Positions& current, const VectorX
         for (Index j = 0; j < axes; ++j)
             control(m_lattice.axes[size_t(j)], m_points[k]) = x[Index(k) * axes + j];
     const double tolerance = 1e-13 * (m_lattice.upper - m_lattice.lower).norm();
-    Positions rest(current.rows(), m_dim);
-    VectorXd u, X;
-    MatrixXd du;
-    for (Index v = 0; v < current.rows(); ++v) {
-        const VectorXd y = current.row(v).transpose();
-        X = y;
-        bool converged = false;
-        for (int it = 0; it < 100 && !converged; ++it) {
+    const auto clamp
+        = [&](const VectorXd& X) { return VectorXd(X.cwiseMax(m_lattice.lower).cwiseMin(m_lattice.upper)); };
+    // Newton's method from X, kept inside the box when `inside` (damped where a step does not
+    // reduce the residual); returns whether it converged.
+    const auto solve = [&](const VectorXd& y, VectorXd& X, bool inside) {
+        VectorXd u, ut;
+        MatrixXd du, dut;
+        for (int it = 0; it < 100; ++it) {
             displacement(X, control, u, du);
             const VectorXd r = X + u - y;
-            if (r.norm() <= tolerance) {
-                converged = true;
-                break;
-            }
-            const MatrixXd J = MatrixXd::Identity(m_dim, m_dim) + du;
-            const VectorXd step = J.fullPivLu().solve(r);
+            if (r.norm() <= tolerance)
+                return true;
+            const VectorXd step = (MatrixXd::Identity(m_dim, m_dim) + du).fullPivLu().solve(r);
             if (!step.allFinite())
-                break;
-            // Halve a step that does not reduce the residual (the map is piecewise at the box).
+                return false;
+            bool moved = false;
             double t = 1;
-            for (int h = 0; h < 30; ++h, t *= 0.5) {
-                VectorXd trial = X - t * step, ut;
-                MatrixXd dut;
+            for (int h = 0; h < 30 && !moved; ++h, t *= 0.5) {
+                VectorXd trial = X - t * step;
+                if (inside)
+                    trial = clamp(trial);
                 displacement(trial, control, ut, dut);
                 if ((trial + ut - y).norm() < r.norm()) {
                     X = trial;
-                    break;
+                    moved = true;
                 }
             }
+            if (!moved)
+                return false;
+        }
+        return false;
+    };
+    Positions rest(current.rows(), m_dim);
+    VectorXd X, u;
+    MatrixXd du;
+    for (Index v = 0; v < current.rows(); ++v) {
+        const VectorXd y = current.row(v).transpose();
+        // Outside the box nothing moves, so y itself solves X + u(X) = y there; but the box's
+        // moving faces can carry a point of the box out to y too. The body lies in the box:
+        // look for the preimage inside the box first (from y clamped into it, then from one
+        // fixed-point step), and take y itself only if there is none.
+        X = clamp(y);
+        bool converged = solve(y, X, true);
+        if (!converged) {
+            displacement(clamp(y), control, u, du);
+            X = clamp(y - u);
+            converged = solve(y, X, true);
+        }
+        if (!converged) {
+            displacement(y, control, u, du);
+            X = y;
+            converged = u.isZero(0);
         }
         if (!converged)
             throw std::runtime_error("the free-form deformation cannot be inverted at vertex " + std::to_string(v)
