@@ -409,6 +409,14 @@ int optimize(const OptimizeOptions& options)
     const double total_seconds = wall_before + wall.seconds();
     summary["wall_time"] = { { "total", total_seconds }, { "evaluation", result.evaluation_seconds },
         { "optimizer", result.optimizer_seconds } };
+    // Parts of "evaluation", measured in this process (a resumed run's: since the resume).
+    summary["wall_time"]["parametrization"] = design_problem.times().parametrization;
+    summary["wall_time"]["validity"] = design_problem.times().validity;
+    double remeshing = 0;
+    for (const RemeshRecord& r : design_problem.remeshes())
+        remeshing += r.seconds;
+    if (rf.remesh_settings().enabled())
+        summary["wall_time"]["remeshing"] = remeshing;
     write_json((dir / "summary.json").string(), summary);
 
     if (!options.quiet)

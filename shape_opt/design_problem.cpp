@@ -51,9 +51,15 @@ bool DesignProblem::evaluate(const VectorXd& x, OptimizationValues& out)
     Evaluation e;
     VectorXd p;
     try {
-        p = m_functional->parameters_of(x);
+        {
+            const Timer maps;
+            p = m_functional->parameters_of(x);
+            maps.add_to(m_times.parametrization);
+        }
         if (m_validity) {
+            const Timer validity;
             const std::string problem = m_validity->problem(m_functional->rest_positions_of(p));
+            validity.add_to(m_times.validity);
             if (!problem.empty())
                 return reject("invalid rest mesh: " + problem);
         }
@@ -67,6 +73,7 @@ bool DesignProblem::evaluate(const VectorXd& x, OptimizationValues& out)
     }
     if (!(m_objective_scale > 0))
         m_objective_scale = std::abs(e.value) > 1e-300 ? std::abs(e.value) : 1.0;
+    const Timer maps;
     out.f = e.value / m_objective_scale;
     out.gradient = m_functional->design_gradient(x, e.gradient) / m_objective_scale;
     const auto& constraints = m_functional->constraints();
@@ -91,6 +98,7 @@ bool DesignProblem::evaluate(const VectorXd& x, OptimizationValues& out)
         out.equality[Index(k)] = (e.constraint_values[Index(i)] - constraints[i].bound) / m_scale[Index(i)];
         out.equality_jacobian.row(Index(k)) = row(i).transpose();
     }
+    maps.add_to(m_times.parametrization);
     m_last_constraints = e.constraint_values;
     m_last = std::move(e);
     return true;
@@ -100,6 +108,12 @@ double DesignProblem::max_valid_step(const VectorXd& x, const VectorXd& dx)
 {
     if (!m_validity)
         return 1.0;
+    const Timer validity;
+    struct Add {
+        const Timer& timer;
+        double& to;
+        ~Add() { timer.add_to(to); }
+    } add { validity, m_times.validity };
     try {
         // The rest positions move along X(x + t dx); for the linear shape maps (boundary
         // extension, free-form deformation, none) that is the line X0 + t dX.

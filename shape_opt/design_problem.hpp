@@ -77,6 +77,12 @@ public:
     /// new mesh.
     bool restart_pending() const { return m_restart != nullptr; }
     std::unique_ptr<OptimizerCheckpoint> take_restart() { return std::move(m_restart); }
+    /// Wall time (s) inside evaluate() and max_valid_step() spent in the parameter maps (p = P(x)
+    /// and the vector-Jacobian products) and in the validity checks of rest meshes.
+    struct Times {
+        double parametrization = 0, validity = 0;
+    };
+    const Times& times() const { return m_times; }
     /// Wall time since the last iteration() began (s).
     double seconds_since_iteration() const { return m_restart_clock.seconds(); }
 
@@ -99,6 +105,7 @@ private:
     double m_remesh_trigger = 0; ///< remesh below this worst quality (remesh.hpp)
     std::unique_ptr<OptimizerCheckpoint> m_restart;
     Timer m_restart_clock;
+    Times m_times;
     std::unique_ptr<RestValidity> m_validity; ///< with a shape entry
     std::vector<size_t> m_inequality, m_equality;
     VectorXd m_scale; ///< per constraint: |bound|, or 1
