@@ -83,7 +83,8 @@ namespace {
     /// Stop reasons after which a run is over: a resume has nothing to do.
     bool converged(const std::string& reason)
     {
-        return reason == "gradient_tolerance" || reason == "x_tolerance" || reason == "f_tolerance";
+        return reason == "gradient_tolerance" || reason == "x_tolerance" || reason == "f_tolerance"
+            || reason == "objective_target";
     }
 
     /// Stop reasons from which a resume would start in the state that ended the run.

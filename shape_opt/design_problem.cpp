@@ -39,6 +39,18 @@ void DesignProblem::build_validity()
         m_validity = std::make_unique<RestValidity>(bodies_mesh(m_functional->scene()));
 }
 
+bool DesignProblem::constraints_hold(const OptimizationValues& v) const
+{
+    // The constraints reach the optimizer scaled by their bounds (header); 1e-6 relative.
+    for (Index i = 0; i < v.inequality.size(); ++i)
+        if (!(v.inequality[i] <= 1e-6))
+            return false;
+    for (Index i = 0; i < v.equality.size(); ++i)
+        if (!(std::abs(v.equality[i]) <= 1e-6))
+            return false;
+    return true;
+}
+
 bool DesignProblem::reject(const std::string& why)
 {
     m_last_rejection = why;
@@ -128,7 +140,12 @@ double DesignProblem::max_valid_step(const VectorXd& x, const VectorXd& dx)
 bool DesignProblem::iteration(const IterationInfo& info)
 {
     m_restart_clock = Timer();
-    const bool go_on = on_iteration ? on_iteration(info) : true;
+    bool go_on = on_iteration ? on_iteration(info) : true;
+    if (go_on && info.values && info.values->f * objective_scale() <= m_objective_target
+        && constraints_hold(*info.values)) {
+        m_target_reached = true;
+        return false;
+    }
     if (go_on && info.x && remesh_if_needed(*info.x, info.iteration) && info.checkpoint) {
         m_restart = std::make_unique<OptimizerCheckpoint>(*info.checkpoint);
         return false; // minimize_design() goes on with the values on the new mesh
@@ -211,6 +228,7 @@ namespace diffipc {
 OptimizerResult minimize_design(
     DesignProblem& problem, const VectorXd& x0, const OptimizerSettings& settings, const OptimizerCheckpoint* resume)
 {
+    problem.set_objective_target(settings.objective_target);
     OptimizerResult result = resume ? resume_minimize(problem, *resume, settings) : minimize(problem, x0, settings);
     while (problem.restart_pending()) {
         std::unique_ptr<OptimizerCheckpoint> c = problem.take_restart();
@@ -236,6 +254,10 @@ OptimizerResult minimize_design(
             c->best_values = values;
         }
         result = resume_minimize(problem, *c, settings);
+    }
+    if (problem.target_reached()) {
+        result.reason = StopReason::OBJECTIVE_TARGET;
+        result.message = "J reached the objective target";
     }
     return result;
 }

@@ -23,6 +23,7 @@
 #include "shape_opt/rest_validity.hpp"
 
 #include <functional>
+#include <limits>
 #include <memory>
 #include <string>
 #include <vector>
@@ -69,6 +70,10 @@ public:
     int rejections() const { return m_rejections; }
     /// J = objective_scale() * f (1 until the first successful evaluation).
     double objective_scale() const { return m_objective_scale > 0 ? m_objective_scale : 1.0; }
+    /// Stop at the first accepted iterate with J <= target and the constraints holding
+    /// (OptimizerSettings::objective_target); whether that happened.
+    void set_objective_target(double target) { m_objective_target = target; }
+    bool target_reached() const { return m_target_reached; }
     /// Fixes the scale (a resumed run keeps its first run's |J(x0)|).
     void set_objective_scale(double scale) { m_objective_scale = scale; }
 
@@ -94,6 +99,7 @@ public:
 
 private:
     bool reject(const std::string& why);
+    bool constraints_hold(const OptimizationValues& values) const;
     void build_validity();
 
     const ReducedFunctional* m_functional;
@@ -106,6 +112,8 @@ private:
     std::unique_ptr<OptimizerCheckpoint> m_restart;
     Timer m_restart_clock;
     Times m_times;
+    double m_objective_target = -std::numeric_limits<double>::infinity();
+    bool m_target_reached = false;
     std::unique_ptr<RestValidity> m_validity; ///< with a shape entry
     std::vector<size_t> m_inequality, m_equality;
     VectorXd m_scale; ///< per constraint: |bound|, or 1

@@ -94,6 +94,8 @@ std::string to_string(StopReason reason)
         return "line_search_stalled";
     case StopReason::USER_STOP:
         return "user_stop";
+    case StopReason::OBJECTIVE_TARGET:
+        return "objective_target";
     case StopReason::INFEASIBLE:
         return "infeasible";
     case StopReason::INVALID_START:

@@ -18,6 +18,7 @@
 
 #include "forward/common/types.hpp"
 
+#include <limits>
 #include <map>
 #include <string>
 #include <vector>
@@ -103,6 +104,10 @@ struct OptimizerSettings {
     double max_seconds = 0; ///< wall-time budget
     double constraint_tolerance = 1e-6; ///< largest violation accepted as feasible (absolute)
     int lbfgs_memory = 10; ///< correction pairs of the L-BFGS Hessian approximation (L-BFGS, Ipopt; NLopt: unused)
+    /// Stop once an accepted iterate's objective, in the problem's own units, is at most this
+    /// and the constraints hold (a discrepancy-principle stop for fits to noisy data). Checked
+    /// by the problem (DesignProblem), which knows the units; -inf: off.
+    double objective_target = -std::numeric_limits<double>::infinity();
     /// Options passed to the library as they are. Ipopt: any of its options, read as the
     /// option's type (number, integer, string) and overriding ours. NLopt: "maxeval",
     /// "xtol_rel", "ftol_abs", "stopval", and for MMA/CCSAQ the parameters "inner_maxeval",
@@ -119,6 +124,7 @@ enum class StopReason {
     TIME_BUDGET,
     LINE_SEARCH_STALLED,
     USER_STOP,
+    OBJECTIVE_TARGET, ///< J reached OptimizerSettings::objective_target (feasible)
     INFEASIBLE, ///< the optimizer stopped without satisfying the constraints
     INVALID_START, ///< the initial point is invalid (evaluate() returned false there; outside the bounds: InputError)
     FAILED ///< the library reported an error (message says which)

@@ -13,7 +13,7 @@ OptimizerSettings parse_optimizer_settings(const JsonField& spec)
         return s;
     spec.require_object(
         { "algorithm", "max_iterations", "max_seconds", "gradient_tolerance", "relative_gradient_tolerance",
-            "x_tolerance", "f_tolerance", "constraint_tolerance", "lbfgs_memory", "options" });
+            "x_tolerance", "f_tolerance", "constraint_tolerance", "lbfgs_memory", "options", "objective_target" });
     if (spec.has("algorithm"))
         s.algorithm = parse_optimizer_algorithm(spec["algorithm"].string(), spec["algorithm"].path());
     if (spec.has("max_iterations"))
@@ -33,6 +33,8 @@ OptimizerSettings parse_optimizer_settings(const JsonField& spec)
     nonnegative("x_tolerance", s.x_tolerance);
     nonnegative("f_tolerance", s.f_tolerance);
     nonnegative("constraint_tolerance", s.constraint_tolerance);
+    if (spec.has("objective_target"))
+        s.objective_target = spec["objective_target"].number();
     if (spec.has("options")) {
         const JsonField options = spec["options"];
         if (!options.is_object())

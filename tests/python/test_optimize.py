@@ -111,6 +111,40 @@ def test_log_space_modulus_with_lbfgsb(cli, tmp_path):
     assert summary["final_J"] < 1e-2 * summary["initial_J"], summary
 
 
+def test_objective_target_stops_the_run_at_the_first_iterate_below_it(cli, tmp_path):
+    # The log-space fit above, with a target at 1e-3 of its start (a discrepancy-principle stop).
+    p = json.loads((ROOT / "studies" / "302_bar_youngs_markers" / "problem.json").read_text())
+    E0 = p["scene"]["bodies"][0]["material"]["E"]
+    _, tr = diffipc.simulate(p["scene"])
+    objective = p["objective"]
+    objective["targets"] = [[list(tr["positions"][k][v]) for v in objective["vertices"]] for k in objective["steps"]]
+    p["parameters"] = [{"type": "E", "per": "element", "initial": math.log(0.5 * E0),
+                        "lower": math.log(1e-2 * E0), "upper": math.log(1e2 * E0),
+                        "maps": [{"type": "exp"}, {"type": "filter", "radius": 0.05}]}]
+    p.pop("gradcheck", None)
+    problem = tmp_path / "bar.json"
+    p["optimizer"] = {"algorithm": "lbfgsb", "max_iterations": 30}
+    problem.write_text(json.dumps(p))
+    r = run(cli, "optimize", problem, "-o", tmp_path / "full", "-q")
+    assert r.returncode == 0, r.stderr
+    full = [float(row["J"]) for row in csv.DictReader((tmp_path / "full" / "history.csv").open())]
+    target = 1e-3 * full[0]
+    first = next(k for k, J in enumerate(full) if J <= target)  # the run without a target passes it here
+    p["optimizer"]["objective_target"] = target
+    problem.write_text(json.dumps(p))
+    r = run(cli, "optimize", problem, "-o", tmp_path / "o", "-q")
+    assert r.returncode == 0, r.stderr
+    summary = json.loads((tmp_path / "o" / "summary.json").read_text())
+    assert summary["stop_reason"] == "objective_target", summary
+    assert summary["iterations"] == first
+    rows = [float(row["J"]) for row in csv.DictReader((tmp_path / "o" / "history.csv").open())]
+    assert rows == pytest.approx(full[:first + 1], rel=1e-12)
+    assert summary["final_J"] <= target
+    # A finished run is not resumed.
+    r = run(cli, "optimize", "--resume", tmp_path / "o")
+    assert r.returncode == 0 and "nothing to resume" in r.stdout
+
+
 def test_a_failing_forward_solve_is_a_rejected_point_and_the_run_goes_on(cli, tmp_path):
     # Newton gets 9 iterations per step: the beam of study 301 converges for E >= 2e6 and fails
     # (NEWTON_EXHAUSTED) at its own E = 1e6. The tip's targets come from a run at E = 1e6, so
