@@ -17,6 +17,8 @@ writes, next to this script (or into --out DIR):
     problem_exact_filter_0.1.json   noise-free markers, filter radius 0.1 m
     problem_exact_no_filter.json    noise-free markers, no filter
     problem_ipopt.json              as problem.json, with Ipopt (100 iterations)
+    problem_discrepancy.json        as problem.json, stopped by the discrepancy principle
+                                    (optimizer.objective_target = 1.03 n sigma^2 / 2)
     truth.json                      the true field, the markers, the noise level
 """
 import argparse
@@ -67,7 +69,8 @@ def scene_dict():
     }
 
 
-def problem_dict(scene, markers, steps, targets, radius, description, algorithm="lbfgsb", iterations=200):
+def problem_dict(scene, markers, steps, targets, radius, description, algorithm="lbfgsb", iterations=200,
+                 target=None):
     maps = ([{"type": "filter", "radius": radius}] if radius else []) + [{"type": "exp"}]
     return {
         "description": description,
@@ -75,7 +78,8 @@ def problem_dict(scene, markers, steps, targets, radius, description, algorithm=
         "objective": {"type": "markers", "vertices": markers, "steps": steps, "targets": targets},
         "parameters": [{"type": "E", "per": "element", "initial": math.log(E_START),
                         "lower": math.log(E_LOWER), "upper": math.log(E_UPPER), "maps": maps}],
-        "optimizer": {"algorithm": algorithm, "max_iterations": iterations},
+        "optimizer": {"algorithm": algorithm, "max_iterations": iterations,
+                      **({"objective_target": target} if target else {})},
         "output": {"design_every": 20},
         "gradcheck": {"directions": 2, "seed": 4, "step": 0.1, "halvings": 4},
     }
@@ -152,8 +156,14 @@ def main():
         ("problem_exact_no_filter.json", clean, None, exact_text + "No filter.", "lbfgsb", 200),
         ("problem_ipopt.json", noisy, 0.2, noise_text + "Filter radius 0.2 m, Ipopt.", "ipopt", 100),
     ]
+    # The discrepancy principle: stop once the misfit is down to what the noise explains,
+    # J <= tau n sigma^2 / 2 (n coordinates, tau = 1.03).
+    discrepancy = float("%.6g" % (1.03 * clean.size * sigma ** 2 / 2))
+    variants.append(("problem_discrepancy.json", noisy, 0.2, noise_text + "Filter radius 0.2 m; stops at J <= "
+                     f"1.03 n sigma^2 / 2 = {discrepancy:g} m^2 (the discrepancy principle).", "lbfgsb", 200))
     for name, data, radius, text, algorithm, iterations in variants:
-        tree = problem_dict(scene, markers, steps, rounded(data), radius, base + text, algorithm, iterations)
+        tree = problem_dict(scene, markers, steps, rounded(data), radius, base + text, algorithm, iterations,
+                            discrepancy if name == "problem_discrepancy.json" else None)
         (args.out / name).write_text(dump(tree) + "\n")
 
     truth = {
