@@ -10,6 +10,7 @@ import pytest
 
 import diffipc
 from conftest import ROOT
+from design_checks import boundary_edges, crossing, triangle_areas
 
 
 def run(cli, *args, timeout=600):
@@ -26,36 +27,6 @@ def beam_shape_problem(algorithm="ipopt", iterations=6):
     p["optimizer"] = {"algorithm": algorithm, "max_iterations": iterations}
     del p["gradcheck"]
     return p
-
-
-def triangle_areas(points, cells):
-    a, b, c = points[cells[:, 0], :2], points[cells[:, 1], :2], points[cells[:, 2], :2]
-    u, v = b - a, c - a
-    return 0.5 * (u[:, 0] * v[:, 1] - u[:, 1] * v[:, 0])
-
-
-def boundary_edges(cells):
-    count = {}
-    for tri in cells:
-        for i in range(3):
-            e = tuple(sorted((tri[i], tri[(i + 1) % 3])))
-            count[e] = count.get(e, 0) + 1
-    return [e for e, n in count.items() if n == 1]
-
-
-def crossing(points, edges):
-    def orient(a, b, c):
-        return (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0])
-    for i in range(len(edges)):
-        for j in range(i + 1, len(edges)):
-            (a, b), (c, d) = edges[i], edges[j]
-            if len({a, b, c, d}) < 4:
-                continue
-            A, B, C, D = points[a], points[b], points[c], points[d]
-            o1, o2, o3, o4 = orient(A, B, C), orient(A, B, D), orient(C, D, A), orient(C, D, B)
-            if o1 * o2 < 0 and o3 * o4 < 0:
-                return True
-    return False
 
 
 @pytest.mark.parametrize("algorithm", ["ipopt", "slsqp"])
@@ -91,8 +62,9 @@ def test_beam_shape_under_a_material_constraint(cli, tmp_path, algorithm):
     assert value == pytest.approx(summary["final_J"], rel=1e-10)
 
 
-def test_log_space_modulus_with_lbfgsb(cli, tmp_path):
-    # Synthetic markers: the bar of study 302 simulated at its own E; the fit starts at half of it.
+def modulus_fit_problem(iterations):
+    """Synthetic markers: the bar of study 302 simulated at its own E; a log-space, filtered
+    per-element fit that starts at half of it."""
     p = json.loads((ROOT / "studies" / "302_bar_youngs_markers" / "problem.json").read_text())
     E0 = p["scene"]["bodies"][0]["material"]["E"]
     _, tr = diffipc.simulate(p["scene"])
@@ -101,8 +73,13 @@ def test_log_space_modulus_with_lbfgsb(cli, tmp_path):
     p["parameters"] = [{"type": "E", "per": "element", "initial": math.log(0.5 * E0),
                         "lower": math.log(1e-2 * E0), "upper": math.log(1e2 * E0),
                         "maps": [{"type": "exp"}, {"type": "filter", "radius": 0.05}]}]
-    p["optimizer"] = {"algorithm": "lbfgsb", "max_iterations": 15}
+    p["optimizer"] = {"algorithm": "lbfgsb", "max_iterations": iterations}
     p.pop("gradcheck", None)
+    return p
+
+
+def test_log_space_modulus_with_lbfgsb(cli, tmp_path):
+    p = modulus_fit_problem(15)
     problem = tmp_path / "bar.json"
     problem.write_text(json.dumps(p))
     r = run(cli, "optimize", problem, "-o", tmp_path / "o", "-q")
@@ -113,17 +90,8 @@ def test_log_space_modulus_with_lbfgsb(cli, tmp_path):
 
 def test_objective_target_stops_the_run_at_the_first_iterate_below_it(cli, tmp_path):
     # The log-space fit above, with a target at 1e-3 of its start (a discrepancy-principle stop).
-    p = json.loads((ROOT / "studies" / "302_bar_youngs_markers" / "problem.json").read_text())
-    E0 = p["scene"]["bodies"][0]["material"]["E"]
-    _, tr = diffipc.simulate(p["scene"])
-    objective = p["objective"]
-    objective["targets"] = [[list(tr["positions"][k][v]) for v in objective["vertices"]] for k in objective["steps"]]
-    p["parameters"] = [{"type": "E", "per": "element", "initial": math.log(0.5 * E0),
-                        "lower": math.log(1e-2 * E0), "upper": math.log(1e2 * E0),
-                        "maps": [{"type": "exp"}, {"type": "filter", "radius": 0.05}]}]
-    p.pop("gradcheck", None)
+    p = modulus_fit_problem(30)
     problem = tmp_path / "bar.json"
-    p["optimizer"] = {"algorithm": "lbfgsb", "max_iterations": 30}
     problem.write_text(json.dumps(p))
     r = run(cli, "optimize", problem, "-o", tmp_path / "full", "-q")
     assert r.returncode == 0, r.stderr

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 import diffipc
-from test_optimize import boundary_edges, crossing, triangle_areas
+from design_checks import boundary_edges, crossing, triangle_areas
 
 
 def run(cli, *args, env=None, timeout=600):
