@@ -9,6 +9,7 @@
 #include "forward/io/output.hpp"
 #include "forward/io/replace_file.hpp"
 #include "forward/io/vtu_writer.hpp"
+#include "forward/scene/json_input.hpp"
 #include "shape_opt/design_problem.hpp"
 #include "shape_opt/optimization_history.hpp"
 #include "shape_opt/optimizer/optimizer_json.hpp"
@@ -168,6 +169,11 @@ namespace {
                 "its x differs from history.h5's at iteration " + std::to_string(k)
                     + ": the files do not belong together");
         rows.resize(size_t(k) + 1); // rows after the state's iteration are done again
+        if (!problem_path.empty() && fs::exists(dir / "current_problem.json", ec))
+            throw InputError(problem_path,
+                "the run in " + r.directory
+                    + " remeshed: resume it without a problem file (it goes on with current_problem.json, the "
+                      "problem on its newest mesh)");
         if (problem_path.empty()) {
             // The problem on the newest mesh when the run remeshed, else as it started.
             problem_path = (dir
@@ -265,8 +271,13 @@ int optimize(const OptimizeOptions& options)
         if (ec || !fs::is_directory(dir))
             throw InputError(out_dir, "cannot create output directory");
         // What an earlier run in the directory left would describe another run.
-        for (const char* stale : { "summary.json", "optimizer_state.h5", "current_problem.json" })
+        for (const char* stale : { "summary.json", "optimizer_state.h5", "current_problem.json", "remeshes.json" })
             fs::remove(dir / stale, ec);
+        for (fs::directory_iterator it(dir, ec), end; !ec && it != end; it.increment(ec)) {
+            const std::string name = it->path().filename().string();
+            if (name.rfind("remesh_", 0) == 0 && it->path().extension() == ".msh")
+                fs::remove(it->path(), ec);
+        }
         // The problem as started, for a resume: written unless it is the file being run.
         const fs::path copy = dir / "initial_problem.json";
         if (!(fs::exists(copy, ec) && fs::equivalent(copy, problem_path, ec)))
@@ -277,6 +288,32 @@ int optimize(const OptimizeOptions& options)
     design_problem.set_remesh_directory(out_dir);
     if (resume)
         design_problem.set_objective_scale(resume->state.objective_scale);
+    // The remeshes so far (DIR/remeshes.json), kept for a resume: their records, the attempts
+    // (counted against remesh.max), the trigger and the failed attempts' time.
+    const std::string remeshes_path = (dir / "remeshes.json").string();
+    if (resume && fs::exists(remeshes_path, ec)) {
+        const nlohmann::json saved = parse_json_text(read_input_file(remeshes_path, "remesh state"), remeshes_path);
+        std::vector<RemeshRecord> records;
+        try {
+            for (size_t i = 0; i < saved.at("records").size(); ++i)
+                records.push_back(remesh_record_from_json(saved["records"][i], remeshes_path));
+            design_problem.restore_remeshes(records, saved.at("attempts").get<int>(), saved.at("trigger").get<double>(),
+                saved.at("failed_seconds").get<double>());
+        } catch (const nlohmann::json::exception&) {
+            throw InputError(remeshes_path, "is not the remesh state diffipc optimize writes");
+        }
+    }
+    const auto remesh_records = [&]() {
+        nlohmann::json list = nlohmann::json::array();
+        for (const RemeshRecord& r : design_problem.remeshes())
+            list.push_back(remesh_record_json(r));
+        return list;
+    };
+    design_problem.on_remesh_attempt = [&]() {
+        write_json(remeshes_path,
+            { { "attempts", design_problem.remesh_attempts() }, { "trigger", design_problem.remesh_trigger() },
+                { "failed_seconds", design_problem.failed_remesh_seconds() }, { "records", remesh_records() } });
+    };
     const auto objective_scale = [&]() { return design_problem.objective_scale(); };
     const auto last_rejection = [&]() {
         return design_problem.last_rejection().empty() && resume ? resume->state.last_rejection
@@ -349,6 +386,10 @@ int optimize(const OptimizeOptions& options)
         }
         return stop_signal() == 0;
     };
+    // After a remesh the run goes on from the values on the new mesh: they are its state now.
+    design_problem.on_restart = [&](const OptimizerCheckpoint& c) {
+        write_run_state(state_path, { c, objective_scale(), last_rejection() });
+    };
     design_problem.on_remesh = [&](const RemeshRecord& r) {
         // The problem on the new mesh, for a resume (read_resume prefers it).
         write_json((dir / "current_problem.json").string(), self_contained_document(design_problem.functional()));
@@ -391,19 +432,7 @@ int optimize(const OptimizeOptions& options)
         write_design_vtu((dir / "design_final.vtu").string(), now, now.parameters_of(result.x));
     }
     if (rf.remesh_settings().enabled()) {
-        nlohmann::json list = nlohmann::json::array();
-        for (const RemeshRecord& r : design_problem.remeshes())
-            list.push_back({ { "iteration", r.iteration }, { "quality_before", r.quality_before },
-                { "quality_after", r.quality_after }, { "elements_before", r.elements_before },
-                { "elements_after", r.elements_after }, { "J_before", r.J_before }, { "J_after", r.J_after },
-                { "constraints_before",
-                    std::vector<double>(
-                        r.constraints_before.data(), r.constraints_before.data() + r.constraints_before.size()) },
-                { "constraints_after",
-                    std::vector<double>(
-                        r.constraints_after.data(), r.constraints_after.data() + r.constraints_after.size()) },
-                { "files", r.files }, { "seconds", r.seconds } });
-        summary["remeshes"] = list;
+        summary["remeshes"] = remesh_records();
         if (!design_problem.remesh_failure().empty())
             summary["remesh_failure"] = design_problem.remesh_failure();
     }
@@ -413,11 +442,8 @@ int optimize(const OptimizeOptions& options)
     // Parts of "evaluation", measured in this process (a resumed run's: since the resume).
     summary["wall_time"]["parametrization"] = design_problem.times().parametrization;
     summary["wall_time"]["validity"] = design_problem.times().validity;
-    double remeshing = 0;
-    for (const RemeshRecord& r : design_problem.remeshes())
-        remeshing += r.seconds;
     if (rf.remesh_settings().enabled())
-        summary["wall_time"]["remeshing"] = remeshing;
+        summary["wall_time"]["remeshing"] = design_problem.remesh_seconds(); // every attempt, used or not
     write_json((dir / "summary.json").string(), summary);
 
     if (!options.quiet)

@@ -41,12 +41,12 @@ void DesignProblem::build_validity()
 
 bool DesignProblem::constraints_hold(const OptimizationValues& v) const
 {
-    // The constraints reach the optimizer scaled by their bounds (header); 1e-6 relative.
+    // The constraints reach the optimizer scaled by their bounds (header).
     for (Index i = 0; i < v.inequality.size(); ++i)
-        if (!(v.inequality[i] <= 1e-6))
+        if (!(v.inequality[i] <= m_constraint_tolerance))
             return false;
     for (Index i = 0; i < v.equality.size(); ++i)
-        if (!(std::abs(v.equality[i]) <= 1e-6))
+        if (!(std::abs(v.equality[i]) <= m_constraint_tolerance))
             return false;
     return true;
 }
@@ -146,17 +146,21 @@ bool DesignProblem::iteration(const IterationInfo& info)
         m_target_reached = true;
         return false;
     }
-    if (go_on && info.x && remesh_if_needed(*info.x, info.iteration) && info.checkpoint) {
+    // gmsh gets at most what is left of the run's time budget.
+    double seconds = 600;
+    if (m_time_budget > 0 && info.checkpoint)
+        seconds = std::min(seconds, m_time_budget - info.checkpoint->elapsed_seconds);
+    if (go_on && info.x && info.checkpoint && remesh_if_needed(*info.x, info.iteration, false, seconds)) {
         m_restart = std::make_unique<OptimizerCheckpoint>(*info.checkpoint);
         return false; // minimize_design() goes on with the values on the new mesh
     }
     return go_on;
 }
 
-bool DesignProblem::remesh_if_needed(const VectorXd& x, int iteration, bool force)
+bool DesignProblem::remesh_if_needed(const VectorXd& x, int iteration, bool force, double seconds)
 {
     const RemeshSettings& settings = m_functional->remesh_settings();
-    if (!settings.enabled() || int(m_remeshes.size()) >= settings.max_remeshes)
+    if (!settings.enabled() || m_remesh_attempts >= settings.max_remeshes || !(seconds > 0))
         return false;
     const Scene& scene = m_functional->scene();
     const int d = scene.dim;
@@ -173,21 +177,31 @@ bool DesignProblem::remesh_if_needed(const VectorXd& x, int iteration, bool forc
         directory
             = (std::filesystem::temp_directory_path() / ("diffipc_remesh_" + std::to_string(::getpid()))).string();
     const Timer timer;
+    ++m_remesh_attempts;
     RemeshRecord record;
     record.iteration = iteration;
     std::unique_ptr<ReducedFunctional> fresh;
+    const auto failed = [&](const std::string& why) {
+        // The next attempt waits for the quality to fall further; the files of this one go.
+        m_remesh_trigger = std::min(settings.quality, 0.9 * quality);
+        m_remesh_failure = why;
+        m_failed_remesh_seconds += timer.seconds();
+        for (const std::string& file : record.files)
+            std::remove(file.c_str());
+        if (on_remesh_attempt)
+            on_remesh_attempt();
+        return false;
+    };
     try {
         std::filesystem::create_directories(directory);
-        const nlohmann::json doc
-            = remeshed_document(*m_functional, x, m_remesh_size, directory, int(m_remeshes.size()) + 1, record);
-        if (!force && !(record.quality_after > record.quality_before)) {
-            m_remesh_trigger = std::min(settings.quality, 0.9 * quality);
-            throw RemeshError("the new mesh's worst quality " + std::to_string(record.quality_after)
+        const nlohmann::json doc = remeshed_document(*m_functional, x, m_remesh_size, directory,
+            "remesh_" + std::to_string(next_remesh_number(directory)), seconds, record);
+        if (!force && !(record.quality_after > record.quality_before))
+            return failed("the new mesh's worst quality " + std::to_string(record.quality_after)
                 + " is not above the old one's " + std::to_string(record.quality_before) + "; kept the old mesh");
-        }
         fresh = std::make_unique<ReducedFunctional>(doc, m_functional->base_directory(), "remeshed problem");
         if (fresh->design_layout() != m_functional->design_layout())
-            throw RemeshError("the design variables change with the mesh (a per-element or per-vertex parameter)");
+            return failed("the design variables change with the mesh");
         // J and the constraints at x on both meshes: the remesh's discretization change.
         const bool constraints = !m_functional->constraints().empty();
         const Evaluation before = m_functional->evaluate(m_functional->parameters_of(x), false, constraints);
@@ -196,18 +210,10 @@ bool DesignProblem::remesh_if_needed(const VectorXd& x, int iteration, bool forc
         record.J_after = after.value;
         record.constraints_before = before.constraint_values;
         record.constraints_after = after.constraint_values;
-    } catch (const RemeshError& e) {
-        m_remesh_failure = e.what();
-        return false;
-    } catch (const InputError& e) {
-        m_remesh_failure = e.what();
-        return false;
     } catch (const AdjointError& e) {
-        m_remesh_failure = std::string("the forward run on the new mesh failed: ") + e.what();
-        return false;
-    } catch (const std::filesystem::filesystem_error& e) {
-        m_remesh_failure = e.what();
-        return false;
+        return failed(std::string("the forward run on the new mesh failed: ") + e.what());
+    } catch (const std::exception& e) { // RemeshError, InputError, filesystem errors, ...
+        return failed(e.what());
     }
     record.seconds = timer.seconds();
     m_remesh_trigger = std::min(settings.quality, 0.9 * record.quality_after);
@@ -218,7 +224,27 @@ bool DesignProblem::remesh_if_needed(const VectorXd& x, int iteration, bool forc
     m_remesh_failure.clear();
     if (on_remesh)
         on_remesh(m_remeshes.back());
+    if (on_remesh_attempt)
+        on_remesh_attempt();
     return true;
+}
+
+void DesignProblem::restore_remeshes(
+    const std::vector<RemeshRecord>& records, int attempts, double trigger, double failed_seconds)
+{
+    m_remeshes = records;
+    m_remesh_attempts = attempts;
+    if (trigger > 0)
+        m_remesh_trigger = trigger;
+    m_failed_remesh_seconds = failed_seconds;
+}
+
+double DesignProblem::remesh_seconds() const
+{
+    double total = m_failed_remesh_seconds;
+    for (const RemeshRecord& r : m_remeshes)
+        total += r.seconds;
+    return total;
 }
 
 } // namespace diffipc
@@ -229,6 +255,8 @@ OptimizerResult minimize_design(
     DesignProblem& problem, const VectorXd& x0, const OptimizerSettings& settings, const OptimizerCheckpoint* resume)
 {
     problem.set_objective_target(settings.objective_target);
+    problem.set_time_budget(settings.max_seconds);
+    problem.set_constraint_tolerance(settings.constraint_tolerance);
     OptimizerResult result = resume ? resume_minimize(problem, *resume, settings) : minimize(problem, x0, settings);
     while (problem.restart_pending()) {
         std::unique_ptr<OptimizerCheckpoint> c = problem.take_restart();
@@ -249,10 +277,18 @@ OptimizerResult minimize_design(
         }
         c->values = values;
         c->previous_f = std::nan(""); // f on the old mesh does not compare with the new
-        if (c->has_best) { // the remesh's iterate stands in for the best point: values on the old mesh do not compare
-            c->best_x = c->x;
-            c->best_values = values;
-        }
+        // Values on the old mesh do not compare with the new: the remesh's iterate is the best
+        // point so far if it is feasible on the new mesh, else there is none yet.
+        bool feasible = true;
+        for (Index i = 0; i < values.inequality.size(); ++i)
+            feasible = feasible && values.inequality[i] <= settings.constraint_tolerance;
+        for (Index i = 0; i < values.equality.size(); ++i)
+            feasible = feasible && std::abs(values.equality[i]) <= settings.constraint_tolerance;
+        c->has_best = feasible;
+        c->best_x = feasible ? c->x : VectorXd();
+        c->best_values = feasible ? values : OptimizationValues();
+        if (problem.on_restart)
+            problem.on_restart(*c);
         result = resume_minimize(problem, *c, settings);
     }
     if (problem.target_reached()) {

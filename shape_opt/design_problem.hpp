@@ -95,7 +95,26 @@ public:
     /// (worst quality below the threshold, remeshes left); iteration() calls it after
     /// on_iteration. Returns whether it remeshed; a failed remesh is recorded in
     /// remesh_failure() and the run goes on with the old mesh.
-    bool remesh_if_needed(const VectorXd& x, int iteration, bool force = false);
+    /// `seconds`: gmsh's time limit (no remesh at <= 0).
+    bool remesh_if_needed(const VectorXd& x, int iteration, bool force = false, double seconds = 600);
+    /// A resumed run goes on with the remeshes, attempts, trigger and failed attempts' time of
+    /// the run it continues (the CLI keeps them in DIR/remeshes.json).
+    void restore_remeshes(
+        const std::vector<RemeshRecord>& records, int attempts, double trigger, double failed_seconds);
+    int remesh_attempts() const { return m_remesh_attempts; }
+    double remesh_trigger() const { return m_remesh_trigger; }
+    double failed_remesh_seconds() const { return m_failed_remesh_seconds; }
+    /// Wall time of every remesh attempt so far, used or not (s).
+    double remesh_seconds() const;
+    /// Called after every remesh attempt, used or not (the CLI saves the remesh state).
+    std::function<void()> on_remesh_attempt;
+    /// Called by minimize_design() with the checkpoint it continues from after a remesh (the
+    /// values on the new mesh; the CLI saves it as the run's state).
+    std::function<void(const OptimizerCheckpoint&)> on_restart;
+    /// Settings minimize_design() passes on: the run's time budget (remeshing gets what is
+    /// left of it) and the constraint tolerance (objective_target's feasibility).
+    void set_time_budget(double seconds) { m_time_budget = seconds; }
+    void set_constraint_tolerance(double tolerance) { m_constraint_tolerance = tolerance; }
 
 private:
     bool reject(const std::string& why);
@@ -109,6 +128,10 @@ private:
     std::string m_remesh_failure;
     double m_remesh_size = 0;
     double m_remesh_trigger = 0; ///< remesh below this worst quality (remesh.hpp)
+    int m_remesh_attempts = 0;
+    double m_failed_remesh_seconds = 0;
+    double m_time_budget = 0;
+    double m_constraint_tolerance = 1e-6;
     std::unique_ptr<OptimizerCheckpoint> m_restart;
     Timer m_restart_clock;
     Times m_times;

@@ -250,6 +250,7 @@ namespace {
                     for (Index e : elements)
                         p.targets.push_back({ e });
             }
+            p.per_mesh_item = mode == "element";
             break;
         }
         case Selection::STATE: {
@@ -291,11 +292,13 @@ namespace {
                                   "an initial state there has no effect");
                     p.targets.push_back(dofs);
                 }
-            } else
+            } else {
                 for (Index v : vertices)
                     for (int c = 0; c < d; ++c)
                         if (!prescribed.count(v * d + c))
                             p.targets.push_back({ v * d + c });
+                p.per_mesh_item = true;
+            }
             if (p.targets.empty())
                 throw InputError(field, "every selected dof is prescribed: an initial state there has no effect");
             break;
@@ -306,6 +309,7 @@ namespace {
                 throw InputError(field, "the scene has no prescribed dofs (Dirichlet or obstacles)");
             for (Index k = 0; k < Index(scene.time.steps) * nd; ++k)
                 p.targets.push_back({ k });
+            p.per_mesh_item = true; // the prescribed dofs are the mesh's
             break;
         }
         case Selection::GROUPS: {
@@ -567,8 +571,18 @@ std::string ProblemParameters::remesh_obstacle() const
 {
     int shapes = 0;
     for (size_t k = 0; k < m_entries.size(); ++k) {
-        if (m_entries[k].kind != Kind::SHAPE)
+        if (m_entries[k].kind != Kind::SHAPE) {
+            // Values per element, vertex or prescribed dof change in number with the mesh,
+            // unless a per_body map gathers them from one value per body.
+            bool per_body = false;
+            for (size_t i = 0; i < m_chains[k]->size(); ++i)
+                per_body = per_body || m_chains[k]->map(i).name() == "per_body";
+            if (m_entries[k].per_mesh_item && !per_body)
+                return m_entries[k].field
+                    + ": its design variables are one per element, vertex or prescribed value, which a remesh "
+                      "changes (use \"per\": \"body\" or a per_body map)";
             continue;
+        }
         ++shapes;
         size_t at = 0;
         if (!find_ffd(*m_chains[k], at))
@@ -608,6 +622,13 @@ ShapeLatticeInput ProblemParameters::shape_lattice_input(const VectorXd& x) cons
         at += m_design_sizes[k];
     }
     throw std::logic_error("shape_lattice_input: no shape entry");
+}
+
+Positions ProblemParameters::pull_back_shape(const VectorXd& x, const Positions& current) const
+{
+    const ShapeLatticeInput in = shape_lattice_input(x);
+    const auto& ffd = dynamic_cast<const FreeFormDeformation&>(m_chains[in.entry]->map(in.map));
+    return ffd.pull_back(current, in.lattice);
 }
 
 std::vector<std::pair<std::string, Index>> ProblemParameters::design_layout() const

@@ -50,6 +50,8 @@ struct ParameterSpec {
     /// Canonical indices this parameter's entries drive: entry i of the slice drives
     /// targets[i] (a list of canonical indices in the block).
     std::vector<std::vector<Index>> targets;
+    /// One value per element, per vertex or per prescribed dof (the count depends on the mesh).
+    bool per_mesh_item = false;
 };
 
 class ProblemParameters {
@@ -111,6 +113,10 @@ public:
     /// applied to them).
     /// @throws std::runtime_error if remesh_obstacle() is not empty
     ShapeLatticeInput shape_lattice_input(const VectorXd& x) const;
+    /// @brief The body positions (#V by dim) that x moves onto `current` through the shape's
+    /// free-form deformation (FreeFormDeformation::pull_back).
+    /// @throws std::runtime_error as shape_lattice_input, or where the pull-back fails
+    Positions pull_back_shape(const VectorXd& x, const Positions& current) const;
 
 private:
     void parse_maps(const nlohmann::json& params, const Scene& scene);

@@ -283,6 +283,13 @@ VectorXd ReducedFunctional::rest_positions_of(const VectorXd& p) const
 }
 
 const Scene& ReducedFunctional::scene() const { return m_cases[0]->scene; }
+const Scene& ReducedFunctional::scene(size_t c) const { return m_cases.at(c)->scene; }
+size_t ReducedFunctional::load_cases() const { return m_cases.size(); }
+
+Positions ReducedFunctional::pull_back_shape(const VectorXd& x, const Positions& current) const
+{
+    return m_parameters->pull_back_shape(x, current);
+}
 
 std::string ReducedFunctional::remesh_obstacle() const { return m_parameters->remesh_obstacle(); }
 

@@ -105,6 +105,9 @@ public:
     std::string remesh_obstacle() const;
     /// Where x puts the shape's free-form deformation (ProblemParameters::shape_lattice_input).
     ShapeLatticeInput shape_lattice_input(const VectorXd& x) const;
+    /// The positions that x moves onto `current` through the shape's free-form deformation
+    /// (ProblemParameters::pull_back_shape).
+    Positions pull_back_shape(const VectorXd& x, const Positions& current) const;
     /// The document as loaded and the folder its relative paths start from (for the problem
     /// file an optimization writes with its optimum).
     const nlohmann::json& document() const { return m_document; }
@@ -121,8 +124,10 @@ public:
     /// The first load case's simulation parameters with p applied (rest positions, E and nu
     /// or mu and lambda, densities, ...).
     SimulationParameters simulation_parameters_of(const VectorXd& p) const;
-    /// The first load case's scene (the mesh every case shares).
+    /// The first load case's scene (the mesh every case shares), and load case c's.
     const Scene& scene() const;
+    const Scene& scene(size_t c) const;
+    size_t load_cases() const;
 
     /// The problem's "constraints" (empty without).
     const std::vector<ConstraintSpec>& constraints() const { return m_constraints; }

@@ -151,11 +151,19 @@ namespace {
         posix_spawn_file_actions_init(&actions);
         posix_spawn_file_actions_addopen(&actions, 1, log.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
         posix_spawn_file_actions_adddup2(&actions, 1, 2);
+        // Not the run's open files (history.h5, ...), and not the terminal's Ctrl-C: the run
+        // decides when to stop, and kills the remesher then.
+        posix_spawn_file_actions_addclosefrom_np(&actions, 3);
+        posix_spawnattr_t attributes;
+        posix_spawnattr_init(&attributes);
+        posix_spawnattr_setflags(&attributes, POSIX_SPAWN_SETPGROUP);
+        posix_spawnattr_setpgroup(&attributes, 0);
         std::vector<char*> args { const_cast<char*>(program.c_str()), const_cast<char*>(in.c_str()),
             const_cast<char*>(out.c_str()), nullptr };
         pid_t pid = 0;
-        const int spawned = posix_spawn(&pid, program.c_str(), &actions, nullptr, args.data(), environ);
+        const int spawned = posix_spawn(&pid, program.c_str(), &actions, &attributes, args.data(), environ);
         posix_spawn_file_actions_destroy(&actions);
+        posix_spawnattr_destroy(&attributes);
         if (spawned != 0)
             throw RemeshError("cannot run the remesher '" + program + "' (" + std::strerror(spawned)
                 + "); set DIFFIPC_GMSH_REMESHER to diffipc-gmsh-remesh of the build");
@@ -170,10 +178,12 @@ namespace {
             if (std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count() > seconds) {
                 kill(pid, SIGKILL);
                 waitpid(pid, &status, 0);
-                throw RemeshError("gmsh did not finish within " + std::to_string(int(seconds)) + " s");
+                throw RemeshError("gmsh did not finish within " + format_number(seconds) + " s");
             }
             std::this_thread::sleep_for(std::chrono::milliseconds(2));
         }
+        if (WIFEXITED(status) && WEXITSTATUS(status) > 1)
+            throw RemeshError("the remesher exited with status " + std::to_string(WEXITSTATUS(status)));
         if (WIFSIGNALED(status)) {
             const std::string gmsh = last_error_line(log);
             throw RemeshError("gmsh ended with signal " + std::to_string(WTERMSIG(status))
@@ -183,27 +193,27 @@ namespace {
 
 } // namespace
 
-Mesh remesh_domain(const Positions& x, const MatrixXi& boundary, int dim, double size, bool remesh_surface)
+Mesh remesh_domain(
+    const Positions& x, const MatrixXi& boundary, int dim, double size, bool remesh_surface, double seconds)
 {
     if (!(size > 0) || !std::isfinite(size))
         throw RemeshError("the target size must be positive");
     if (boundary.rows() == 0 || boundary.cols() != dim || x.cols() != dim)
         throw RemeshError("no boundary to mesh");
-    // Row-major copies for the module's plain arrays.
-    std::vector<double> points(size_t(x.rows()) * size_t(dim));
-    for (Index v = 0; v < x.rows(); ++v)
-        for (int a = 0; a < dim; ++a)
-            points[size_t(v * dim + a)] = x(v, a);
-    std::vector<int> facets(size_t(boundary.rows()) * size_t(dim));
-    for (Index f = 0; f < boundary.rows(); ++f)
-        for (int a = 0; a < dim; ++a)
-            facets[size_t(f * dim + a)] = boundary(f, a);
     // The remesher's files, unique per process and call.
     static std::atomic<int> calls { 0 };
     const std::string stem
         = (fs::temp_directory_path() / ("diffipc_remesh_" + std::to_string(::getpid()) + "_" + std::to_string(calls++)))
               .string();
     const std::string in_path = stem + "_in.txt", out_path = stem + "_out.txt", log_path = stem + "_log.txt";
+    struct Cleanup { // the remesher's files go on every path out of here
+        std::vector<std::string> paths;
+        ~Cleanup()
+        {
+            for (const std::string& path : paths)
+                std::remove(path.c_str());
+        }
+    } cleanup { { in_path, out_path, log_path } };
     {
         std::ofstream in(in_path);
         in << std::setprecision(17) << dim << " " << size << " " << (remesh_surface ? 1 : 0) << " " << x.rows() << " "
@@ -219,38 +229,42 @@ Mesh remesh_domain(const Positions& x, const MatrixXi& boundary, int dim, double
     }
     std::vector<double> new_points;
     std::vector<int> new_elements;
-    std::string failure;
-    try {
-        run_remesher(in_path, out_path, log_path, 600);
-        std::ifstream out(out_path);
-        std::string word;
-        out >> word;
-        if (word == "error") {
-            std::getline(out, failure);
-            failure = failure.empty() ? "gmsh failed" : failure.substr(1);
-        } else if (word == "ok") {
-            size_t np = 0, ne = 0;
-            out >> np >> ne;
-            new_points.resize(np * size_t(dim));
-            new_elements.resize(ne * size_t(dim + 1));
-            for (double& v : new_points)
-                out >> v;
-            for (int& v : new_elements)
-                out >> v;
-            if (!out || np == 0 || ne == 0)
-                failure = "the remesher's output is incomplete";
-            for (int v : new_elements)
-                if (v < 0 || size_t(v) >= np)
-                    failure = "the remesher returned an element with an unknown vertex";
-        } else
-            failure = "the remesher wrote no result";
-    } catch (const RemeshError& e) {
-        failure = e.what();
+    run_remesher(in_path, out_path, log_path, seconds);
+    std::error_code ec;
+    const auto bytes = fs::file_size(out_path, ec);
+    std::ifstream out(out_path);
+    std::string word;
+    out >> word;
+    if (ec || !out)
+        throw RemeshError("the remesher wrote no result");
+    if (word == "error") {
+        std::string failure;
+        std::getline(out, failure);
+        throw RemeshError(failure.size() > 1 ? failure.substr(1) : "gmsh failed");
     }
-    for (const std::string& path : { in_path, out_path, log_path })
-        std::remove(path.c_str());
-    if (!failure.empty())
-        throw RemeshError(failure);
+    if (word != "ok")
+        throw RemeshError("the remesher's result does not start with ok or error");
+    long long points_count = 0, elements_count = 0;
+    out >> points_count >> elements_count;
+    // Each number takes at least two bytes: counts beyond the file's size are garbage.
+    const long long most = static_cast<long long>(bytes) / 2;
+    if (!out || points_count <= 0 || elements_count <= 0 || points_count > most / dim
+        || elements_count > most / (dim + 1))
+        throw RemeshError("the remesher's result has bad counts");
+    new_points.resize(size_t(points_count) * size_t(dim));
+    new_elements.resize(size_t(elements_count) * size_t(dim + 1));
+    for (double& v : new_points)
+        out >> v;
+    for (int& v : new_elements)
+        out >> v;
+    if (!out)
+        throw RemeshError("the remesher's output is incomplete");
+    for (double v : new_points)
+        if (!std::isfinite(v))
+            throw RemeshError("the remesher returned a non-finite coordinate");
+    for (int v : new_elements)
+        if (v < 0 || v >= points_count)
+            throw RemeshError("the remesher returned an element with an unknown vertex");
     Mesh mesh;
     mesh.dim = dim;
     const Index nv = Index(new_points.size()) / dim, ne = Index(new_elements.size()) / (dim + 1);
@@ -323,6 +337,52 @@ namespace {
 
 } // namespace
 
+int next_remesh_number(const std::string& directory)
+{
+    int next = 1;
+    std::error_code ec;
+    for (fs::directory_iterator it(directory, ec), end; !ec && it != end; it.increment(ec)) {
+        const std::string name = it->path().filename().string();
+        int n = 0;
+        char tail[16] = { 0 };
+        if (std::sscanf(name.c_str(), "remesh_%d_bod%15s", &n, tail) == 2 && n >= next)
+            next = n + 1;
+    }
+    return next;
+}
+
+nlohmann::json remesh_record_json(const RemeshRecord& r)
+{
+    const auto list = [](const VectorXd& v) { return std::vector<double>(v.data(), v.data() + v.size()); };
+    return { { "iteration", r.iteration }, { "quality_before", r.quality_before }, { "quality_after", r.quality_after },
+        { "elements_before", r.elements_before }, { "elements_after", r.elements_after }, { "J_before", r.J_before },
+        { "J_after", r.J_after }, { "constraints_before", list(r.constraints_before) },
+        { "constraints_after", list(r.constraints_after) }, { "files", r.files }, { "seconds", r.seconds } };
+}
+
+RemeshRecord remesh_record_from_json(const nlohmann::json& j, const std::string& field)
+{
+    try {
+        RemeshRecord r;
+        r.iteration = j.at("iteration").get<int>();
+        r.quality_before = j.at("quality_before").get<double>();
+        r.quality_after = j.at("quality_after").get<double>();
+        r.elements_before = j.at("elements_before").get<Index>();
+        r.elements_after = j.at("elements_after").get<Index>();
+        r.J_before = j.at("J_before").get<double>();
+        r.J_after = j.at("J_after").get<double>();
+        const auto before = j.at("constraints_before").get<std::vector<double>>();
+        const auto after = j.at("constraints_after").get<std::vector<double>>();
+        r.constraints_before = Eigen::Map<const VectorXd>(before.data(), Index(before.size()));
+        r.constraints_after = Eigen::Map<const VectorXd>(after.data(), Index(after.size()));
+        r.files = j.at("files").get<std::vector<std::string>>();
+        r.seconds = j.at("seconds").get<double>();
+        return r;
+    } catch (const nlohmann::json::exception&) {
+        throw InputError(field, "not a remesh record (docs/optimization.md)");
+    }
+}
+
 nlohmann::json self_contained_document(const ReducedFunctional& functional)
 {
     nlohmann::json doc = functional.document();
@@ -340,7 +400,7 @@ nlohmann::json self_contained_document(const ReducedFunctional& functional)
 }
 
 nlohmann::json remeshed_document(const ReducedFunctional& functional, const VectorXd& x, double size,
-    const std::string& directory, int count, RemeshRecord& record)
+    const std::string& directory, const std::string& name, double seconds, RemeshRecord& record)
 {
     const Scene& scene = functional.scene();
     const int d = scene.dim;
@@ -383,19 +443,56 @@ nlohmann::json remeshed_document(const ReducedFunctional& functional, const Vect
         for (Index f = 0; f < boundary.rows(); ++f)
             for (int a = 0; a < d; ++a)
                 boundary(f, a) = int(facets[size_t(f * d + a)]);
-        Mesh fresh = remesh_domain(points, boundary, d, size, functional.remesh_settings().remesh_surface);
+        Mesh fresh = remesh_domain(points, boundary, d, size, functional.remesh_settings().remesh_surface, seconds);
         record.quality_after = std::min(record.quality_after, min_quality(fresh.rest_positions, fresh.elements));
         record.elements_after += fresh.elements.rows();
-        const std::string file
-            = (fs::path(directory) / ("remesh_" + std::to_string(count) + "_body" + std::to_string(b) + ".msh"))
-                  .string();
-        write_gmsh(file, fresh);
+        // Regions select vertices in the scene's mesh: the old one at the design x = 0 (its
+        // reference), the new one at x. They must select the same: the new vertices' reference
+        // positions (the pull-back) and their positions at x must lie in the same regions.
+        Positions reference;
+        try {
+            reference = functional.pull_back_shape(x, fresh.rest_positions);
+        } catch (const std::runtime_error& e) {
+            throw RemeshError(e.what());
+        }
+        const auto check_region = [&](const BoxRegion& region, const std::string& field, double tolerance) {
+            for (Index v = 0; v < reference.rows(); ++v)
+                if (region.contains(reference.row(v).transpose(), tolerance)
+                    != region.contains(fresh.rest_positions.row(v).transpose(), tolerance))
+                    throw RemeshError("the design moves the body across the region of " + field
+                        + " (regions select in the rest shape at the design's start, the new mesh's at the "
+                          "current design): a remesh would change what it selects");
+        };
+        for (size_t c = 0; c < functional.load_cases(); ++c) {
+            const Scene& sc = functional.scene(c);
+            const Eigen::RowVectorXd extent = sc.mesh.rest_positions.topRows(sc.body_vertices).colwise().maxCoeff()
+                - sc.mesh.rest_positions.topRows(sc.body_vertices).colwise().minCoeff();
+            const double tolerance = 1e-9 * extent.norm();
+            for (const DirichletSpec& r : sc.dirichlet)
+                if (r.body == b)
+                    check_region(r.region, r.field, tolerance);
+            for (const NeumannSpec& r : sc.neumann)
+                if (r.body == b)
+                    check_region(r.region, r.field, tolerance);
+        }
+        const std::string file = (fs::path(directory) / (name + "_body" + std::to_string(b) + ".msh")).string();
         record.files.push_back(file);
+        write_gmsh(file, fresh);
         for (nlohmann::json* s : case_scenes(doc)) {
             nlohmann::json& body = (*s)["bodies"][size_t(b)];
             body["mesh"] = { { "file", fs::absolute(file).lexically_normal().string() } };
             body.erase("translation");
             body.erase("rotation");
+        }
+    }
+    // A default contact distance is a fraction of the bodies' extent: keep the scene's.
+    for (size_t c = 0; c < functional.load_cases(); ++c) {
+        nlohmann::json& sc = *case_scenes(doc)[c];
+        if (functional.scene(c).contact.enabled) {
+            if (!sc.contains("contact") || !sc["contact"].is_object())
+                sc["contact"] = nlohmann::json::object();
+            if (!sc["contact"].contains("dhat"))
+                sc["contact"]["dhat"] = functional.scene(c).contact.dhat;
         }
     }
     // The new meshes are the shape at x: the free-form deformation evaluates its basis at their

@@ -1,6 +1,6 @@
 #pragma once
 /// @file remesh.hpp
-/// Remeshing inside the optimization loop (issue 12, docs/optimization.md "Remeshing"). A shape
+/// Remeshing inside the optimization loop (issue 12, docs/remeshing.md). A shape
 /// design moves the rest mesh; when its worst element's quality falls below a threshold, the
 /// domain at the current design is meshed anew by gmsh (its C++ API, libgmsh-dev) with the
 /// boundary kept, and the shape's free-form deformation evaluates its basis at the new mesh's
@@ -72,8 +72,10 @@ double mean_edge_length(const Positions& x, const MatrixXi& elements);
 /// boundary computed. In 3D with `remesh_surface` the boundary triangulation is meshed anew
 /// too (its faces split at bends above 40 degrees and parametrized on the old triangles, so
 /// the new surface vertices lie on the old surface); else it is kept.
-/// @throws RemeshError if gmsh fails or the boundary is not closed
-Mesh remesh_domain(const Positions& x, const MatrixXi& boundary, int dim, double size, bool remesh_surface = false);
+/// `seconds`: the remesher is killed after this long.
+/// @throws RemeshError if gmsh fails, hangs, writes garbage, or the boundary is not closed
+Mesh remesh_domain(const Positions& x, const MatrixXi& boundary, int dim, double size, bool remesh_surface = false,
+    double seconds = 600);
 
 /// @brief Writes the elements of `mesh` (triangles or tetrahedra) as a gmsh 2.2 ASCII file,
 /// every coordinate exact (%.17g).
@@ -92,14 +94,26 @@ struct RemeshRecord {
 };
 
 /// @brief The problem document with every body's mesh replaced by a new mesh of its domain at
-/// design x (written to `directory`/remesh_<count>_body<b>.msh), the shape's free-form
-/// deformation told that the mesh is the shape at x ("mesh_at": its basis is evaluated at
-/// the pull-back of the new vertices, so that every x gives the domain it gave before) and
-/// the shape entry's "initial" set to x; scene files are inlined with their relative paths
-/// made absolute, body placements (translation, rotation) folded into the mesh.
+/// design x (written to `directory`/<name>_body<b>.msh; record.files lists them, also when
+/// it throws after writing), the shape's free-form deformation told that the mesh is the
+/// shape at x ("mesh_at": its basis is evaluated at the pull-back of the new vertices, so
+/// that every x gives the domain it gave before) and the shape entry's "initial" set to x;
+/// scene files are inlined with their relative paths made absolute, body placements
+/// (translation, rotation) folded into the mesh, a default contact distance made explicit.
+/// Checks that every Dirichlet and Neumann region selects the same new vertices at x as at
+/// their pull-back (regions select in the rest shape at the start). `seconds`: gmsh's limit.
 /// @throws RemeshError (the run goes on without the remesh)
 nlohmann::json remeshed_document(const ReducedFunctional& functional, const VectorXd& x, double size,
-    const std::string& directory, int count, RemeshRecord& record);
+    const std::string& directory, const std::string& name, double seconds, RemeshRecord& record);
+
+/// 1 + the largest n of the files remesh_<n>_body<b>.msh in `directory` (1 if none): a resumed
+/// run never overwrites a mesh a problem file there may read.
+int next_remesh_number(const std::string& directory);
+
+/// A record as JSON (summary.json's "remeshes" entries) and back.
+nlohmann::json remesh_record_json(const RemeshRecord& record);
+/// @throws InputError naming `field` for a malformed record
+RemeshRecord remesh_record_from_json(const nlohmann::json& j, const std::string& field);
 
 /// @brief The problem document with scene files inlined and relative mesh paths made
 /// absolute (resolved against the scene file's folder, or the problem's for inline scenes),

@@ -4,6 +4,8 @@
 
 #include <Eigen/LU>
 
+#include <algorithm>
+#include <cfloat>
 #include <cmath>
 #include <stdexcept>
 
@@ -205,7 +207,10 @@ Positions FreeFormDeformation::pull_back(const Positions& current, const VectorX
     for (size_t k = 0; k < m_points.size(); ++k)
         for (Index j = 0; j < axes; ++j)
             control(m_lattice.axes[size_t(j)], m_points[k]) = x[Index(k) * axes + j];
-    const double tolerance = 1e-13 * (m_lattice.upper - m_lattice.lower).norm();
+    // Relative to the lattice's size, and above the rounding of coordinates far from the origin.
+    const double reach = std::max({ m_lattice.lower.lpNorm<Eigen::Infinity>(),
+        m_lattice.upper.lpNorm<Eigen::Infinity>(), current.lpNorm<Eigen::Infinity>() });
+    const double tolerance = 1e-13 * (m_lattice.upper - m_lattice.lower).norm() + 16 * DBL_EPSILON * reach;
     const auto clamp
         = [&](const VectorXd& X) { return VectorXd(X.cwiseMax(m_lattice.lower).cwiseMin(m_lattice.upper)); };
     // Newton's method from X, kept inside the box when `inside` (damped where a step does not
@@ -261,7 +266,8 @@ Positions FreeFormDeformation::pull_back(const Positions& current, const VectorX
         }
         if (!converged)
             throw std::runtime_error("the free-form deformation cannot be inverted at vertex " + std::to_string(v)
-                + " (the design folds the lattice there)");
+                + ": no point of the lattice's box moves onto it (the design folds the lattice there, or the body "
+                  "crosses a face of the box that moves: fix that face with fixed_border)");
         rest.row(v) = X.transpose();
     }
     return rest;

@@ -165,3 +165,118 @@ def test_problems_that_cannot_be_remeshed_are_refused(cli, tmp_path):
     problem.write_text(json.dumps(p))
     r = run(cli, "optimize", problem, "-o", tmp_path / "out")
     assert r.returncode == 1 and "remesh.quality" in r.stderr
+
+
+def test_resume_at_the_remesh_iteration_and_a_remesh_after_the_resume(cli, tmp_path):
+    # The Ipopt run remeshes after iteration 5 (test above). Stopped there, the state saved is
+    # the one on the new mesh; resumed, it goes on as the uninterrupted run does.
+    problem = tmp_path / "beam.json"
+    problem.write_text(json.dumps(beam(iterations=40)))
+    full = tmp_path / "full"
+    r = run(cli, "optimize", problem, "-o", full)
+    assert r.returncode == 0, r.stderr
+    uninterrupted = json.loads((full / "summary.json").read_text())
+    k = uninterrupted["remeshes"][0]["iteration"]
+    out = tmp_path / "out"
+    r = run(cli, "optimize", problem, "-o", out, "--max-iterations", k)
+    assert r.returncode == 0, r.stderr
+    assert len(json.loads((out / "summary.json").read_text())["remeshes"]) == 1
+    mesh_file = out / "remesh_1_body0.msh"
+    before = mesh_file.read_bytes()
+    # Resuming with a problem file that is not the remeshed one is refused.
+    r = run(cli, "optimize", problem, "--resume", out, "--max-iterations", 40)
+    assert r.returncode == 1 and "current_problem.json" in r.stderr
+    r = run(cli, "optimize", "--resume", out, "--max-iterations", 40)
+    assert r.returncode == 0, r.stdout[-2000:] + r.stderr
+    s = json.loads((out / "summary.json").read_text())
+    assert s["stop_reason"] == uninterrupted["stop_reason"] == "gradient_tolerance"
+    assert s["final_J"] == pytest.approx(uninterrupted["final_J"], rel=1e-6)
+    # The first run's remesh is still the run's, and its mesh file is untouched.
+    assert s["remeshes"][0]["files"] == [str(mesh_file)]
+    assert mesh_file.read_bytes() == before
+
+
+def test_a_second_remesh_in_a_resumed_run_gets_new_files(cli, tmp_path):
+    p = beam(iterations=40, quality=0.7)
+    problem = tmp_path / "beam.json"
+    problem.write_text(json.dumps(p))
+    out = tmp_path / "out"
+    r = run(cli, "optimize", problem, "-o", out, "--max-iterations", 7)
+    assert r.returncode == 0, r.stderr
+    first = json.loads((out / "summary.json").read_text())["remeshes"]
+    assert len(first) == 1
+    # Resume with a remesh forced at once: the threshold and the saved trigger above any quality.
+    current = json.loads((out / "current_problem.json").read_text())
+    current["remesh"]["quality"] = 0.99
+    (out / "current_problem.json").write_text(json.dumps(current))
+    state = json.loads((out / "remeshes.json").read_text())
+    assert state["attempts"] == 1 and len(state["records"]) == 1
+    state["trigger"] = 0.99
+    (out / "remeshes.json").write_text(json.dumps(state))
+    r = run(cli, "optimize", "--resume", out, "--max-iterations", 9)
+    assert r.returncode == 0, r.stderr
+    s = json.loads((out / "summary.json").read_text())
+    assert [rm["files"][0].split("/")[-1] for rm in s["remeshes"][:2]] == ["remesh_1_body0.msh", "remesh_2_body0.msh"]
+
+
+def fake_remesher(tmp_path, text):
+    script = tmp_path / "fake_remesher.sh"
+    script.write_text("#!/bin/sh\nprintf '%s\\n' > \"$2\"\n" % text)
+    script.chmod(0o755)
+    return str(script)
+
+
+@pytest.mark.parametrize("output", ["ok -1 2", "ok 18446744073709551615 3", "ok 3 1\n0 0\n1 0", "garbage"])
+def test_garbage_from_the_remesher_is_a_failed_remesh(cli, tmp_path, output):
+    problem = tmp_path / "beam.json"
+    problem.write_text(json.dumps(beam(iterations=12)))
+    out = tmp_path / "out"
+    before = set(os.listdir("/tmp"))
+    r = run(cli, "optimize", problem, "-o", out, env={"DIFFIPC_GMSH_REMESHER": fake_remesher(tmp_path, output)})
+    assert r.returncode == 0, r.stdout[-2000:] + r.stderr
+    s = json.loads((out / "summary.json").read_text())
+    assert s["remeshes"] == [] and s["remesh_failure"], s
+    assert not [f for f in set(os.listdir("/tmp")) - before if f.startswith("diffipc_remesh_")]
+
+
+def test_a_failing_remesh_is_not_retried_at_every_iteration(cli, tmp_path):
+    problem = tmp_path / "beam.json"
+    problem.write_text(json.dumps(beam(iterations=30)))
+    out = tmp_path / "out"
+    r = run(cli, "optimize", problem, "-o", out, env={"DIFFIPC_GMSH_REMESHER": str(tmp_path / "missing")})
+    assert r.returncode == 0, r.stderr
+    s = json.loads((out / "summary.json").read_text())
+    state = json.loads((out / "remeshes.json").read_text())
+    # Each failure lowers the trigger to 0.9 of the quality it saw: far fewer attempts than iterations.
+    assert 1 <= state["attempts"] <= 3 < s["iterations"], (state, s["iterations"])
+    assert s["wall_time"]["remeshing"] == pytest.approx(state["failed_seconds"])
+
+
+def test_a_design_that_moves_the_body_across_a_region_is_not_remeshed(cli, tmp_path):
+    # The lattice moves the root (clamped by the region x <= 1e-6) along x: the new mesh at the
+    # design would select other vertices than the start's rest shape does.
+    p = beam(iterations=6, quality=0.99)
+    p["parameters"][0] = {"type": "shape", "initial": [0.02] * 8, "lower": -0.05, "upper": 0.05, "maps": [
+        {"type": "ffd", "box": {"min": [-0.5, -0.01], "max": [0.9, 0.21]}, "degree": [5, 1], "axes": [0],
+         "fixed_border": [0]}]}
+    problem = tmp_path / "beam.json"
+    problem.write_text(json.dumps(p))
+    out = tmp_path / "out"
+    r = run(cli, "optimize", problem, "-o", out)
+    assert r.returncode == 0, r.stdout[-2000:] + r.stderr
+    s = json.loads((out / "summary.json").read_text())
+    assert s["remeshes"] == []
+    assert "region of dirichlet[0]" in s["remesh_failure"], s["remesh_failure"]
+
+
+def test_per_element_parameters_cannot_be_remeshed(cli, tmp_path):
+    p = beam()
+    p["parameters"].append({"type": "E", "per": "element", "maps": [{"type": "exp"}]})
+    problem = tmp_path / "bad.json"
+    problem.write_text(json.dumps(p))
+    r = run(cli, "optimize", problem, "-o", tmp_path / "out")
+    assert r.returncode == 1 and "remesh" in r.stderr and "per element" in r.stderr.replace("one per element", "per element")
+    p["parameters"][1] = {"type": "E", "per": "body", "maps": [{"type": "exp"}]}
+    problem.write_text(json.dumps(p))
+    r = run(cli, "validate", problem)
+    assert "remesh" not in r.stderr

@@ -15,6 +15,8 @@
 #include <filesystem>
 #include <random>
 
+#include <unistd.h>
+
 using namespace diffipc;
 
 namespace {
@@ -222,6 +224,33 @@ TEST(Remesh, FreeFormDeformationPullBackInvertsTheMap)
     }
 }
 
+TEST(Remesh, PullBackFarFromTheOriginAndWithMovingFaces)
+{
+    // A lattice whose faces move (no fixed border) around a mesh 3 km from the origin: the
+    // pull-back still inverts the map (its tolerance is above the coordinates' rounding).
+    for (double offset : { 0.0, 3000.0 }) {
+        Mesh m = box_mesh(2, Eigen::Vector2d(0, 0), Eigen::Vector2d(1, 0.4), Eigen::Vector2i(10, 4));
+        m.rest_positions.array() += offset;
+        FfdLattice lattice;
+        lattice.lower = VectorXd::Constant(2, offset - 0.1);
+        lattice.upper = VectorXd::Constant(2, offset + 1.1);
+        lattice.degree = Eigen::Vector2i(3, 2);
+        lattice.axes = { 0, 1 };
+        const FreeFormDeformation ffd(m.rest_positions, lattice, "ffd");
+        std::mt19937 rng(5);
+        std::uniform_real_distribution<double> u(-0.05, 0.05);
+        VectorXd x(ffd.in_size());
+        for (Index i = 0; i < x.size(); ++i)
+            x[i] = u(rng);
+        const VectorXd moved = ffd.apply(x);
+        Positions current(m.rest_positions.rows(), 2);
+        for (Index v = 0; v < current.rows(); ++v)
+            current.row(v) = moved.segment<2>(2 * v).transpose();
+        const Positions back = ffd.pull_back(current, x);
+        EXPECT_LT((back - m.rest_positions).cwiseAbs().maxCoeff(), 1e-9 * (1 + offset)) << offset;
+    }
+}
+
 namespace {
 
 const char* beam_problem = R"({
@@ -248,7 +277,9 @@ TEST(Remesh, DesignProblemKeepsItsVariablesAndJAcrossARemesh)
 {
     const ReducedFunctional rf(nlohmann::json::parse(beam_problem), ".", "test");
     DesignProblem problem(rf);
-    const std::string dir = (std::filesystem::temp_directory_path() / "diffipc_test_remesh").string();
+    const std::string dir = (std::filesystem::temp_directory_path()
+        / ("diffipc_test_remesh_" + std::to_string(::getpid())))
+                                .string();
     std::filesystem::remove_all(dir);
     problem.set_remesh_directory(dir);
     VectorXd x = VectorXd::Zero(rf.design_size());
