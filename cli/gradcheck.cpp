@@ -15,7 +15,9 @@ int gradcheck(const std::string& problem_path, int directions)
     const ReducedFunctional rf = ReducedFunctional::load(problem_path);
     const auto& settings = rf.check_settings();
     const int count = directions > 0 ? directions : settings.directions;
-    const VectorXd p0 = rf.initial();
+    // At the design's start: the entries' "initial" design values through their maps (so a
+    // problem written by diffipc optimize is checked at its optimum), else the scene's values.
+    const VectorXd p0 = rf.parameters_of(rf.design_initial());
     std::printf("%s: %ld parameters (", problem_path.c_str(), long(rf.size()));
     bool first = true;
     for (const auto& [name, size] : rf.layout()) {

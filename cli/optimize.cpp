@@ -310,6 +310,10 @@ int optimize(const OptimizeOptions& options)
         return list;
     };
     design_problem.on_remesh_attempt = [&]() {
+        if (!options.quiet && !design_problem.remesh_failure().empty()) {
+            std::printf("  remesh refused: %s\n", design_problem.remesh_failure().c_str());
+            std::fflush(stdout);
+        }
         write_json(remeshes_path,
             { { "attempts", design_problem.remesh_attempts() }, { "trigger", design_problem.remesh_trigger() },
                 { "failed_seconds", design_problem.failed_remesh_seconds() }, { "records", remesh_records() } });
