@@ -8,9 +8,11 @@
 /// Settings: tol = max(gradient_tolerance, relative_gradient_tolerance * the initial projected
 /// gradient's inf-norm) (Ipopt's own default 1e-8 when both are 0); constr_viol_tol =
 /// constraint_tolerance; max_iter = max_iterations; max_cpu_time = max_seconds (the wall time
-/// is checked too); print_level 0 and no banner. x_tolerance and f_tolerance are checked at each
-/// iteration whose constraint violation is within constraint_tolerance. settings.options are
-/// set afterwards and override these; an ipopt.opt file in the working directory is not read.
+/// is checked too); print_level 0 and no banner; mumps_mem_percent 100 (MUMPS's workspace;
+/// Ipopt's 1000 only slows the factorizations of small systems, see ipopt_driver.cpp).
+/// x_tolerance and f_tolerance are checked at each iteration whose constraint violation is
+/// within constraint_tolerance. settings.options are set afterwards and override these; an
+/// ipopt.opt file in the working directory is not read.
 ///
 /// Ipopt asks for f, its gradient, c and h and their Jacobians separately: they come from one
 /// evaluate() per point (a small cache keyed by x). At an invalid point the eval_* calls

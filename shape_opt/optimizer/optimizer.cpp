@@ -9,6 +9,7 @@
 #include <cctype>
 #include <chrono>
 #include <cmath>
+#include <ctime>
 #include <limits>
 
 namespace diffipc {
@@ -20,6 +21,15 @@ namespace {
     double now_seconds()
     {
         return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
+    }
+
+    /// CPU time of the calling thread, s (0 where the clock is not available).
+    double thread_cpu_seconds()
+    {
+        timespec t;
+        if (clock_gettime(CLOCK_THREAD_CPUTIME_ID, &t) != 0)
+            return 0;
+        return double(t.tv_sec) + 1e-9 * double(t.tv_nsec);
     }
 
     const std::pair<OptimizerAlgorithm, const char*> ALGORITHM_NAMES[] = {
@@ -198,6 +208,7 @@ namespace optimizer_detail {
         , m_settings(settings)
         , m_resume(resume)
         , m_start(now_seconds())
+        , m_cpu_start(thread_cpu_seconds())
         , m_best_f(INF)
     {
         const Index n = problem.size();
@@ -208,6 +219,7 @@ namespace optimizer_detail {
             // the part neither in evaluations nor in the optimizer was spent in the callback.
             m_start -= resume->elapsed_seconds;
             m_evaluation_seconds = resume->evaluation_seconds;
+            m_resumed_optimizer_cpu_seconds = resume->optimizer_cpu_seconds;
             m_callback_seconds
                 = std::max(0.0, resume->elapsed_seconds - resume->evaluation_seconds - resume->optimizer_seconds);
             m_evaluations = resume->evaluations;
@@ -231,9 +243,10 @@ namespace optimizer_detail {
 
     bool Run::evaluate(const VectorXd& x, OptimizationValues& out)
     {
-        const double t0 = now_seconds();
+        const double t0 = now_seconds(), cpu0 = thread_cpu_seconds();
         bool valid = m_problem.evaluate(x, out);
         m_evaluation_seconds += now_seconds() - t0;
+        m_evaluation_cpu_seconds += thread_cpu_seconds() - cpu0;
         ++m_evaluations;
         if (m_first_x.size() == 0)
             m_first_x = x;
@@ -278,9 +291,10 @@ namespace optimizer_detail {
 
     double Run::max_valid_step(const VectorXd& x, const VectorXd& dx)
     {
-        const double t0 = now_seconds();
+        const double t0 = now_seconds(), cpu0 = thread_cpu_seconds();
         const double t = m_problem.max_valid_step(x, dx);
         m_evaluation_seconds += now_seconds() - t0;
+        m_evaluation_cpu_seconds += thread_cpu_seconds() - cpu0;
         if (!(t > 0))
             return 0;
         return std::min(t, 1.0);
@@ -315,8 +329,11 @@ namespace optimizer_detail {
         info.evaluations = m_evaluations;
         info.rejected = m_rejected;
         info.evaluation_seconds = m_evaluation_seconds;
+        const double cpu0 = thread_cpu_seconds();
         const double t0 = now_seconds();
         info.optimizer_seconds = std::max(0.0, t0 - m_start - m_evaluation_seconds - m_callback_seconds);
+        info.optimizer_cpu_seconds = m_resumed_optimizer_cpu_seconds
+            + std::max(0.0, cpu0 - m_cpu_start - m_evaluation_cpu_seconds - m_callback_cpu_seconds);
 
         OptimizerCheckpoint& c = m_checkpoint;
         c.algorithm = m_settings.algorithm;
@@ -331,6 +348,7 @@ namespace optimizer_detail {
         c.rejected = m_rejected;
         c.evaluation_seconds = m_evaluation_seconds;
         c.optimizer_seconds = info.optimizer_seconds;
+        c.optimizer_cpu_seconds = info.optimizer_cpu_seconds;
         c.elapsed_seconds = t0 - m_start;
         c.has_best = m_has_best;
         c.best_x = m_has_best ? m_best_x : VectorXd();
@@ -343,12 +361,19 @@ namespace optimizer_detail {
 
         const bool go_on = m_problem.iteration(info);
         m_callback_seconds += now_seconds() - t0;
+        m_callback_cpu_seconds += thread_cpu_seconds() - cpu0;
         return go_on;
     }
 
     bool Run::out_of_time() const { return m_settings.max_seconds > 0 && elapsed() >= m_settings.max_seconds; }
 
     double Run::elapsed() const { return now_seconds() - m_start; }
+
+    double Run::optimizer_cpu_seconds() const
+    {
+        return m_resumed_optimizer_cpu_seconds
+            + std::max(0.0, thread_cpu_seconds() - m_cpu_start - m_evaluation_cpu_seconds - m_callback_cpu_seconds);
+    }
 
     double Run::remaining_seconds() const
     {
@@ -383,6 +408,7 @@ namespace optimizer_detail {
         result.rejected = m_rejected;
         result.evaluation_seconds = m_evaluation_seconds;
         result.optimizer_seconds = std::max(0.0, elapsed() - m_evaluation_seconds - m_callback_seconds);
+        result.optimizer_cpu_seconds = optimizer_cpu_seconds();
         return result;
     }
 
@@ -459,8 +485,8 @@ namespace {
             if (pair.s.size() != n || pair.y.size() != n || !pair.s.allFinite() || !pair.y.allFinite())
                 fail("an L-BFGS correction pair does not have " + std::to_string(n) + " finite entries");
         if (!(c.evaluations >= 0 && c.rejected >= 0 && c.evaluation_seconds >= 0 && c.optimizer_seconds >= 0
-                && c.elapsed_seconds >= 0 && std::isfinite(c.elapsed_seconds) && std::isfinite(c.initial_gradient_norm)
-                && c.initial_gradient_norm >= 0))
+                && c.optimizer_cpu_seconds >= 0 && c.elapsed_seconds >= 0 && std::isfinite(c.elapsed_seconds)
+                && std::isfinite(c.initial_gradient_norm) && c.initial_gradient_norm >= 0))
             fail("negative or non-finite counts, times or initial gradient norm");
     }
 

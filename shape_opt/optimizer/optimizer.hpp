@@ -49,6 +49,11 @@ struct IterationInfo {
     int rejected = 0; ///< trial points rejected so far (invalid or failed)
     double evaluation_seconds = 0; ///< wall time inside evaluate() and max_valid_step() so far
     double optimizer_seconds = 0; ///< wall time of the optimizer itself so far
+    /// CPU time of the optimizer itself so far: that of the thread that runs it (the library's
+    /// work and ours), less its CPU time in evaluate(), max_valid_step() and iteration().
+    /// Unlike the wall time it does not grow while the thread waits for a core on a loaded
+    /// machine; threads the library may start (a threaded BLAS) are not counted.
+    double optimizer_cpu_seconds = 0;
     /// The run's state after this iteration: minimize() continues from it (a resumed run).
     const OptimizerCheckpoint* checkpoint = nullptr;
 };
@@ -142,6 +147,7 @@ struct OptimizerResult {
     int rejected = 0;
     double max_violation = 0; ///< of the constraints and bounds at x (0 without constraints)
     double evaluation_seconds = 0, optimizer_seconds = 0;
+    double optimizer_cpu_seconds = 0; ///< as IterationInfo::optimizer_cpu_seconds
 };
 
 /// One L-BFGS correction pair: s = x_{k+1} - x_k, y = g_{k+1} - g_k (n values each).
@@ -167,6 +173,7 @@ struct OptimizerCheckpoint {
     double initial_gradient_norm = 0; ///< projected gradient inf-norm at the run's start
     int evaluations = 0, rejected = 0;
     double evaluation_seconds = 0, optimizer_seconds = 0;
+    double optimizer_cpu_seconds = 0; ///< as IterationInfo::optimizer_cpu_seconds
     double elapsed_seconds = 0; ///< wall time of the run so far (what max_seconds counts)
     bool has_best = false; ///< a feasible valid point was seen: the best one
     VectorXd best_x;
@@ -209,7 +216,9 @@ namespace optimizer_detail {
     /// @brief One run of a driver: evaluations through it are timed and counted, every valid one
     /// is a candidate for the result (the best feasible point), and the per-iteration callback
     /// gets the counts and times. Times: evaluation = evaluate() + max_valid_step(); optimizer =
-    /// the rest of the wall time, less the time spent in iteration().
+    /// the rest of the wall time, less the time spent in iteration(); optimizer CPU = the same
+    /// split of the calling thread's CPU time (CLOCK_THREAD_CPUTIME_ID). The driver runs on the
+    /// thread that constructed the Run.
     class Run {
     public:
         /// @param resume  the state a resumed run continues from (nullptr: a new run)
@@ -246,6 +255,8 @@ namespace optimizer_detail {
         bool out_of_time() const;
         /// Wall time since the run began (with a resumed run's earlier part), s.
         double elapsed() const;
+        /// The optimizer's CPU time so far (IterationInfo::optimizer_cpu_seconds), s.
+        double optimizer_cpu_seconds() const;
         /// settings.max_seconds less elapsed() (+inf without a budget).
         double remaining_seconds() const;
         /// The checkpoint a resumed run continues from (nullptr for a new run).
@@ -274,6 +285,9 @@ namespace optimizer_detail {
         VectorXd m_lower, m_upper;
         double m_start = 0; ///< steady clock at construction, s
         double m_evaluation_seconds = 0, m_callback_seconds = 0;
+        double m_cpu_start = 0; ///< the thread's CPU time at construction, s
+        double m_evaluation_cpu_seconds = 0, m_callback_cpu_seconds = 0; ///< of this process's part
+        double m_resumed_optimizer_cpu_seconds = 0; ///< the checkpoint's (a resumed run's earlier part)
         int m_evaluations = 0, m_rejected = 0;
         bool m_has_best = false, m_has_accepted = false;
         double m_best_f = 0;

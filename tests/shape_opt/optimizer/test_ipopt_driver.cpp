@@ -205,3 +205,37 @@ TEST(IpoptDriver, StepsThatVanishAtRejectedDesignsEndTheRun)
     EXPECT_LE(r.x[0], 1.0);
     EXPECT_GT(r.x[0], 0.9) << r.message;
 }
+
+// Our mumps_mem_percent (100, where Ipopt's is 1000) changes MUMPS's workspace only: Ipopt's
+// default, given as an option, evaluates the same points in the same order, bit for bit, on
+// Rosenbrock's function with bounds and a circle that is active at the optimum.
+TEST(IpoptDriver, TheMumpsWorkspaceLeavesEveryPointAsItWas)
+{
+    class Circle : public Rosenbrock2 {
+    public:
+        int inequalities() const override { return 1; }
+        bool evaluate(const VectorXd& x, OptimizationValues& out) override
+        {
+            Rosenbrock2::evaluate(x, out);
+            out.inequality = VectorXd::Constant(1, x.squaredNorm() - 1.5);
+            out.inequality_jacobian = 2 * x.transpose();
+            return true;
+        }
+    };
+    OptimizerSettings s = ipopt();
+    s.lower = Eigen::Vector2d(-2, -2);
+    s.upper = Eigen::Vector2d(2, 0.9);
+    Circle ours, ipopts;
+    const OptimizerResult a = minimize(ours, Eigen::Vector2d(-0.5, 0.5), s);
+    s.options["mumps_mem_percent"] = "1000";
+    const OptimizerResult b = minimize(ipopts, Eigen::Vector2d(-0.5, 0.5), s);
+    EXPECT_EQ(a.reason, StopReason::GRADIENT_TOLERANCE) << a.message;
+    EXPECT_NEAR(a.x.squaredNorm(), 1.5, 1e-6);
+    EXPECT_GT(a.iterations, 5);
+    EXPECT_EQ(a.iterations, b.iterations);
+    ASSERT_EQ(ours.evaluated.size(), ipopts.evaluated.size());
+    for (size_t k = 0; k < ours.evaluated.size(); ++k)
+        EXPECT_EQ(ours.evaluated[k], ipopts.evaluated[k]) << "evaluation " << k;
+    EXPECT_EQ(a.x, b.x);
+    EXPECT_EQ(a.values.f, b.values.f);
+}

@@ -12,6 +12,7 @@
 #include <cmath>
 #include <cstdint>
 #include <cstring>
+#include <ctime>
 #include <functional>
 #include <limits>
 #include <stdexcept>
@@ -229,6 +230,24 @@ template <typename Problem> void expect_consistent(Problem& problem, const Optim
     EXPECT_EQ(check.f, r.values.f);
     EXPECT_GE(r.evaluation_seconds, 0);
     EXPECT_GE(r.optimizer_seconds, 0);
+    EXPECT_GE(r.optimizer_cpu_seconds, 0);
+}
+
+double thread_cpu_seconds()
+{
+    timespec t;
+    clock_gettime(CLOCK_THREAD_CPUTIME_ID, &t);
+    return double(t.tv_sec) + 1e-9 * double(t.tv_nsec);
+}
+
+/// Keeps the calling thread busy for `seconds` of its CPU time (however loaded the machine is).
+void burn_cpu(double seconds)
+{
+    const double end = thread_cpu_seconds() + seconds;
+    volatile double sink = 0;
+    while (thread_cpu_seconds() < end)
+        for (int i = 0; i < 1000; ++i)
+            sink = sink + 1e-9 * i;
 }
 
 } // namespace
@@ -560,6 +579,50 @@ TEST_P(EveryOptimizer, IterationBudget)
     EXPECT_EQ(r.iterations, 5);
     EXPECT_LT(r.values.f, 24.2); // f(x0) = 24.2
     expect_consistent(p, r);
+}
+
+// The optimizer's CPU time leaves out the CPU time of the evaluations and of the callback: each
+// burns 5 ms of the thread's CPU time, 2D Rosenbrock's own costs far less.
+TEST_P(EveryOptimizer, CpuTimeLeavesOutEvaluationsAndCallback)
+{
+    constexpr double BURN = 0.005;
+    class Busy : public OptimizationProblem {
+    public:
+        Index size() const override { return 2; }
+        bool evaluate(const VectorXd& x, OptimizationValues& out) override
+        {
+            burn_cpu(BURN);
+            ++evaluations;
+            const double a = x[0], b = x[1], r = b - a * a;
+            out.f = 100 * r * r + (1 - a) * (1 - a);
+            out.gradient = Eigen::Vector2d(-400 * a * r - 2 * (1 - a), 200 * r);
+            return true;
+        }
+        bool iteration(const IterationInfo& info) override
+        {
+            burn_cpu(BURN);
+            cpu.push_back(info.optimizer_cpu_seconds);
+            wall.push_back(info.optimizer_seconds);
+            return true;
+        }
+        int evaluations = 0;
+        std::vector<double> cpu, wall;
+    } p;
+    OptimizerSettings s = tight(GetParam());
+    s.max_iterations = 5;
+    const OptimizerResult r = minimize(p, rosenbrock_start(2), s);
+    const double burnt = BURN * double(p.evaluations + int(p.cpu.size()));
+    ASSERT_GE(burnt, 0.02);
+    EXPECT_LT(r.optimizer_cpu_seconds, 0.5 * burnt) << r.message;
+    EXPECT_GT(r.optimizer_cpu_seconds, 0);
+    // CPU time of the optimizer's own stretches of the run cannot exceed their wall time.
+    EXPECT_LE(r.optimizer_cpu_seconds, r.optimizer_seconds + 1e-3);
+    for (size_t k = 0; k < p.cpu.size(); ++k) {
+        EXPECT_LE(p.cpu[k], r.optimizer_cpu_seconds);
+        EXPECT_LE(p.cpu[k], p.wall[k] + 1e-3);
+        if (k > 0)
+            EXPECT_GE(p.cpu[k], p.cpu[k - 1]);
+    }
 }
 
 TEST_P(EveryOptimizer, UserStop)

@@ -261,12 +261,14 @@ TEST(OptimizerResume, TimesGoOnFromTheCheckpoint)
     c.elapsed_seconds = 100; // as if the first part had taken 100 s
     c.evaluation_seconds = 60;
     c.optimizer_seconds = 30;
+    c.optimizer_cpu_seconds = 20;
     s.max_seconds = 50; // spent already
     const OptimizerResult r = resume_minimize(second, c, s);
     EXPECT_EQ(r.reason, StopReason::TIME_BUDGET) << r.message;
     EXPECT_EQ(second.evaluations, 0);
     EXPECT_GE(r.evaluation_seconds, 60);
     EXPECT_GE(r.optimizer_seconds, 30);
+    EXPECT_GE(r.optimizer_cpu_seconds, 20);
 }
 
 TEST(OptimizerResume, ACheckpointThatDoesNotFitIsRefused)
@@ -293,6 +295,9 @@ TEST(OptimizerResume, ACheckpointThatDoesNotFitIsRefused)
     EXPECT_EQ(field(other, bad, first.settings()), "optimizer.checkpoint");
     bad = first.last;
     bad.lbfgs_pairs.front().y[0] = std::nan("");
+    EXPECT_EQ(field(other, bad, first.settings()), "optimizer.checkpoint");
+    bad = first.last;
+    bad.optimizer_cpu_seconds = -1;
     EXPECT_EQ(field(other, bad, first.settings()), "optimizer.checkpoint");
 }
 
