@@ -443,6 +443,9 @@ int optimize(const OptimizeOptions& options)
     const double total_seconds = wall_before + wall.seconds();
     summary["wall_time"] = { { "total", total_seconds }, { "evaluation", result.evaluation_seconds },
         { "optimizer", result.optimizer_seconds } };
+    // The optimizer's own CPU time (its thread's, less evaluations and callbacks): unlike the
+    // wall time it does not grow while the thread waits for a core on a loaded machine.
+    summary["optimizer_cpu_seconds"] = result.optimizer_cpu_seconds;
     // Parts of "evaluation", measured in this process (a resumed run's: since the resume).
     summary["wall_time"]["parametrization"] = design_problem.times().parametrization;
     summary["wall_time"]["validity"] = design_problem.times().validity;

@@ -602,6 +602,7 @@ void write_run_state(const std::string& path, const RunState& state)
                 && write_number_attribute<long long>(file, "rejected", c.rejected)
                 && write_number_attribute(file, "evaluation_seconds", c.evaluation_seconds)
                 && write_number_attribute(file, "optimizer_seconds", c.optimizer_seconds)
+                && write_number_attribute(file, "optimizer_cpu_seconds", c.optimizer_cpu_seconds)
                 && write_number_attribute(file, "elapsed_seconds", c.elapsed_seconds)
                 && write_number_attribute<long long>(file, "has_best", c.has_best ? 1 : 0)
                 && write_number_attribute(file, "objective_scale", state.objective_scale)
@@ -656,6 +657,7 @@ RunState read_run_state(const std::string& path)
     c.rejected = int(r.number_attribute<long long>(file, "rejected"));
     c.evaluation_seconds = r.number_attribute<double>(file, "evaluation_seconds");
     c.optimizer_seconds = r.number_attribute<double>(file, "optimizer_seconds");
+    c.optimizer_cpu_seconds = r.number_attribute<double>(file, "optimizer_cpu_seconds");
     c.elapsed_seconds = r.number_attribute<double>(file, "elapsed_seconds");
     c.has_best = r.number_attribute<long long>(file, "has_best") != 0;
     state.objective_scale = r.number_attribute<double>(file, "objective_scale");
