@@ -178,8 +178,13 @@ namespace {
                 const OptimizationValues& v = values_at(n, x);
                 const VectorXd& c = equality ? v.equality : v.inequality;
                 const MatrixXd& jacobian = equality ? v.equality_jacobian : v.inequality_jacobian;
+                // Inequalities reach NLopt looser by a tenth of the tolerance: a start on an
+                // active constraint up to round-off (c = 1e-14) is then strictly feasible for
+                // CCSA's subproblems, which otherwise shrink their steps to nothing there; the
+                // result stays within the tolerance (c <= 0.1 tol).
+                const double margin = equality ? 0.0 : 0.1 * m_settings.constraint_tolerance;
                 for (unsigned i = 0; i < m; ++i)
-                    result[i] = m_valid ? c[i] : std::max(c[i], 0.0) + INVALID_MARGIN * (std::abs(c[i]) + 1);
+                    result[i] = m_valid ? c[i] - margin : std::max(c[i], 0.0) + INVALID_MARGIN * (std::abs(c[i]) + 1);
                 if (grad)
                     Eigen::Map<Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>(grad, m, n)
                         = jacobian;
