@@ -3,6 +3,8 @@
 #include "forward/common/error.hpp"
 #include "forward/io/replace_file.hpp"
 
+#include "forward/io/hdf5_columns.hpp"
+
 #include <hdf5.h>
 
 #include <algorithm>
@@ -404,20 +406,7 @@ struct HistoryWriter::Impl {
             fail("cannot flush the HDF5 file");
     }
 
-    bool close_h5()
-    {
-        bool ok = true;
-        for (Column& c : columns)
-            if (c.set >= 0) {
-                ok = H5Dclose(c.set) >= 0 && ok;
-                c.set = -1;
-            }
-        if (file >= 0) {
-            ok = H5Fclose(file) >= 0 && ok;
-            file = -1;
-        }
-        return ok;
-    }
+    bool close_h5() { return close_hdf5_columns(columns, file); }
 };
 
 HistoryWriter::HistoryWriter(

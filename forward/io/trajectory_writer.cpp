@@ -1,6 +1,7 @@
 #include "forward/io/trajectory_writer.hpp"
 
 #include "forward/common/error.hpp"
+#include "forward/io/hdf5_columns.hpp"
 
 #include <hdf5.h>
 
@@ -174,20 +175,7 @@ struct TrajectoryWriter::Impl {
     }
 
     /// Closes everything; returns false if a close failed (data not on disk).
-    bool close_all()
-    {
-        bool ok = true;
-        for (Column& c : columns)
-            if (c.set >= 0) {
-                ok = H5Dclose(c.set) >= 0 && ok;
-                c.set = -1;
-            }
-        if (file >= 0) {
-            ok = H5Fclose(file) >= 0 && ok;
-            file = -1;
-        }
-        return ok;
-    }
+    bool close_all() { return close_hdf5_columns(columns, file); }
 };
 
 TrajectoryWriter::TrajectoryWriter(const std::string& path, const Mesh& mesh, const Trajectory& initial, bool contact,
