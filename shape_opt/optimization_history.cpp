@@ -1,9 +1,8 @@
 #include "shape_opt/optimization_history.hpp"
 
 #include "forward/common/error.hpp"
-#include "forward/io/replace_file.hpp"
-
 #include "forward/io/hdf5_columns.hpp"
+#include "forward/io/replace_file.hpp"
 
 #include <hdf5.h>
 
