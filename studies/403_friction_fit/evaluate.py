@@ -38,7 +38,8 @@ def main():
     print(f"centre at step {generate.STEPS}: [{center[0]:.9f}, {center[1]:.9f}] m, measured "
           f"[{measured[0]:.9f}, {measured[1]:.9f}] m, distance {np.linalg.norm(center - measured):.3e} m")
     print(f"wall time {w['total']:.3f} s: evaluations {w['evaluation']:.3f} s, optimizer {w['optimizer']:.5f} s "
-          f"({100 * w['optimizer'] / w['total']:.3f}% of the total)")
+          f"({100 * w['optimizer'] / w['total']:.3f}% of the total); optimizer CPU time "
+          f"{summary['optimizer_cpu_seconds']:.5f} s ({100 * summary['optimizer_cpu_seconds'] / w['total']:.3f}%)")
 
 
 if __name__ == "__main__":

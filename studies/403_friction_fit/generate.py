@@ -43,12 +43,12 @@ SPEED = 0.2309401076758503        # m/s down the slope at t = 0 (0.2 m/s horizon
 def scene_dict(mu):
     s = math.radians(SLOPE_DEG)
     return {
-        "description": f"A 2D neo-Hookean block (0.1 m x 0.05 m, 4 x 2 cells, 16 triangles) sliding down a "
+        "description": f"A 2D neo-Hookean block (0.1 m x 0.05 m, 8 x 4 cells, 64 triangles) sliding down a "
                        f"{SLOPE_DEG:g} degree slope (a plane obstacle) with Coulomb friction; implicit Euler, "
                        f"{STEPS} steps of {DT * 1e3:g} ms.",
         "dimension": 2,
         "bodies": [{"name": "block",
-                    "mesh": {"box": {"min": [0.0, 0.0001], "max": [0.1, 0.0501], "cells": [4, 2]}},
+                    "mesh": {"box": {"min": [0.0, 0.0001], "max": [0.1, 0.0501], "cells": [8, 4]}},
                     "rotation": [-SLOPE_DEG],
                     "material": {"model": "neo_hookean", "E": 1e7, "nu": 0.3, "density": 1000},
                     "initial_velocity": [SPEED * math.cos(s), -SPEED * math.sin(s)]}],
@@ -57,7 +57,9 @@ def scene_dict(mu):
         "friction": {"coefficient": mu, "eps_v": 1e-3, "iterations": 1},
         "gravity": [0.0, -9.81],
         "time": {"integrator": "implicit_euler", "dt": DT, "steps": STEPS},
-        "solver": {"residual_tolerance": 1e-11},
+        # 1e-12: at 1e-11 the slope of the computed J(mu) at the start is off by 2-3e-6 (the solves' bias),
+        # which on the 8 x 4 block is enough to spoil gradcheck's second-order rates (README).
+        "solver": {"residual_tolerance": 1e-12},
     }
 
 

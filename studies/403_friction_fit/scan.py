@@ -39,13 +39,13 @@ def main():
     ap.add_argument("--h", type=float, default=1e-5, help="central-difference step (default 1e-5)")
     args = ap.parse_args()
     J = diffipc.ReducedFunctional(generate.HERE / "problem.json")
-    print(f"{'mu':>7}  {'J (m^2)':>18}  {'dJ/dmu adjoint':>15}  {'central diff.':>15}  {'rel. diff.':>9}  rest step")
+    print(f"{'mu':>8}  {'J (m^2)':>18}  {'dJ/dmu adjoint':>15}  {'central diff.':>15}  {'rel. diff.':>9}  rest step")
     for mu in np.linspace(args.lo, args.hi, args.n):
         value, g = J.value_and_gradient([mu])
         fd = (J([mu + args.h]) - J([mu - args.h])) / (2 * args.h)
         rel = abs(g[0] - fd) / max(abs(g[0]), abs(fd))
         k = rest_step(mu)
-        print(f"{mu:7.4f}  {value:18.10e}  {g[0]:15.6e}  {fd:15.6e}  {rel:9.1e}  {'-' if k is None else k}")
+        print(f"{mu:8.5f}  {value:18.10e}  {g[0]:15.6e}  {fd:15.6e}  {rel:9.1e}  {'-' if k is None else k}")
 
 
 if __name__ == "__main__":
