@@ -60,7 +60,8 @@ def test_study_405_short(cli, tmp_path, name):
     summary = json.loads((out / "summary.json").read_text())
     assert summary["stop_reason"] in ("iteration_budget", "gradient_tolerance"), summary
     assert summary["rejected"] == 0, summary
-    # Six iterations lower the stress p-norm by more than 10% (the full runs: 22%).
+    # Six iterations lower the stress p-norm by more than 10%: on the 120 x 18 mesh to 0.787 x J0
+    # (Ipopt) and 0.878 x J0 (penalty 1e10, L-BFGS-B), the full runs to 0.781 x J0 (README).
     assert summary["final_J"] < 0.9 * summary["initial_J"], summary
     rows = list(csv.DictReader((out / "history.csv").open()))
     assert len(rows) == summary["iterations"] + 1 and rows[0]["iteration"] == "0"
@@ -107,6 +108,10 @@ def test_study_405_short(cli, tmp_path, name):
     assert report["active_contacts"] >= 1 and 0 < report["min_gap"] < report["dhat"], report
     assert report["contact_force_y"] == pytest.approx(report["weight"], rel=1e-6), report
     assert all(0.05 <= x <= 0.15 for x in report["contact_x"]) and report["contact_x"], report  # on the roller
+    # The largest element stress is the larger of the two parts that check_design.py splits
+    # it into (over the roller, elsewhere), and the roller's share of the p-norm's sum is a share.
+    assert max(report["max_von_mises_over_roller"], report["max_von_mises_off_roller"]) == report["max_von_mises"]
+    assert 0 < report["p_norm_sum_share_over_roller"] < 1, report
     stress = report["stress_p_norm"]
     if name == "problem_penalty":
         weight = problem["objective"]["terms"][1]["weight"]
