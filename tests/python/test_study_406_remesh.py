@@ -15,7 +15,7 @@ from design_checks import tet_volumes
 def test_study_406_short(cli, tmp_path):
     meshio = pytest.importorskip("meshio")
     p = json.loads((ROOT / "studies" / "406_cantilever_3d_remesh" / "problem.json").read_text())
-    # Remesh a little earlier than the study (measured: after iteration 10, quality 0.392 -> 0.430).
+    # Remesh a little earlier than the study (measured: after iteration 10, quality 0.392 -> 0.444).
     p["remesh"]["quality"] = 0.4
     p["optimizer"]["max_iterations"] = 14
     p["output"] = {"design_every": 1}
@@ -28,9 +28,9 @@ def test_study_406_short(cli, tmp_path):
     assert len(s["remeshes"]) == 1, (s.get("remesh_failure"), r.stdout[-2000:])
     rm = s["remeshes"][0]
     assert rm["quality_before"] < 0.4 < rm["quality_after"]
-    # Discretization tolerances (README: at the study's remesh the structured mesh is 3.5% too
-    # stiff against a fine reference, the new one 1.1%): J within 4%, the volume within 0.1%
-    # (chords of the new surface triangles).
+    # Discretization tolerances (README: at the study's remesh the structured mesh is 3.6% too
+    # stiff against a fine reference, the new one 1.2%; measured here: J +2.0%, volume +0.0045%):
+    # J within 4%, the volume within 0.1% (chords of the new surface triangles).
     assert rm["J_after"] == pytest.approx(rm["J_before"], rel=0.04)
     assert rm["constraints_after"][0] == pytest.approx(rm["constraints_before"][0], rel=1e-3)
     rows = list(csv.DictReader((out / "history.csv").open()))
