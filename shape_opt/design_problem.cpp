@@ -32,6 +32,17 @@ DesignProblem::DesignProblem(const ReducedFunctional& functional)
 
 DesignProblem::~DesignProblem() = default;
 
+VectorXd DesignProblem::parameters(const VectorXd& x)
+{
+    // The maps of the last design again (an evaluation, then the step bound from it): p once.
+    if (m_parameters_x.size() == x.size() && m_parameters_x == x)
+        return m_parameters_p;
+    VectorXd p = m_functional->parameters_of(x);
+    m_parameters_x = x;
+    m_parameters_p = p;
+    return p;
+}
+
 void DesignProblem::build_validity()
 {
     m_validity.reset();
@@ -65,7 +76,7 @@ bool DesignProblem::evaluate(const VectorXd& x, OptimizationValues& out)
     try {
         {
             const Timer maps;
-            p = m_functional->parameters_of(x);
+            p = parameters(x);
             maps.add_to(m_times.parametrization);
         }
         if (m_validity) {
@@ -129,8 +140,8 @@ double DesignProblem::max_valid_step(const VectorXd& x, const VectorXd& dx)
     try {
         // The rest positions move along X(x + t dx); for the linear shape maps (boundary
         // extension, free-form deformation, none) that is the line X0 + t dX.
-        const VectorXd X0 = m_functional->rest_positions_of(m_functional->parameters_of(x));
-        const VectorXd X1 = m_functional->rest_positions_of(m_functional->parameters_of(x + dx));
+        const VectorXd X0 = m_functional->rest_positions_of(parameters(x));
+        const VectorXd X1 = m_functional->rest_positions_of(parameters(x + dx));
         return m_validity->max_step(X0, X1 - X0);
     } catch (const InputError&) {
         return 0.0;
@@ -219,6 +230,7 @@ bool DesignProblem::remesh_if_needed(const VectorXd& x, int iteration, bool forc
     m_remesh_trigger = std::min(settings.quality, 0.9 * record.quality_after);
     m_remeshed = std::move(fresh);
     m_functional = m_remeshed.get();
+    m_parameters_x.resize(0); // the new mesh's p
     build_validity();
     m_remeshes.push_back(record);
     m_remesh_failure.clear();

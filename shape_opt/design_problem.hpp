@@ -118,6 +118,8 @@ public:
 
 private:
     bool reject(const std::string& why);
+    /// p = P(x) of the functional now evaluated, kept for the last x.
+    VectorXd parameters(const VectorXd& x);
     bool constraints_hold(const OptimizationValues& values) const;
     void build_validity();
 
@@ -135,6 +137,7 @@ private:
     std::unique_ptr<OptimizerCheckpoint> m_restart;
     Timer m_restart_clock;
     Times m_times;
+    VectorXd m_parameters_x, m_parameters_p;
     double m_objective_target = -std::numeric_limits<double>::infinity();
     bool m_target_reached = false;
     std::unique_ptr<RestValidity> m_validity; ///< with a shape entry
