@@ -7,6 +7,7 @@
 #include "objectives/compliance.hpp"
 #include "objectives/elastic_energy.hpp"
 #include "objectives/kinetic_energy.hpp"
+#include "objectives/marker_file.hpp"
 #include "objectives/markers.hpp"
 #include "objectives/stress_norm.hpp"
 #include "objectives/time_aggregation.hpp"
@@ -141,9 +142,60 @@ namespace {
         return aggregate(std::make_unique<StressNorm>(o), j);
     }
 
+    /// Per-marker weights from "weights" (one per marker, >= 0) or "sigma" (standard deviations,
+    /// m: one number or one per marker; w = 1 / sigma^2); empty: all 1.
+    VectorXd parse_marker_weights(const JsonField& j, Index M)
+    {
+        if (j.has("weights") && j.has("sigma"))
+            j["sigma"].fail("give \"weights\" or \"sigma\", not both");
+        VectorXd weights;
+        if (j.has("weights")) {
+            weights = j["weights"].vector(int(M));
+            for (Index m = 0; m < M; ++m)
+                if (weights[m] < 0)
+                    j["weights"].at(size_t(m)).fail("must be nonnegative");
+        } else if (j.has("sigma")) {
+            const JsonField s = j["sigma"];
+            const VectorXd sigma = s.json().is_array() ? s.vector(int(M)) : VectorXd::Constant(M, s.positive());
+            for (Index m = 0; m < M; ++m)
+                if (!(sigma[m] > 0))
+                    s.fail("standard deviations must be positive");
+            weights = sigma.array().square().inverse();
+        }
+        return weights;
+    }
+
+    /// Markers read from a file (objectives/marker_file.hpp).
+    std::unique_ptr<Objective> parse_marker_file(const JsonField& j, const Simulator& sim)
+    {
+        for (const char* k : { "vertices", "points", "targets" })
+            if (j.has(k))
+                j[k].fail("not with \"file\": the file gives the markers and their positions");
+        j.require_object({ "type", "file", "vertex_tolerance", "steps", "weights", "sigma" });
+        const Scene& scene = sim.scene();
+        const double tolerance = j.has("vertex_tolerance") ? j["vertex_tolerance"].positive() : 0.0;
+        MarkerData data = read_marker_file(j["file"].string(), sim.mesh(), sim.mesh().rest_positions,
+            scene.body_vertices, scene.time.dt, scene.time.steps, tolerance);
+        std::vector<int> steps = data.steps;
+        if (steps.empty()) { // a static file: one measured state, "steps" or the last step
+            if (j.has("steps")) {
+                if (j["steps"].json().is_array() && j["steps"].size() != 1)
+                    j["steps"].fail("a file without a time column holds one measured state: give one step");
+                steps = parse_steps(j, sim, 1);
+            } else
+                steps = { scene.time.steps };
+        } else if (j.has("steps"))
+            j["steps"].fail("not with a file that has a time column: its times give the steps");
+        const Index M = Index(data.markers.size());
+        return std::make_unique<MarkerTracking>(
+            std::move(data.markers), steps, std::move(data.targets), parse_marker_weights(j, M));
+    }
+
     std::unique_ptr<Objective> parse_markers(const JsonField& j, const Simulator& sim)
     {
-        j.require_object({ "type", "vertices", "points", "targets", "steps", "weights" });
+        if (j.has("file"))
+            return parse_marker_file(j, sim);
+        j.require_object({ "type", "vertices", "points", "targets", "steps", "weights", "sigma" });
         const Mesh& mesh = sim.mesh();
         const int d = mesh.dim;
         std::vector<MarkerPoint> markers;
@@ -191,14 +243,8 @@ namespace {
             targets.push_back(y);
         }
         const std::vector<int> steps = parse_steps(j, sim, targets.size());
-        VectorXd weights;
-        if (j.has("weights")) {
-            weights = j["weights"].vector(int(M));
-            for (Index m = 0; m < M; ++m)
-                if (weights[m] < 0)
-                    j["weights"].at(size_t(m)).fail("must be nonnegative");
-        }
-        return std::make_unique<MarkerTracking>(std::move(markers), steps, std::move(targets), weights);
+        return std::make_unique<MarkerTracking>(
+            std::move(markers), steps, std::move(targets), parse_marker_weights(j, M));
     }
 
     std::unique_ptr<Objective> parse_center_of_mass(const JsonField& j, const Simulator& sim)

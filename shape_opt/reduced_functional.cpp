@@ -65,10 +65,37 @@ ReducedFunctional ReducedFunctional::load(const std::string& path)
     return ReducedFunctional(doc, std::filesystem::path(path).parent_path().string(), path);
 }
 
-ReducedFunctional::ReducedFunctional(const json& doc, const std::string& base_directory, const std::string& source)
+namespace {
+
+    /// Relative "file" paths of markers objectives made absolute against the problem's folder,
+    /// wherever they sit (objective, load cases, constraints, combinators' terms).
+    void absolute_marker_files(json& node, const std::string& base_directory)
+    {
+        if (node.is_object()) {
+            if (node.contains("type") && node["type"] == "markers" && node.contains("file")
+                && node["file"].is_string()) {
+                const std::filesystem::path file = node["file"].get<std::string>();
+                if (file.is_relative() && !file.empty())
+                    node["file"] = std::filesystem::absolute(std::filesystem::path(base_directory) / file)
+                                       .lexically_normal()
+                                       .string();
+            }
+            for (auto& [key, value] : node.items())
+                if (key != "scene")
+                    absolute_marker_files(value, base_directory);
+        } else if (node.is_array())
+            for (auto& value : node)
+                absolute_marker_files(value, base_directory);
+    }
+
+} // namespace
+
+ReducedFunctional::ReducedFunctional(const json& document, const std::string& base_directory, const std::string& source)
 {
-    if (!doc.is_object())
+    if (!document.is_object())
         throw InputError(source, "a problem file is a JSON object");
+    json doc = document;
+    absolute_marker_files(doc, base_directory.empty() ? "." : base_directory);
     // Every key is known and has its kind (docs/problem_format.md); nothing is ignored.
     const JsonField root(doc, "");
     root.require_object({ "description", "scene", "objective", "weight", "parameters", "gradcheck", "checkpointing",

@@ -481,6 +481,7 @@ nlohmann::json remeshed_document(const ReducedFunctional& functional, const Vect
         for (nlohmann::json* s : case_scenes(doc)) {
             nlohmann::json& body = (*s)["bodies"][size_t(b)];
             body["mesh"] = { { "file", fs::absolute(file).lexically_normal().string() } };
+            body.erase("scale");
             body.erase("translation");
             body.erase("rotation");
         }

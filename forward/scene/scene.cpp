@@ -473,8 +473,8 @@ Scene parse_scene(const nlohmann::json& document, const std::string& base_direct
     scene.mesh.dim = dim;
     for (size_t b = 0; b < bodies.size(); ++b) {
         const JsonField bf = bodies.at(b);
-        bf.require_object(
-            { "name", "mesh", "material", "initial_velocity", "translation", "rotation", "self_contact", "friction" });
+        bf.require_object({ "name", "mesh", "material", "initial_velocity", "scale", "translation", "rotation",
+            "self_contact", "friction" });
         BodySpec body;
         body.name = bf.has("name") ? bf["name"].string() : "body" + std::to_string(b);
         for (const auto& other : scene.bodies)
@@ -488,6 +488,11 @@ Scene parse_scene(const nlohmann::json& document, const std::string& base_direct
         self_contact_fields.push_back(
             bf.has("self_contact") ? std::optional<bool>(bf["self_contact"].boolean()) : std::nullopt);
         Mesh mesh = parse_mesh(bf["mesh"], dim, base_directory, body.mesh_source, double(scene.mesh.num_elements()));
+        if (bf.has("scale")) {
+            // The mesh file's units to metres, about the mesh's origin (before rotation and translation).
+            mesh.rest_positions *= bf["scale"].positive();
+            validate_mesh(mesh, bf["scale"].path());
+        }
         const MatrixXd unplaced = mesh.rest_positions;
         if (bf.has("rotation")) {
             // Degrees; 2D: one angle; 3D: about x, then y, then z (R = Rz Ry Rx), about the mesh origin.
