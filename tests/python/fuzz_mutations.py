@@ -219,6 +219,11 @@ def load_seeds():
         if not folder.is_dir():
             continue
         files = {p.name: p.read_bytes() for p in sorted(folder.iterdir()) if p.is_file()}
+        # A study whose files reference a subfolder (data/), or weigh more than 500 kB (a
+        # scanned mesh), is not a seed: each case copies the folder's files and runs a
+        # gradient check, hundreds of times.
+        if any(p.is_dir() and p.name != "__pycache__" for p in folder.iterdir()) or sum(map(len, files.values())) > 500_000:
+            continue
         for main, kind in (("scene.json", "scene"), ("problem.json", "problem")):
             if main in files:
                 seeds.append(Seed(folder.name, kind, main, _lightened(files, main)))
