@@ -4,12 +4,13 @@ produced by the simulator plus seeded noise, written as a marker file, fitted in
 along (1, 1) in (log mu, log lambda) and the fit recovers nu within 3 standard errors. The same
 block under a traction (force-controlled): both directions are identifiable and the fit recovers
 mu and lambda within 3 standard errors each. The Fisher matrix's residual Jacobian is also checked
-against finite differences of the markers' simulated positions."""
+against finite differences of the markers' simulated positions. In 2D and 3D."""
 import json
 import math
 import subprocess
 
 import numpy as np
+import pytest
 
 import diffipc
 from diffipc.identifiability import fisher_matrix, identifiability, standard_errors
@@ -18,21 +19,29 @@ MU, LAM = 6e4, 1.4e5  # E = 1.62e5 Pa, nu = 0.35
 SIGMA = 2e-5  # m, the markers' noise
 
 
-def scene(load):
+def scene(load, dim=2):
+    """A 4 cm block on its bottom face (y = 0), its top face pushed down: by a prescribed
+    displacement, or by a traction."""
+    zeros = [0] * dim
+    top = [-1] * dim
+    top[1] = 0.04 - 1e-6
+    down = ["0"] * dim
     s = {
-        "dimension": 2,
-        "bodies": [{"name": "block", "mesh": {"box": {"min": [0, 0], "max": [0.04, 0.04], "cells": [8, 8]}},
+        "dimension": dim,
+        "bodies": [{"name": "block", "mesh": {"box": {"min": zeros, "max": [0.04] * dim,
+                                                      "cells": [8, 8] if dim == 2 else [4, 4, 4]}},
                     "material": {"model": "neo_hookean", "E": 1e5, "nu": 0.3, "density": 1000}}],
-        "dirichlet": [{"body": "block", "region": {"min": [-1, -1], "max": [1, 1e-6]}, "displacement": [0, 0]}],
+        "dirichlet": [{"body": "block", "region": {"min": [-1] * dim, "max": [1, 1e-6] + [1] * (dim - 2)},
+                       "displacement": zeros}],
         "time": {"integrator": "static", "dt": 0.5, "steps": 2},
         "solver": {"residual_tolerance": 1e-11},
     }
     if load == "displacement":
-        s["dirichlet"].append({"body": "block", "region": {"min": [-1, 0.04 - 1e-6], "max": [1, 1]},
-                               "displacement": [0, "-0.004*t"]})
+        down[1] = "-0.004*t"
+        s["dirichlet"].append({"body": "block", "region": {"min": top, "max": [1] * dim}, "displacement": down})
     else:
-        s["neumann"] = [{"body": "block", "region": {"min": [-1, 0.04 - 1e-6], "max": [1, 1]},
-                         "traction": [0, "-1.5e4*t"]}]
+        down[1] = "-1.5e4*t"
+        s["neumann"] = [{"body": "block", "region": {"min": top, "max": [1] * dim}, "traction": down}]
     return s
 
 
@@ -40,19 +49,20 @@ def lame_to_E_nu(mu, lam):
     return mu * (3 * lam + 2 * mu) / (lam + mu), lam / (2 * (lam + mu))
 
 
-def synthetic(tmp_path, load):
-    s = scene(load)
+def synthetic(tmp_path, load, dim=2):
+    s = scene(load, dim)
     E, nu = lame_to_E_nu(MU, LAM)
     s["bodies"][0]["material"].update(E=E, nu=nu)
     _, tr = diffipc.simulate(s)
     rest, final = tr["positions"][0], tr["positions"][-1]
-    right = np.where(rest[:, 0] > 0.04 - 1e-9)[0]  # the 9 vertices of the right face
+    right = np.where(rest[:, 0] > 0.04 - 1e-9)[0]  # the vertices of the right face
     rng = np.random.default_rng(13)
     measured = final[right] + rng.normal(0, SIGMA, size=final[right].shape)
     path = tmp_path / f"markers_{load}.txt"
+    assert len(right) == (9 if dim == 2 else 25)
     path.write_text("\n".join(" ".join("%.17g" % v for v in (*r, *m)) for r, m in zip(rest[right], measured)) + "\n")
     problem = {
-        "scene": scene(load),
+        "scene": scene(load, dim),
         "objective": {"type": "markers", "file": path.name},
         "parameters": [{"type": "mu", "per": "body", "maps": [{"type": "exp"}], "initial": math.log(MU / 4),
                         "lower": 5, "upper": 20},
@@ -71,11 +81,12 @@ def fit(cli, tmp_path, load):
     return np.array(json.loads((tmp_path / f"out_{load}" / "summary.json").read_text())["design"])
 
 
-def test_displacement_control_leaves_E_unidentified_and_recovers_nu(cli, tmp_path):
-    problem = synthetic(tmp_path, "displacement")
+@pytest.mark.parametrize("dim", [2, 3])
+def test_displacement_control_leaves_E_unidentified_and_recovers_nu(cli, tmp_path, dim):
+    problem = synthetic(tmp_path, "displacement", dim)
     x = fit(cli, tmp_path, "displacement")
     R, F, J = fisher_matrix(problem, x, base_directory=tmp_path)
-    assert R.shape == (18, 2)
+    assert R.shape == ((9 if dim == 2 else 25) * dim, 2)
     (l1, v1, ok1), (l2, v2, ok2) = identifiability(F)
     assert ok1 and not ok2
     assert abs(l2) < 1e-8 * l1
@@ -89,8 +100,9 @@ def test_displacement_control_leaves_E_unidentified_and_recovers_nu(cli, tmp_pat
     assert se_t < 0.2
 
 
-def test_a_traction_makes_both_identifiable_and_recovers_them(cli, tmp_path):
-    problem = synthetic(tmp_path, "traction")
+@pytest.mark.parametrize("dim", [2, 3])
+def test_a_traction_makes_both_identifiable_and_recovers_them(cli, tmp_path, dim):
+    problem = synthetic(tmp_path, "traction", dim)
     x = fit(cli, tmp_path, "traction")
     R, F, J = fisher_matrix(problem, x, base_directory=tmp_path)
     (l1, _, ok1), (l2, _, ok2) = identifiability(F)
