@@ -56,6 +56,12 @@ def tetrahedra(path, rest):
 
 def residuals(problem, log_mu, log_lambda, markers):
     """Per-marker distance (m) between the simulated and the measured position."""
+    return np.linalg.norm(positions(problem, log_mu, log_lambda, markers) - markers[:, 3:], axis=1)
+
+
+def positions(problem, log_mu, log_lambda, markers):
+    """The markers' simulated positions (m): each rest position located in the rest mesh and
+    carried to the deformed mesh by its barycentric coordinates."""
     scene = json.loads(json.dumps(problem["scene"]))
     mu, lam = math.exp(log_mu), math.exp(log_lambda)
     material = scene["bodies"][0]["material"]
@@ -67,12 +73,11 @@ def residuals(problem, log_mu, log_lambda, markers):
     a = rest[tets[:, 0]]
     inv = np.linalg.inv(np.stack([rest[tets[:, i]] - a for i in (1, 2, 3)], axis=2))
     out = []
-    for X, y in zip(markers[:, :3], markers[:, 3:]):
+    for X in markers[:, :3]:
         lam_ = np.einsum("eij,ej->ei", inv, X - a)
         w = np.concatenate([1 - lam_.sum(1, keepdims=True), lam_], axis=1)
         e = np.argmax(w.min(1))
-        p = sum(w[e, i] * deformed[tets[e, i]] for i in range(4))
-        out.append(np.linalg.norm(p - y))
+        out.append(sum(w[e, i] * deformed[tets[e, i]] for i in range(4)))
     return np.array(out)
 
 
