@@ -173,14 +173,7 @@ bool DesignProblem::remesh_if_needed(const VectorXd& x, int iteration, bool forc
     const RemeshSettings& settings = m_functional->remesh_settings();
     if (!settings.enabled() || m_remesh_attempts >= settings.max_remeshes || !(seconds > 0))
         return false;
-    const Scene& scene = m_functional->scene();
-    const int d = scene.dim;
-    const Mesh mesh = bodies_mesh(scene);
-    const VectorXd X = m_functional->rest_positions_of(m_functional->parameters_of(x));
-    Positions current(mesh.rest_positions.rows(), d);
-    for (Index v = 0; v < current.rows(); ++v)
-        current.row(v) = X.segment(v * d, d).transpose();
-    const double quality = min_quality(current, mesh.elements);
+    const double quality = design_quality(*m_functional, x);
     if (!force && quality >= m_remesh_trigger)
         return false;
     std::string directory = m_remesh_directory;

@@ -399,18 +399,28 @@ nlohmann::json self_contained_document(const ReducedFunctional& functional)
     return doc;
 }
 
+Positions design_rest_positions(const ReducedFunctional& functional, const VectorXd& x)
+{
+    const int d = functional.scene().dim;
+    const VectorXd X = functional.rest_positions_of(functional.parameters_of(x));
+    Positions current(X.size() / d, d);
+    for (Index v = 0; v < current.rows(); ++v)
+        current.row(v) = X.segment(v * d, d).transpose();
+    return current;
+}
+
+double design_quality(const ReducedFunctional& functional, const VectorXd& x)
+{
+    return min_quality(design_rest_positions(functional, x), bodies_mesh(functional.scene()).elements);
+}
+
 nlohmann::json remeshed_document(const ReducedFunctional& functional, const VectorXd& x, double size,
     const std::string& directory, const std::string& name, double seconds, RemeshRecord& record)
 {
     const Scene& scene = functional.scene();
     const int d = scene.dim;
     const Mesh bodies = bodies_mesh(scene);
-    Positions current(bodies.rest_positions.rows(), d);
-    {
-        const VectorXd X = functional.rest_positions_of(functional.parameters_of(x));
-        for (Index v = 0; v < current.rows(); ++v)
-            current.row(v) = X.segment(v * d, d).transpose();
-    }
+    const Positions current = design_rest_positions(functional, x);
     record.quality_before = min_quality(current, bodies.elements);
     record.elements_before = bodies.elements.rows();
     record.elements_after = 0;

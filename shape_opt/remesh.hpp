@@ -54,6 +54,10 @@ RemeshSettings parse_remesh_settings(const JsonField& f);
 /// renumbers vertices, so such a problem cannot be remeshed.
 std::string vertex_selection(const nlohmann::json& problem);
 
+/// The bodies' rest positions (#V by dim) at design x, and the worst mean ratio of their elements there.
+Positions design_rest_positions(const ReducedFunctional& functional, const VectorXd& x);
+double design_quality(const ReducedFunctional& functional, const VectorXd& x);
+
 /// A remesh that could not be done (gmsh failed, the deformation could not be inverted):
 /// the run goes on with the old mesh.
 struct RemeshError : std::runtime_error {

@@ -26,6 +26,18 @@ HERE = pathlib.Path(__file__).resolve().parent
 ROOT = HERE.parents[1]
 
 
+def nu_and_standard_error(x, R, F, J):
+    """nu at the design x = (log mu, log lambda) and its standard error: nu = r / (2 (r + 1)),
+    r = lambda / mu = e^t, t = log lambda - log mu = sqrt(2) (d . x) with d = (-1, 1) / sqrt(2);
+    the standard error of t from s^2 F^-1 restricted to d (s^2 = 2 J / (n - k)), then the delta
+    method."""
+    d = np.array([-1.0, 1.0]) / math.sqrt(2)
+    s2 = 2 * J / (R.shape[0] - R.shape[1])
+    r = math.exp(x[1] - x[0])
+    se_t = math.sqrt(2) * math.sqrt(s2 / (d @ F @ d))
+    return r / (2 * (r + 1)), se_t * r / (2 * (r + 1) ** 2)
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--run", default=str(ROOT / "output" / "407" / "lbfgsb_10_10"),
@@ -53,13 +65,9 @@ def main():
     d_nu = np.array([-1.0, 1.0]) / math.sqrt(2)
     print("the direction of nu, (-1, 1)/sqrt(2): F-norm %.6e; of E at fixed nu, (1, 1)/sqrt(2): %.6e"
           % (d_nu @ F @ d_nu, np.array([1, 1]) @ F @ np.array([1, 1]) / 2))
-    # nu = r / (2 (r + 1)), r = lambda / mu = e^t, t = log lambda - log mu = sqrt(2) (d_nu . x):
-    # the standard error of t from F restricted to d_nu, then the delta method.
-    r = math.exp(x[1] - x[0])
-    nu = r / (2 * (r + 1))
-    se_t = math.sqrt(2) * math.sqrt(s2 / (d_nu @ F @ d_nu))
+    nu, se_nu = nu_and_standard_error(x, R, F, J)
     print("nu = %.5f, standard error %.4f (from s^2 F^-1 along nu's direction, delta method)"
-          % (nu, se_t * r / (2 * (r + 1) ** 2)))
+          % (nu, se_nu))
 
 
 if __name__ == "__main__":

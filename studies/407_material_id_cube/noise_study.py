@@ -23,6 +23,7 @@ import numpy as np
 HERE = pathlib.Path(__file__).resolve().parent
 ROOT = HERE.parents[1]
 sys.path.insert(0, str(HERE))
+import fisher  # noqa: E402  (nu's standard error)
 import run_study  # noqa: E402  (the study's simulation and marker interpolation)
 
 from diffipc.identifiability import fisher_matrix  # noqa: E402
@@ -41,10 +42,7 @@ def main():
     x = np.array(json.loads((pathlib.Path(args.run) / "summary.json").read_text())["design"])
     R, F, J = fisher_matrix(json.loads((HERE / "problem.json").read_text()), x, base_directory=HERE)
     s = math.sqrt(2 * J / (R.shape[0] - R.shape[1]))
-    d = np.array([-1.0, 1.0]) / math.sqrt(2)
-    r = math.exp(x[1] - x[0])
-    nu_fit = r / (2 * (r + 1))
-    se_nu = math.sqrt(2) * math.sqrt(s ** 2 / (d @ F @ d)) * r / (2 * (r + 1) ** 2)
+    nu_fit, se_nu = fisher.nu_and_standard_error(x, R, F, J)
     predicted = run_study.positions(base, x[0], x[1], markers)
     rng = np.random.default_rng(args.seed)
     out = pathlib.Path(args.out)

@@ -174,9 +174,6 @@ TEST(Remesh, ThreeDimensionalSurfaceMeshedAnew)
         ASSERT_GT(v, 0) << "element " << e;
         volume += v;
     }
-    std::printf("quality %.3f -> %.3f, volume %.6g -> %.6g, %ld -> %ld tets\n", worst,
-        min_quality(fresh.rest_positions, fresh.elements), old_volume, volume, long(old.elements.rows()),
-        long(fresh.elements.rows()));
     EXPECT_NEAR(volume, old_volume, 1e-9);
     EXPECT_GT(min_quality(fresh.rest_positions, fresh.elements), worst);
 }
@@ -277,9 +274,8 @@ TEST(Remesh, DesignProblemKeepsItsVariablesAndJAcrossARemesh)
 {
     const ReducedFunctional rf(nlohmann::json::parse(beam_problem), ".", "test");
     DesignProblem problem(rf);
-    const std::string dir = (std::filesystem::temp_directory_path()
-        / ("diffipc_test_remesh_" + std::to_string(::getpid())))
-                                .string();
+    const std::string dir
+        = (std::filesystem::temp_directory_path() / ("diffipc_test_remesh_" + std::to_string(::getpid()))).string();
     std::filesystem::remove_all(dir);
     problem.set_remesh_directory(dir);
     VectorXd x = VectorXd::Zero(rf.design_size());
