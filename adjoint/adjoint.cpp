@@ -78,6 +78,22 @@ namespace {
 
 } // namespace
 
+/// The adjoint system of one step: the true Hessian with the constraints applied, its
+/// factorization and the couplings of prescribed dofs. Sweeps of several objectives over
+/// one run share it (adjoint_gradients()), so each step is assembled and factorized once.
+struct AdjointStepSystem {
+    SparseAssembler assembler;
+    LinearSolver linear;
+    std::vector<Coupling> couplings;
+    int step = -1; ///< the step whose system is factorized (-1: none)
+
+    explicit AdjointStepSystem(const Simulator& sim)
+        : linear(sim.scene().solver.linear_solver)
+    {
+        assembler.build(sim.mesh().dim, sim.mesh().num_vertices(), sim.mesh().elements);
+    }
+};
+
 struct AdjointSweep::Impl {
     Simulator& sim;
     const ParameterRequest request;
@@ -89,8 +105,7 @@ struct AdjointSweep::Impl {
     std::vector<VectorXd> xbar, vbar, abar;
     const std::vector<char>& constrained;
     const std::vector<Index> prescribed;
-    SparseAssembler assembler;
-    LinearSolver linear;
+    std::shared_ptr<AdjointStepSystem> system;
     AdjointStatistics st;
     VectorXd* d_rest = nullptr;
     VectorXd* d_density = nullptr;
@@ -105,7 +120,7 @@ struct AdjointSweep::Impl {
         return s;
     }
 
-    Impl(Simulator& s, const ParameterRequest& r)
+    Impl(Simulator& s, const ParameterRequest& r, std::shared_ptr<AdjointStepSystem> shared)
         : sim(with_records(s))
         , request(r)
         , T(s.steps_done())
@@ -117,10 +132,9 @@ struct AdjointSweep::Impl {
         , abar(size_t(T) + 1)
         , constrained(s.constrained())
         , prescribed(s.prescribed_dofs())
-        , linear(s.scene().solver.linear_solver)
+        , system(shared ? std::move(shared) : std::make_shared<AdjointStepSystem>(s))
         , next(T)
     {
-        assembler.build(d, s.mesh().num_vertices(), s.mesh().elements);
         d_rest = grad.rest_positions.size() ? &grad.rest_positions : nullptr;
         d_density = grad.density.size() ? &grad.density : nullptr;
     }
@@ -149,7 +163,35 @@ struct AdjointSweep::Impl {
 
     void step(int k);
     void finish();
+    /// Assembles and factorizes the adjoint system of step k at x_k, unless the shared system holds it.
+    void factorize(int k, const VectorXd& x);
 };
+
+void AdjointSweep::Impl::factorize(int k, const VectorXd& x)
+{
+    AdjointStepSystem& a = *system;
+    if (a.step == k)
+        return;
+    a.step = -1;
+    Timer ta;
+    const Problem& problem = sim.step_problem(k);
+    problem.hessian(x, false, a.assembler);
+    // The couplings of prescribed dofs (lower triangle), before the constraints replace them.
+    const SparseMatrixd& A = a.assembler.matrix();
+    a.couplings = parallel_collect<Coupling>(size_t(A.cols()), 256, [&](size_t col, std::vector<Coupling>& out) {
+        for (SparseMatrixd::InnerIterator it(A, Index(col)); it; ++it)
+            if (constrained[size_t(it.row())] || constrained[col])
+                out.push_back({ it.row(), Index(col), it.value() });
+    });
+    a.assembler.apply_constraints(constrained);
+    ta.add_to(st.assembly_time);
+    Timer tf;
+    if (!a.linear.factorize(a.assembler.matrix(), true))
+        throw AdjointError("no gradient: the adjoint system of step " + std::to_string(k)
+            + " is singular (true Hessian at the converged state)");
+    tf.add_to(st.factorization_time);
+    a.step = k;
+}
 
 AdjointSweep::AdjointSweep(Simulator& sim, const ParameterRequest& request)
 {
@@ -158,7 +200,17 @@ AdjointSweep::AdjointSweep(Simulator& sim, const ParameterRequest& request)
     if (request.friction && sim.contact() && !sim.friction())
         throw AdjointError("no gradient: every friction coefficient is 0, where a pair's coefficient "
                            "sqrt(mu_a mu_b) is not differentiable");
-    m = std::make_unique<Impl>(sim, request);
+    m = std::make_unique<Impl>(sim, request, nullptr);
+    total.add_to(m->st.total_time);
+}
+
+AdjointSweep::AdjointSweep(Simulator& sim, const ParameterRequest& request, const AdjointSweep& share_with)
+{
+    Timer total;
+    if (&share_with.m->sim != &sim)
+        throw std::logic_error("AdjointSweep: a shared step system must come from a sweep over the same simulator");
+    check_run(sim);
+    m = std::make_unique<Impl>(sim, request, share_with.m->system);
     total.add_to(m->st.total_time);
 }
 
@@ -242,26 +294,9 @@ void AdjointSweep::Impl::step(int k)
             rhs[i] = 0;
     const VectorXd& x = record.positions;
     if (!rhs.isZero(0.0)) {
-        Timer ta;
-        const Problem& problem = sim.step_problem(k);
-        problem.hessian(x, false, assembler);
-        // The couplings of prescribed dofs (lower triangle), before the constraints replace them.
-        const SparseMatrixd& A = assembler.matrix();
-        const std::vector<Coupling> couplings
-            = parallel_collect<Coupling>(size_t(A.cols()), 256, [&](size_t col, std::vector<Coupling>& out) {
-                  for (SparseMatrixd::InnerIterator it(A, Index(col)); it; ++it)
-                      if (constrained[size_t(it.row())] || constrained[col])
-                          out.push_back({ it.row(), Index(col), it.value() });
-              });
-        assembler.apply_constraints(constrained);
-        ta.add_to(st.assembly_time);
-        Timer tf;
-        if (!linear.factorize(assembler.matrix(), true))
-            throw AdjointError("no gradient: the adjoint system of step " + std::to_string(k)
-                + " is singular (true Hessian at the converged state)");
-        tf.add_to(st.factorization_time);
+        factorize(k, record.positions);
         Timer ts;
-        VectorXd lambda = linear.solve(rhs);
+        VectorXd lambda = system->linear.solve(rhs);
         ts.add_to(st.solve_time);
         if (!lambda.allFinite())
             throw AdjointError("no gradient: non-finite adjoint at step " + std::to_string(k));
@@ -272,7 +307,7 @@ void AdjointSweep::Impl::step(int k)
         Timer tp;
         // Prescribed entries of x_k enter every free row through H: (H lambda)_i for prescribed i
         // (lambda vanishes on prescribed dofs, so only their couplings to free dofs count).
-        for (const Coupling& c : couplings) {
+        for (const Coupling& c : system->couplings) {
             if (constrained[size_t(c.row)])
                 xb[c.row] -= c.value * lambda[c.col];
             if (c.row != c.col && constrained[size_t(c.col)])
@@ -375,6 +410,8 @@ void AdjointSweep::Impl::finish()
         }
         const VectorXd& x0 = tr.initial_positions;
         // d a0 = M^-1 (df - d grad Psi - dM a0)
+        SparseAssembler& assembler = system->assembler;
+        system->step = -1;
         assembler.set_zero();
         elastic.add_hessian(x0, 1.0, false, assembler);
         assembler.finalize();
@@ -413,6 +450,38 @@ ParameterGradient adjoint_gradient(
     if (stats)
         *stats = sweep.statistics();
     return grad;
+}
+
+std::vector<ParameterGradient> adjoint_gradients(Simulator& sim, const std::vector<StateSeed>& seeds,
+    const ParameterRequest& request, AdjointStatistics* stats)
+{
+    std::vector<ParameterGradient> out;
+    if (seeds.empty())
+        return out;
+    std::vector<std::unique_ptr<AdjointSweep>> sweeps;
+    for (const StateSeed& seed : seeds) {
+        sweeps.push_back(sweeps.empty() ? std::make_unique<AdjointSweep>(sim, request)
+                                        : std::make_unique<AdjointSweep>(sim, request, *sweeps.front()));
+        sweeps.back()->add_seed(seed, 0, sim.steps_done());
+    }
+    for (int k = sim.steps_done(); k >= 1; --k)
+        for (auto& sweep : sweeps)
+            sweep->step(k);
+    AdjointStatistics total;
+    for (auto& sweep : sweeps) {
+        out.push_back(sweep->finish());
+        const AdjointStatistics& s = sweep->statistics();
+        total.assembly_time += s.assembly_time;
+        total.parameter_time += s.parameter_time;
+        total.factorization_time += s.factorization_time;
+        total.solve_time += s.solve_time;
+        total.total_time += s.total_time;
+        total.steps += s.steps;
+        total.peak_adjoint_bytes += s.peak_adjoint_bytes;
+    }
+    if (stats)
+        *stats = total;
+    return out;
 }
 
 } // namespace diffipc

@@ -17,6 +17,7 @@
 #include <memory>
 #include <stdexcept>
 #include <string>
+#include <vector>
 
 namespace diffipc {
 
@@ -52,6 +53,17 @@ struct AdjointStatistics {
 ParameterGradient adjoint_gradient(
     Simulator& sim, const StateSeed& seed, const ParameterRequest& request, AdjointStatistics* stats = nullptr);
 
+/// @brief dJ_i/dp of several objectives over one run: the sweeps go backward together, so
+/// each step's adjoint system is assembled and factorized once for all of them (one
+/// factorization and m solves per step instead of m of each).
+/// @param seeds  one seed per objective, as adjoint_gradient()'s
+/// @param stats  optional: the sweeps' timings summed; `steps` counts every solve, and
+///               peak_adjoint_bytes is the sum of the sweeps' peaks (an upper bound)
+/// @return one gradient per seed, in order
+/// @throws AdjointError as adjoint_gradient()
+std::vector<ParameterGradient> adjoint_gradients(Simulator& sim, const std::vector<StateSeed>& seeds,
+    const ParameterRequest& request, AdjointStatistics* stats = nullptr);
+
 /// The backward sweep of adjoint_gradient() one step at a time, so that a
 /// checkpointed gradient (adjoint/checkpointing.hpp) can recompute records
 /// between steps. Use: add_seed() for each state before its step, step(k) for
@@ -62,6 +74,11 @@ public:
     ///                (StepRecord::release_state()) as long as step(k) finds its own held
     /// @throws AdjointError as adjoint_gradient() for a run that cannot be differentiated
     AdjointSweep(Simulator& sim, const ParameterRequest& request);
+    /// @brief A sweep over the same run that shares `share_with`'s step systems: when both step
+    /// through k in turn (lockstep), step k's system is assembled and factorized once.
+    /// Nothing else may change the simulator's step problem between them.
+    /// @throws std::logic_error if share_with sweeps another simulator; AdjointError as above
+    AdjointSweep(Simulator& sim, const ParameterRequest& request, const AdjointSweep& share_with);
     ~AdjointSweep();
     AdjointSweep(const AdjointSweep&) = delete;
     AdjointSweep& operator=(const AdjointSweep&) = delete;

@@ -9,6 +9,7 @@
 #include "objectives/kinetic_energy.hpp"
 #include "objectives/marker_file.hpp"
 #include "objectives/markers.hpp"
+#include "objectives/reaction_force.hpp"
 #include "objectives/stress_norm.hpp"
 #include "objectives/time_aggregation.hpp"
 #include "objectives/volume.hpp"
@@ -261,6 +262,88 @@ namespace {
         return std::make_unique<CenterOfMassTracking>(steps, targets, weight, parse_elements(j, sim));
     }
 
+    /// The condition of a reaction force: "dirichlet" (an index into the scene's) or "obstacle"
+    /// (a name or an index), as an index of Simulator::prescribing_condition().
+    int parse_reaction_condition(const JsonField& j, const Simulator& sim)
+    {
+        const Scene& scene = sim.scene();
+        if (j.has("dirichlet") == j.has("obstacle"))
+            j.fail("give exactly one of \"dirichlet\" (an index into the scene's dirichlet list) and \"obstacle\"");
+        if (j.has("dirichlet")) {
+            const JsonField c = j["dirichlet"];
+            const int index = c.integer(0);
+            if (index >= int(scene.dirichlet.size()))
+                c.fail("index " + std::to_string(index) + " out of range (the scene has "
+                    + std::to_string(scene.dirichlet.size()) + " dirichlet conditions)");
+            return index;
+        }
+        const JsonField o = j["obstacle"];
+        const int first = int(scene.dirichlet.size());
+        if (o.json().is_string()) {
+            const std::string name = o.string();
+            for (size_t i = 0; i < scene.obstacles.size(); ++i)
+                if (scene.obstacles[i].name == name)
+                    return first + int(i);
+            o.fail("no obstacle named \"" + name + "\"");
+        }
+        const int index = o.integer(0);
+        if (index >= int(scene.obstacles.size()))
+            o.fail("index " + std::to_string(index) + " out of range (the scene has "
+                + std::to_string(scene.obstacles.size()) + " obstacles)");
+        return first + index;
+    }
+
+    std::unique_ptr<Objective> parse_reaction_force(const JsonField& j, const Simulator& sim)
+    {
+        j.require_object({ "type", "dirichlet", "obstacle", "axis", "targets", "steps", "weight", "sigma", "time",
+            "include_initial" });
+        if (sim.friction())
+            j["type"].fail("reaction_force is not available in scenes with friction (a coefficient > 0)");
+        const int condition = parse_reaction_condition(j, sim);
+        const int d = sim.mesh().dim;
+        const JsonField a = j["axis"];
+        int axis = -1;
+        if (a.json().is_string()) {
+            const std::string name = a.string();
+            axis = name == "x" ? 0 : name == "y" ? 1 : name == "z" && d == 3 ? 2 : -1;
+            if (axis < 0)
+                a.fail("expected " + std::string(d == 3 ? "x, y or z" : "x or y") + ", got \"" + name + "\"");
+        } else {
+            axis = a.integer(0);
+            if (axis >= d)
+                a.fail("axis " + std::to_string(axis) + " out of range for a " + std::to_string(d) + "D scene");
+        }
+        std::vector<Index> dofs = prescribed_dofs_of(sim, condition, axis);
+        const std::string label = j.has("dirichlet") ? "dirichlet[" + std::to_string(condition) + "]"
+                                                     : sim.scene().obstacles[size_t(condition) - sim.scene().dirichlet.size()].name;
+        if (dofs.empty())
+            j[j.has("dirichlet") ? "dirichlet" : "obstacle"].fail(
+                "prescribes no dof along axis " + std::to_string(axis) + " (no vertex in its region, or that "
+                "component is free or taken by a later condition)");
+        ReactionForce force(std::move(dofs), label + "." + std::string(1, "xyz"[axis]));
+        if (!j.has("targets")) {
+            for (const char* key : { "steps", "weight", "sigma" })
+                if (j.has(key))
+                    j[key].fail("only applies with \"targets\"");
+            return aggregate(std::make_unique<ReactionForce>(std::move(force)), j);
+        }
+        for (const char* key : { "time", "include_initial" })
+            if (j.has(key))
+                j[key].fail("does not apply with \"targets\" (the listed states are compared)");
+        const JsonField t = j["targets"];
+        t.require_array(1);
+        std::vector<double> targets;
+        for (size_t i = 0; i < t.size(); ++i)
+            targets.push_back(t.at(i).number());
+        const std::vector<int> steps = parse_steps(j, sim, targets.size());
+        if (j.has("weight") && j.has("sigma"))
+            j.fail("give at most one of \"weight\" and \"sigma\"");
+        double weight = j.has("weight") ? j["weight"].positive() : 1.0;
+        if (j.has("sigma"))
+            weight = 1.0 / std::pow(j["sigma"].positive(), 2);
+        return std::make_unique<ReactionForceTracking>(std::move(force), steps, std::move(targets), weight);
+    }
+
     std::unique_ptr<Objective> parse_sum(const JsonField& j, const Simulator& sim)
     {
         j.require_object({ "type", "terms" });
@@ -327,6 +410,8 @@ namespace {
             return parse_markers(j, sim);
         if (type == "center_of_mass")
             return parse_center_of_mass(j, sim);
+        if (type == "reaction_force")
+            return parse_reaction_force(j, sim);
         if (type == "boundary_smoothness") {
             j.require_object({ "type", "body" });
             return std::make_unique<BoundarySmoothness>(sim.scene(), parse_body(j, sim));
@@ -339,7 +424,7 @@ namespace {
             return parse_constraint(j, sim);
         type_field.fail("unknown objective type \"" + type
             + "\" (expected stress_norm, elastic_energy, compliance, volume, kinetic_energy, markers, "
-              "center_of_mass, boundary_smoothness, sum, power or constraint)");
+              "center_of_mass, reaction_force, boundary_smoothness, sum, power or constraint)");
     }
 } // namespace
 

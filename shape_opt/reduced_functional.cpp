@@ -425,22 +425,23 @@ Evaluation ReducedFunctional::evaluate(const VectorXd& p, bool gradient, bool co
         const Trajectory& tr = sim.trajectory();
         if (tr.final_status != StepStatus::CONVERGED)
             throw AdjointError("no value and no gradient: " + tr.failure_message);
-        for (size_t r = 0; r < rows.size(); ++r) {
-            const int row = rows[r];
-            const Objective* objective = objectives[r].get();
-            const double value = objective->value(sim, tr);
-            if (!gradient) {
-                store(row, value, nullptr, sim);
-                continue;
-            }
+        // One backward sweep for all the functionals: each step's adjoint system is factorized once.
+        std::vector<double> values;
+        for (const auto& objective : objectives)
+            values.push_back(objective->value(sim, tr));
+        std::vector<ParameterGradient> gradients;
+        if (gradient) {
             Timer ta;
-            StateSeed seed;
-            seed.resize(int(tr.steps.size()));
-            objective->add_gradient(sim, tr, request, row < 0 ? lc.weight : 1.0, seed);
-            const ParameterGradient g = adjoint_gradient(sim, seed, request);
+            std::vector<StateSeed> seeds(rows.size());
+            for (size_t r = 0; r < rows.size(); ++r) {
+                seeds[r].resize(int(tr.steps.size()));
+                objectives[r]->add_gradient(sim, tr, request, rows[r] < 0 ? lc.weight : 1.0, seeds[r]);
+            }
+            gradients = adjoint_gradients(sim, seeds, request);
             out.adjoint_time += ta.seconds();
-            store(row, value, &g, sim);
         }
+        for (size_t r = 0; r < rows.size(); ++r)
+            store(rows[r], values[r], gradient ? &gradients[r] : nullptr, sim);
     }
     if (!std::isfinite(out.value))
         throw ObjectiveDomainError(

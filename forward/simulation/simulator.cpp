@@ -149,6 +149,7 @@ Simulator::Simulator(Scene scene, const SimulationParameters& parameters)
         }
     }
     m_constrained.assign(size_t(n), 0);
+    m_prescribing_condition = owner;
     for (Index i = 0; i < n; ++i) {
         if (owner[size_t(i)] < 0)
             continue;
@@ -160,16 +161,19 @@ Simulator::Simulator(Scene scene, const SimulationParameters& parameters)
             { i, &*m_scene.dirichlet[size_t(owner[size_t(i)])].displacement[size_t(i % d)], rest, ref });
     }
     // Obstacle vertices are prescribed dofs that follow the obstacle's motion.
-    for (const ObstacleSpec& o : m_scene.obstacles)
+    for (size_t k = 0; k < m_scene.obstacles.size(); ++k) {
+        const ObstacleSpec& o = m_scene.obstacles[k];
         for (Index v = o.first_vertex; v < o.first_vertex + o.num_vertices; ++v)
             for (int a = 0; a < d; ++a) {
                 const Index i = v * d + a;
                 m_constrained[size_t(i)] = 1;
+                m_prescribing_condition[size_t(i)] = int(m_scene.dirichlet.size() + k);
                 Eigen::Vector3d rest = Eigen::Vector3d::Zero(), ref = Eigen::Vector3d::Zero();
                 rest.head(d) = mesh.rest_positions.row(v).transpose();
                 ref.head(d) = reference.row(v).transpose();
                 m_dirichlet.push_back({ i, &o.motion[size_t(a)], rest, ref });
             }
+    }
 
     // Neumann: boundary facets whose vertices all lie in the region.
     for (size_t k = 0; k < m_scene.neumann.size(); ++k) {

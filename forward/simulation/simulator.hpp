@@ -72,6 +72,9 @@ public:
     VectorXd external_forces(double t) const;
     /// Dirichlet flags per dof.
     const std::vector<char>& constrained() const { return m_constrained; }
+    /// Per dof: the scene.dirichlet entry that prescribes it (the last one whose region holds the
+    /// vertex, as in the scene file), dirichlet.size() + o for a vertex of obstacle o, -1 if free.
+    const std::vector<int>& prescribing_condition() const { return m_prescribing_condition; }
     /// #E: is element e's material in plane stress (2D "plane": "stress"; else plane strain or 3D)?
     const std::vector<char>& plane_stress() const { return m_plane_stress; }
 
@@ -197,6 +200,7 @@ private:
     SimulationParameters m_overrides;
     std::vector<DirichletDof> m_dirichlet;
     std::vector<char> m_constrained;
+    std::vector<int> m_prescribing_condition;
     std::vector<char> m_plane_stress; ///< per element
     struct LoadedFacet {
         Index facet;

@@ -49,9 +49,16 @@ TAIL_COLUMNS = ("gradient_norm", "step_norm", "evaluations", "rejected", "evalua
 #: Objectives that measure one state (docs/objectives.md, "Per-state objectives and `time`"),
 #: with the unit of f for the axis label.
 PER_STATE = {"stress_norm": "Pa", "elastic_energy": "J", "compliance": "J", "volume": "m^d",  # d: dimension
-             "kinetic_energy": "J"}
-#: Objectives that compare listed states with targets: one contribution per listed state.
-TRACKING = {"markers": "m^2", "center_of_mass": "m^2"}
+             "kinetic_energy": "J", "reaction_force": "N"}
+#: Objectives that compare listed states with targets: one contribution per listed state
+#: (``reaction_force`` is one of these when it has ``targets``, else a per-state objective).
+TRACKING = {"markers": "m^2", "center_of_mass": "m^2", "reaction_force": "N^2"}
+
+
+def _is_tracking(objective):
+    """Does this objective compare listed states with targets?"""
+    name = objective.get("type")
+    return name in TRACKING and (name != "reaction_force" or "targets" in objective)
 
 #: Relative tolerance of the check that the recomputed objective reproduces the run's J.
 REPRODUCTION_TOLERANCE = 1e-8
@@ -404,8 +411,9 @@ def objective_over_time(directory, problem=None, refine=1):
     """The objective over the run's states at the initial and the optimal design.
 
     For a per-state objective (stress_norm, elastic_energy, compliance, volume,
-    kinetic_energy; docs/objectives.md) it gives f_k, the value at state k = 1..T, whatever
-    the objective's ``time`` aggregation; for ``markers`` and ``center_of_mass`` the
+    kinetic_energy, reaction_force without targets; docs/objectives.md) it gives f_k, the
+    value at state k = 1..T, whatever the objective's ``time`` aggregation; for ``markers``,
+    ``center_of_mass`` and ``reaction_force`` with targets the
     contribution of each listed state (their sum is J). Each value is J of the optimal problem
     (optimal_problem.json) with the scene truncated after step k and the objective restricted
     to state k, evaluated by ``diffipc.ReducedFunctional`` (forward only): T runs of 1..T steps
@@ -477,7 +485,7 @@ def objective_over_time(directory, problem=None, refine=1):
 
     designs = (x_initial, x_optimal)
     out = {"objective": kind_name}
-    if kind_name in PER_STATE:
+    if kind_name in PER_STATE and not _is_tracking(objective):
         per_state = {k: v for k, v in objective.items() if k not in ("time", "include_initial")}
         per_state["time"] = "final"
         steps = np.arange(1, T + 1)
@@ -496,7 +504,7 @@ def objective_over_time(directory, problem=None, refine=1):
             out["fine_difference"] = float(np.max(np.abs(at_problem_states - values)
                                                   / np.maximum(np.abs(values), 1e-300)))
         contributions = False
-    elif kind_name in TRACKING:
+    elif _is_tracking(objective):
         if refine > 1:
             raise ValueError(f"refine: applies to per-state objectives, not to '{kind_name}' (its targets "
                              "are given at the listed states)")

@@ -20,22 +20,17 @@ import pathlib
 
 import numpy as np
 
-from diffipc.identifiability import fisher_matrix, identifiability
+from diffipc.identifiability import fisher_matrix, identifiability, poisson_along_ratio
 
 HERE = pathlib.Path(__file__).resolve().parent
 ROOT = HERE.parents[1]
 
 
 def nu_and_standard_error(x, R, F, J):
-    """nu at the design x = (log mu, log lambda) and its standard error: nu = r / (2 (r + 1)),
-    r = lambda / mu = e^t, t = log lambda - log mu = sqrt(2) (d . x) with d = (-1, 1) / sqrt(2);
-    the standard error of t from s^2 F^-1 restricted to d (s^2 = 2 J / (n - k)), then the delta
-    method."""
-    d = np.array([-1.0, 1.0]) / math.sqrt(2)
-    s2 = 2 * J / (R.shape[0] - R.shape[1])
-    r = math.exp(x[1] - x[0])
-    se_t = math.sqrt(2) * math.sqrt(s2 / (d @ F @ d))
-    return r / (2 * (r + 1)), se_t * r / (2 * (r + 1) ** 2)
+    """nu at the design x = (log mu, log lambda) and its standard error from the direction that
+    sets nu (diffipc.identifiability.poisson_along_ratio: s^2 F^-1 restricted to (-1, 1) / sqrt(2),
+    s^2 = 2 J / (n - k), then the delta method)."""
+    return poisson_along_ratio(x, R, F, J)
 
 
 def main():

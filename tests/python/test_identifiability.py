@@ -7,6 +7,7 @@ mu and lambda within 3 standard errors each. The Fisher matrix's residual Jacobi
 against finite differences of the markers' simulated positions. In 2D and 3D."""
 import json
 import math
+import re
 import subprocess
 
 import numpy as np
@@ -133,3 +134,90 @@ def test_the_residual_jacobian_matches_finite_differences(cli, tmp_path):
         e[k] = h
         fd = (markers_at(x + e) - markers_at(x - e)) / (2 * h)
         assert np.allclose(R[:, k], fd, rtol=1e-5, atol=1e-9 * np.abs(fd).max()), k
+
+
+def force_at(problem, x):
+    """The top plate's y force (N) at the last step for the design x (reaction_force, no targets)."""
+    p = json.loads(json.dumps(problem))
+    p["objective"] = {"type": "reaction_force", "dirichlet": 1, "axis": "y", "time": "final"}
+    p.pop("optimizer", None)
+    rf = diffipc.ReducedFunctional(p)
+    return rf(rf.parameters_of(np.asarray(x, dtype=float)))
+
+
+def test_a_force_term_weights_its_row_and_identifies_E(cli, tmp_path):
+    """Markers (sigma) and the top plate's force (sigma_F) together: each row of R is sqrt(w) times
+    the residual's derivative (checked by finite differences of the markers' and the force's
+    simulated values), the Fisher matrix is regular, and the fit recovers mu and lambda."""
+    problem = synthetic(tmp_path, "displacement")
+    truth = np.log([MU, LAM])
+    reading = force_at(problem, truth) * (1 + 0.01 * np.random.default_rng(5).normal())
+    sigma_f = 0.01 * abs(reading)
+    problem["objective"] = {"type": "sum", "terms": [
+        {"objective": dict(problem["objective"], sigma=SIGMA)},
+        {"weight": 2.0, "objective": {"type": "reaction_force", "dirichlet": 1, "axis": "y", "targets": [reading],
+                                      "steps": [2], "sigma": sigma_f}}]}
+    labels = []
+    R, F, J = fisher_matrix(problem, truth, base_directory=tmp_path, labels=labels)
+    assert R.shape == (9 * 2 + 1, 2) and len(labels) == 19
+    assert labels[0] == "marker 0, x" and labels[-1] == "reaction force at step 2"
+    h = 1e-4
+    for k in range(2):
+        e = np.zeros(2)
+        e[k] = h
+        fd = (force_at(problem, truth + e) - force_at(problem, truth - e)) / (2 * h)
+        assert R[-1, k] == pytest.approx(math.sqrt(2.0) / sigma_f * fd, rel=1e-5), k
+    # J = 1/2 |r|^2 with the weighted residuals at the truth: the weights are those of J
+    rf = diffipc.ReducedFunctional(problem, base_directory=str(tmp_path))
+    assert J == pytest.approx(rf(rf.parameters_of(truth)), rel=1e-12)
+    (l1, _, ok1), (l2, _, ok2) = identifiability(F)
+    assert ok1 and ok2 and l2 > 1e-4 * l1
+    (tmp_path / "problem_displacement.json").write_text(json.dumps(problem))
+    x = fit(cli, tmp_path, "displacement")
+    R, F, J = fisher_matrix(problem, x, base_directory=tmp_path)
+    se = standard_errors(R, F, J)
+    assert np.all(np.abs(x - truth) < 3 * se), (x, truth, se)
+
+
+def test_young_poisson_standard_errors_match_the_delta_method():
+    from diffipc.identifiability import young_poisson
+    x = np.array([8.6, 11.3])
+    cov = np.array([[0.01, 0.002], [0.002, 0.03]])
+    (E, nu), (se_log_e, se_nu) = young_poisson(x, cov)
+    assert (E, nu) == pytest.approx(lame_to_E_nu(*np.exp(x)), rel=1e-14)
+    jac = np.zeros((2, 2))
+    for j in range(2):
+        e = np.zeros(2)
+        e[j] = 1e-6
+        (Ep, nup), (Em, num) = lame_to_E_nu(*np.exp(x + e)), lame_to_E_nu(*np.exp(x - e))
+        jac[:, j] = [(math.log(Ep) - math.log(Em)) / 2e-6, (nup - num) / 2e-6]
+    c = jac @ cov @ jac.T
+    assert se_log_e == pytest.approx(math.sqrt(c[0, 0]), rel=1e-7)
+    assert se_nu == pytest.approx(math.sqrt(c[1, 1]), rel=1e-7)
+
+
+def test_the_report_of_a_run_says_what_the_data_determine(cli, tmp_path):
+    """python3 -m diffipc.identifiability RUN: E not determined under displacement control, both
+    with standard errors under a traction."""
+    import sys
+    for load in ("displacement", "traction"):
+        synthetic(tmp_path, load)
+        fit(cli, tmp_path, load)
+        r = subprocess.run([sys.executable, "-m", "diffipc.identifiability", str(tmp_path / f"out_{load}")],
+                           capture_output=True, text=True, timeout=300)
+        assert r.returncode == 0, r.stderr
+        lines = r.stdout.splitlines()
+        assert lines[0].startswith("fit: J = ") and "from 18 weighted residuals, 2 design variables" in lines[0]
+        # the markers' distances, from single-marker functionals; J = 1/2 sum of their squares here
+        J = float(re.match(r"fit: J = (\S+) ", lines[0]).group(1))
+        rms = float(re.match(r"  markers: 9 positions, distance to the measured ones RMS (\S+) mm", lines[1]).group(1))
+        assert rms == pytest.approx(1e3 * math.sqrt(2 * J / 9), rel=1e-3)
+        if load == "displacement":
+            assert "NOT identifiable" in lines[3] and "identifiable" in lines[2]
+            assert "E is NOT determined by these data" in lines[-1] and lines[-1].startswith("  nu = 0.3")
+        else:
+            assert "NOT" not in r.stdout
+            assert re.match(r"  E = [0-9.e+]+ Pa \+- [0-9.]+%, nu = 0\.3\d* \+- 0\.0", lines[-1]), lines[-1]
+    r = subprocess.run([sys.executable, "-m", "diffipc.identifiability", str(tmp_path / "nothing")],
+                       capture_output=True, text=True, timeout=60)
+    assert r.returncode != 0 and "optimal_problem.json: missing" in r.stderr

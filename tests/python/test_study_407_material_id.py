@@ -51,3 +51,46 @@ def test_study_407_fit_from_a_far_off_start(cli, tmp_path):
     assert abs(ratio) < 1e-10
     se = float(re.search(r"nu = \S+, standard error (\S+)", r.stdout).group(1))
     assert 0.001 < se < 0.05  # README: 0.0128
+
+
+def eigen_ratio(text):
+    """The smaller eigenvalue's ratio to the larger, from a report's two eigenvalue lines."""
+    lines = [line for line in text.splitlines() if "eigenvalue" in line]
+    assert len(lines) == 2 and all(": identifiable" in line for line in lines), text
+    return float(re.search(r"ratio to the largest (\S+)\)", lines[1]).group(1))
+
+
+def test_study_407_a_load_cell_makes_E_identifiable(tmp_path):
+    """force.py's problem (markers and the top plate's force) at its truth: both directions of the
+    Fisher matrix identifiable, far above round-off (README: ratio 7.6e-4)."""
+    sys.path.insert(0, str(STUDY))
+    try:
+        import force
+        from confidence import e_nu_to_design
+        from run_study import absolute
+    finally:
+        sys.path.remove(str(STUDY))
+    from diffipc.identifiability import fisher_matrix, identifiability
+    base = absolute(json.loads((STUDY / "problem.json").read_text()))
+    truth = e_nu_to_design(force.E_ASSUMED, force.NU_FIT)
+    reading = force.top_force(base, truth)
+    assert reading == pytest.approx(-7.544, abs=2e-3)  # README: -7.54427 N before the noise
+    labels = []
+    R, F, J = fisher_matrix(force.force_problem(base, reading), truth, labels=labels)
+    assert R.shape == (73, 2) and labels[-1] == "reaction force at step 4"
+    (l1, _, ok1), (l2, _, ok2) = identifiability(F)
+    assert ok1 and ok2 and l2 / l1 > 1e-4
+
+
+def test_study_407_a_drop_test_makes_E_identifiable(tmp_path):
+    """drop.py --no-fit: the synthetic transient markers (72 rows with a time column) and the
+    Fisher matrix at the truth with both directions identifiable (README: ratio 3.4e-4)."""
+    r = subprocess.run([sys.executable, str(STUDY / "drop.py"), "--no-fit", "--out", str(tmp_path)],
+                       capture_output=True, text=True, timeout=600, env=os.environ)
+    assert r.returncode == 0, r.stderr
+    rows = [line.split() for line in (tmp_path / "drop_markers.txt").read_text().splitlines()
+            if not line.startswith("#")]
+    assert len(rows) == 72 and all(len(row) == 7 for row in rows)
+    assert sorted({float(row[3]) for row in rows}) == pytest.approx([0.01, 0.02, 0.028])
+    assert "216 weighted residuals" in r.stdout
+    assert eigen_ratio(r.stdout) > 1e-4

@@ -17,15 +17,13 @@ import csv
 import json
 import os
 import re
-import shlex
-import subprocess
-import sys
 
 import numpy as np
 import pytest
 
 import diffipc
 from conftest import ROOT
+from tutorial_page import NUMBER, TutorialPage, TutorialRun
 
 DOC = ROOT / "docs" / "tutorial_optimization.md"
 TUTORIAL = ROOT / "docs" / "tutorial"
@@ -105,107 +103,20 @@ COMMANDS = [VALIDATE, SIMULATE, HEAD_SUMMARY, READ_TRAJECTORY, GRADCHECK, GRADCH
 
 
 # ---------------------------------------------------------------------------------------------
-# The page: its fenced blocks, and the comparison of a shown output with a printed one.
+# The page (tutorial_page.py: its fenced blocks, and the comparison of a shown output with a printed one).
 
-def page_blocks():
-    """[(language, text)] of the page's fenced code blocks, in order."""
-    return [(m.group(1), m.group(2)) for m in
-            re.finditer(r"^```(\w*)\n(.*?)^```$", DOC.read_text(), flags=re.MULTILINE | re.DOTALL)]
-
-
-def shown_output(command, occurrence=0):
-    """The ```text block right after the `occurrence`-th ```sh block that is `command`, or None."""
-    blocks = page_blocks()
-    found = [i for i, (language, text) in enumerate(blocks) if language == "sh" and text.rstrip("\n") == command]
-    assert len(found) > occurrence, f"the tutorial has no ```sh block (number {occurrence + 1}) with\n{command}"
-    i = found[occurrence]
-    if i + 1 < len(blocks) and blocks[i + 1][0] == "text":
-        return blocks[i + 1][1].rstrip("\n").split("\n")
-    return None
-
-
-NUMBER = re.compile(r"[-+]?(?:\d+\.\d*|\.\d+|\d+)(?:[eE][-+]?\d+)?")
-TABLE_ROW = re.compile(r"^(\s*\d+(?:\s+[-+]?\d\.\d+e[-+]\d+){4}\s+\d+)\s+\d+\.\d+\s+\d+\.\d+\s*$")
-
-
-def masked(line):
-    """The line without what changes from run to run: the time columns of the optimizer's table,
-    wall times (a number before ' s' or ' s/'), percentages."""
-    line = TABLE_ROW.sub(r"\1", line)
-    line = re.sub(r"\d+(?:\.\d+)?(?=\s?s(?:\b|/))", "T", line)
-    return re.sub(r"\d+(?:\.\d+)?%", "P%", line)
-
-
-def last_digit(text):
-    """The value of one unit in the last printed digit of a number: 1e-4 for '1.663643e+02'."""
-    mantissa, _, exponent = text.lower().partition("e")
-    decimals = len(mantissa.partition(".")[2])
-    return 10.0 ** (int(exponent or 0) - decimals)
-
-
-def same_number(shown, printed):
-    """Integers exactly; decimals to one unit of their last printed digit (a rounding that
-    tips the other way); values below 1e-5 in magnitude (round-off-level: converged gradient
-    and step norms, residuals, the finite-difference errors of gradcheck) only need to stay
-    below it."""
-    a, b = float(shown), float(printed)
-    if not any(c in shown + printed for c in ".eE"):
-        return a == b
-    if max(abs(a), abs(b)) < 1e-5:
-        return True
-    return abs(a - b) <= 1.01 * max(last_digit(shown), last_digit(printed))
-
-
-def same_line(shown, printed):
-    shown, printed = masked(shown), masked(printed)
-    if NUMBER.sub("#", shown).split() != NUMBER.sub("#", printed).split():
-        return False
-    return all(same_number(a, b) for a, b in zip(NUMBER.findall(shown), NUMBER.findall(printed)))
-
-
-def check_shown(command, stdout, occurrence=0):
-    shown = shown_output(command, occurrence)
-    if shown is None:
-        return
-    printed = stdout.rstrip("\n").split("\n")
-    i, skipping = 0, False
-    for line in shown:
-        if line.strip() == "...":
-            skipping = True
-            continue
-        j = i
-        while j < len(printed) and not same_line(line, printed[j]):
-            assert skipping, (f"{command}\nthe tutorial shows\n  {line!r}\nbut the command printed\n  "
-                              f"{printed[j]!r}\n(full output:\n{stdout})")
-            j += 1
-        assert j < len(printed), f"{command}\nthe tutorial shows {line!r}, not in the output:\n{stdout}"
-        i, skipping = j + 1, False
-    assert skipping or i == len(printed), f"{command}\nprinted lines the tutorial leaves out silently:\n{stdout}"
+PAGE = TutorialPage(DOC)
+page_blocks = PAGE.blocks
 
 
 # ---------------------------------------------------------------------------------------------
 # Running the commands.
 
-class Tutorial:
+class Tutorial(TutorialRun):
     """A scratch repository root: docs/ linked to the repository's, outputs under output/."""
 
     def __init__(self, root, cli):
-        self.root, self.cli = root, os.path.abspath(cli)
-        (root / "docs").symlink_to(ROOT / "docs", target_is_directory=True)
-
-    def run(self, command, returncode=0, timeout=120, occurrence=0):
-        assert command in COMMANDS
-        shell = command.replace("./build/cli/diffipc", shlex.quote(self.cli))
-        shell = re.sub(r"(?:PYTHONPATH=build/python )?/usr/bin/python3\b", shlex.quote(sys.executable), shell)
-        env = dict(os.environ, PYTHONPATH=PACKAGE_PATH, PYTHONDONTWRITEBYTECODE="1", MPLBACKEND="Agg")
-        r = subprocess.run(["bash", "-c", shell], cwd=self.root, env=env, capture_output=True, text=True,
-                           timeout=timeout)
-        assert r.returncode == returncode, f"{command}\nexit {r.returncode}\n{r.stdout[-3000:]}\n{r.stderr[-3000:]}"
-        check_shown(command, r.stdout, occurrence)
-        return r.stdout
-
-    def path(self, *parts):
-        return self.root.joinpath(*parts)
+        super().__init__(root, cli, PAGE, COMMANDS, PACKAGE_PATH)
 
     def summary(self, run):
         return json.loads(self.path("output", "tutorial", run, "summary.json").read_text())
