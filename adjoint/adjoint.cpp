@@ -46,6 +46,14 @@ namespace {
         }
     }
 
+    void check_sweep(const Simulator& sim, const ParameterRequest& request)
+    {
+        check_run(sim);
+        if (request.friction && sim.contact() && !sim.friction())
+            throw AdjointError("no gradient: every friction coefficient is 0, where a pair's coefficient "
+                               "sqrt(mu_a mu_b) is not differentiable");
+    }
+
     /// Zero-sized blocks for what was not requested, zeros for what was.
     ParameterGradient allocate(const Simulator& sim, const ParameterRequest& request)
     {
@@ -196,10 +204,7 @@ void AdjointSweep::Impl::factorize(int k, const VectorXd& x)
 AdjointSweep::AdjointSweep(Simulator& sim, const ParameterRequest& request)
 {
     Timer total;
-    check_run(sim);
-    if (request.friction && sim.contact() && !sim.friction())
-        throw AdjointError("no gradient: every friction coefficient is 0, where a pair's coefficient "
-                           "sqrt(mu_a mu_b) is not differentiable");
+    check_sweep(sim, request);
     m = std::make_unique<Impl>(sim, request, nullptr);
     total.add_to(m->st.total_time);
 }
@@ -209,7 +214,7 @@ AdjointSweep::AdjointSweep(Simulator& sim, const ParameterRequest& request, cons
     Timer total;
     if (&share_with.m->sim != &sim)
         throw std::logic_error("AdjointSweep: a shared step system must come from a sweep over the same simulator");
-    check_run(sim);
+    check_sweep(sim, request);
     m = std::make_unique<Impl>(sim, request, share_with.m->system);
     total.add_to(m->st.total_time);
 }

@@ -466,27 +466,34 @@ void SupernodalCholesky::Impl::factor_supernode_tiled(int s, const double* a)
             }
         });
 
-    // 2. Blocked right-looking Cholesky of the panel (nrow x ncol).
-    for (int kb = 0; kb < ncol && !failed(); kb += COLUMN_BLOCK) {
+    // 2. Blocked right-looking Cholesky of the panel (nrow x ncol), with a look-ahead of one
+    // column block: step kb first updates the next column block, then factors it (its
+    // diagonal block and the triangular solves below) while the rest of the trailing matrix
+    // takes step kb's update. Each tile still receives the updates of steps 0, 1, ... in
+    // order, with the same BLAS calls, so the factor does not depend on the thread count.
+    const auto factor_panel = [&](int kb) {
         const int kw = std::min(COLUMN_BLOCK, ncol - kb);
         double* akk = x + size_t(kb) * size_t(nrow) + size_t(kb);
         int info = 0;
         dpotrf_("L", &kw, akk, &nrow, &info);
         if (info != 0) {
             fail(k1 + kb + info - 1);
-            return;
+            return false;
         }
         const int below = nrow - kb - kw;
-        if (below <= 0)
-            break;
-        // simple_partitioner: the blocks (and so each BLAS call) do not depend on the threads.
-        tbb::parallel_for(
-            tbb::blocked_range<int>(0, below, TRSM_BLOCK),
-            [&](const tbb::blocked_range<int>& range) {
-                trsm_right_lower_t(range.end() - range.begin(), kw, akk, nrow, akk + kw + range.begin(), nrow);
-            },
-            tbb::simple_partitioner());
-        const std::vector<Tile> trailing = tiles_from(kb + kw, ncol);
+        if (below > 0) // simple_partitioner: the blocks (and so each BLAS call) do not depend on the threads.
+            tbb::parallel_for(
+                tbb::blocked_range<int>(0, below, TRSM_BLOCK),
+                [&](const tbb::blocked_range<int>& range) {
+                    trsm_right_lower_t(range.end() - range.begin(), kw, akk, nrow, akk + kw + range.begin(), nrow);
+                },
+                tbb::simple_partitioner());
+        return true;
+    };
+    // Step kb's update of the columns first_column .. column_end - 1 (multiples of COLUMN_BLOCK past kb).
+    const auto update = [&](int kb, int first_column, int column_end) {
+        const int kw = std::min(COLUMN_BLOCK, ncol - kb);
+        const std::vector<Tile> trailing = tiles_from(first_column, column_end);
         tbb::parallel_for(
             tbb::blocked_range<size_t>(0, trailing.size(), 1), [&](const tbb::blocked_range<size_t>& range) {
                 for (size_t t = range.begin(); t < range.end(); ++t) {
@@ -505,6 +512,18 @@ void SupernodalCholesky::Impl::factor_supernode_tiled(int s, const double* a)
                             target, nrow);
                 }
             });
+    };
+    if (failed() || !factor_panel(0))
+        return;
+    for (int kb = 0; kb + COLUMN_BLOCK < ncol; kb += COLUMN_BLOCK) {
+        const int next = kb + COLUMN_BLOCK, next_end = std::min(next + COLUMN_BLOCK, ncol);
+        update(kb, next, next_end);
+        tbb::task_group rest;
+        rest.run([&] { update(kb, next_end, ncol); }); // writes only columns next_end ..
+        const bool factored = !failed() && factor_panel(next); // reads and writes only columns next .. next_end
+        rest.wait();
+        if (!factored)
+            return;
     }
 }
 

@@ -98,11 +98,26 @@ def _force_functionals(term, scene_steps):
     steps = term.get("steps", list(range(1, scene_steps + 1)))
     weights = _measurement_weights(term, len(targets), "reaction_force")
     groups = []
+    where = (f"dirichlet[{term['dirichlet']}]" if "dirichlet" in term else f"obstacle {term.get('obstacle')}")
+    name = f"reaction force of {where} along {term.get('axis')}"
     for k, target, w in zip(steps, targets, weights):
         one = {key: v for key, v in term.items() if key not in ("weight", "sigma", "targets", "steps")}
         groups.append(([dict(one, targets=[target], steps=[k]), dict(one, targets=[target + 1.0], steps=[k])], w,
-                       [f"reaction force at step {k}"], f"reaction force at step {k}"))
+                       [f"{name} at step {k}"], f"{name} at step {k}"))
     return groups
+
+
+def _scene_of(problem, base):
+    """The problem's scene as a dict (read from its file when the problem names one)."""
+    if "scenes" in problem:
+        raise ValueError("scenes: fisher_matrix takes a problem with one scene (one load case)")
+    scene = problem.get("scene")
+    if isinstance(scene, str):
+        path = pathlib.Path(scene)
+        return json.loads((path if path.is_absolute() else base / path).read_text())
+    if not isinstance(scene, dict):
+        raise ValueError("scene: expected the scene object or the path of its file")
+    return scene
 
 
 def fisher_matrix(problem, x, base_directory=None, labels=None, misfits=None):
@@ -114,18 +129,23 @@ def fisher_matrix(problem, x, base_directory=None, labels=None, misfits=None):
 
     base = pathlib.Path(base_directory) if base_directory is not None else pathlib.Path(".")
     p = json.loads(json.dumps(problem))
-    dim = int(p["scene"].get("dimension", 3))
-    terms = _least_squares_terms(p["objective"])
+    scene = _scene_of(p, base)
+    dim = int(scene.get("dimension", 3))
+    steps = int(scene.get("time", {}).get("steps", 1))
+    terms = [(float(p.get("weight", 1.0)) * w, term) for w, term in _least_squares_terms(p["objective"])]
+    for w, _ in terms:
+        if not w > 0:
+            raise ValueError(f"objective: fisher_matrix needs positive term weights, got {w}")
     with tempfile.TemporaryDirectory() as tmp:
         tmp = pathlib.Path(tmp)
         groups = []  # (functionals, weight, row labels, name)
         for i, (w, term) in enumerate(terms):
             found = (_marker_functionals(term, base, dim, tmp, f"t{i}") if term["type"] == "markers"
-                     else _force_functionals(term, int(p["scene"]["time"]["steps"])))
+                     else _force_functionals(term, steps))
             groups += [(f, w * wm, names, name) for f, wm, names, name in found]
         p["constraints"] = [{"name": f"g{g}_{j}", "objective": o, "upper": 1e30}
                             for g, (functionals, _, _, _) in enumerate(groups) for j, o in enumerate(functionals)]
-        for key in ("optimizer", "output", "remesh"):
+        for key in ("optimizer", "output", "remesh", "checkpointing"):
             p.pop(key, None)
         rf = ReducedFunctional(p, base_directory=os.fspath(base))
         x = np.asarray(x, dtype=float)
@@ -179,40 +199,53 @@ def covariance(R, F, J):
     return 2 * J / max(n - k, 1) * np.linalg.inv(F)
 
 
-def young_poisson(x, cov=None):
-    """E and nu (3D, or 2D plane strain) of a design x = (log mu, log lambda), and with ``cov``
-    (the design's covariance) the standard errors of log E and of nu by the delta method:
-    ((E, nu), (se_log_E, se_nu) or None)."""
+def young_poisson(x, cov=None, plane_stress=False):
+    """E and nu of a design x = (log mu, log lambda), and with ``cov`` (the design's covariance)
+    the standard errors of log E and of nu by the delta method: ((E, nu), (se_log_E, se_nu) or
+    None). 3D and 2D plane strain: E = mu (3 lambda + 2 mu) / (lambda + mu), nu = lambda /
+    (2 (lambda + mu)); 2D plane stress (``plane_stress``, lambda the effective in-plane one, as the
+    simulator takes it): E = 4 mu (lambda + mu) / (lambda + 2 mu), nu = lambda / (lambda + 2 mu)."""
     mu, lam = math.exp(x[0]), math.exp(x[1])
-    E, nu = mu * (3 * lam + 2 * mu) / (lam + mu), lam / (2 * (lam + mu))
+    # d log E / d (log mu, log lambda) and d nu / d (log mu, log lambda), in closed form
+    if plane_stress:
+        s = lam + 2 * mu
+        E, nu = 4 * mu * (lam + mu) / s, lam / s
+        dlogE = np.array([1 + mu / (lam + mu) - 2 * mu / s, lam / (lam + mu) - lam / s])
+        dnu = np.array([-2 * lam * mu, 2 * lam * mu]) / (s * s)
+    else:
+        s = lam + mu
+        E, nu = mu * (3 * lam + 2 * mu) / s, lam / (2 * s)
+        dlogE = np.array([1 + 2 * mu / (3 * lam + 2 * mu) - mu / s, 3 * lam / (3 * lam + 2 * mu) - lam / s])
+        dnu = np.array([-lam * mu, lam * mu]) / (2 * s * s)
     if cov is None:
         return (E, nu), None
-    # d log E / d (log mu, log lambda) and d nu / d (log mu, log lambda), in closed form
-    s = lam + mu
-    dlogE = np.array([1 + 2 * mu / (3 * lam + 2 * mu) - mu / s, 3 * lam / (3 * lam + 2 * mu) - lam / s])
-    dnu = np.array([-lam * mu, lam * mu]) / (2 * s * s)
     return (E, nu), (math.sqrt(dlogE @ cov @ dlogE), math.sqrt(dnu @ cov @ dnu))
 
 
-def poisson_along_ratio(x, R, F, J):
+def poisson_along_ratio(x, R, F, J, plane_stress=False):
     """nu at x = (log mu, log lambda) and its standard error from the direction that sets nu
-    alone: nu = r / (2 (r + 1)) with r = lambda / mu = e^t, t = log lambda - log mu = sqrt(2) (d . x),
-    d = (-1, 1) / sqrt(2); t's standard error from s^2 / (d^T F d), then the delta method. For
-    data that determine nu but not E (F singular along (1, 1))."""
+    alone: nu = r / (2 (r + 1)) (plane stress: r / (r + 2)) with r = lambda / mu = e^t, t = log
+    lambda - log mu = sqrt(2) (d . x), d = (-1, 1) / sqrt(2); t's standard error from s^2 / (d^T F
+    d), then the delta method. For data that determine nu but not E (F singular along (1, 1))."""
     n, k = R.shape
     d = np.array([-1.0, 1.0]) / math.sqrt(2)
     se_t = math.sqrt(2) * math.sqrt(2 * J / max(n - k, 1) / (d @ F @ d))
     r = math.exp(x[1] - x[0])
+    if plane_stress:
+        return r / (r + 2), se_t * 2 * r / (r + 2) ** 2
     return r / (2 * (r + 1)), se_t * r / (2 * (r + 1) ** 2)
 
 
-def _lame_design(problem):
-    """True if the design is (log mu, log lambda) of the whole scene: two parameters, "mu" then
-    "lambda", each one value per body (one body) through a single exp map."""
+def _lame_design(problem, scene):
+    """None unless the design is (log mu, log lambda) of the whole scene (two parameters, "mu"
+    then "lambda", each one value per body of a one-body scene through a single exp map); else
+    whether that body is in 2D plane stress."""
     p = problem.get("parameters", [])
-    return (len(p) == 2 and [q.get("type") for q in p] == ["mu", "lambda"]
-            and all(q.get("per") == "body" and q.get("maps") == [{"type": "exp"}] for q in p)
-            and len(problem["scene"].get("bodies", [])) == 1)
+    bodies = scene.get("bodies", [])
+    if not (len(p) == 2 and [q.get("type") for q in p] == ["mu", "lambda"]
+            and all(q.get("per") == "body" and q.get("maps") == [{"type": "exp"}] for q in p) and len(bodies) == 1):
+        return None
+    return scene.get("dimension", 3) == 2 and bodies[0].get("material", {}).get("plane") == "stress"
 
 
 def report(run_directory, threshold=1e-6, printer=print):
@@ -245,13 +278,14 @@ def report(run_directory, threshold=1e-6, printer=print):
     se = standard_errors(R, F, J)
     printer("  design " + ", ".join("%.5g +- %s" % (a, "%.3g" % b if math.isfinite(b) else "inf")
                                      for a, b in zip(x, se)))
-    if _lame_design(problem):
-        (E, nu), errors = young_poisson(x, covariance(R, F, J))
+    plane_stress = _lame_design(problem, _scene_of(problem, directory))
+    if plane_stress is not None:
+        (E, nu), errors = young_poisson(x, covariance(R, F, J), plane_stress)
         flat = directions[-1][1]
         if errors is not None:
             printer("  E = %.4g Pa +- %.1f%%, nu = %.4f +- %.4f" % (E, 100 * errors[0], nu, errors[1]))
         elif abs(flat[0] - flat[1]) < 1e-3:
-            nu, se_nu = poisson_along_ratio(x, R, F, J)
+            nu, se_nu = poisson_along_ratio(x, R, F, J, plane_stress)
             printer("  nu = %.4f +- %.4f; E is NOT determined by these data (%.4g Pa is where this fit stopped): "
                     "the flat direction (1, 1) in (log mu, log lambda) scales E at fixed nu" % (nu, se_nu, E))
         else:

@@ -114,26 +114,90 @@ def test_a_traction_makes_both_identifiable_and_recovers_them(cli, tmp_path, dim
     assert np.all(se < 0.3)
 
 
+def markers_at(x, rest, load, scene_json=None, steps=(-1,)):
+    """The simulated positions of the vertices at `rest` (2D) for the design x, at the listed
+    states, flattened state by state."""
+    s = json.loads(json.dumps(scene_json or scene(load)))
+    E, nu = lame_to_E_nu(*np.exp(x))
+    s["bodies"][0]["material"].update(E=E, nu=nu)
+    _, tr = diffipc.simulate(s)
+    idx = [int(np.argmin(np.linalg.norm(tr["positions"][0] - X, axis=1))) for X in rest]
+    return np.concatenate([tr["positions"][k][idx].reshape(-1) for k in steps])
+
+
 def test_the_residual_jacobian_matches_finite_differences(cli, tmp_path):
     problem = synthetic(tmp_path, "traction")
     x = np.log([MU, LAM])
     R, _, _ = fisher_matrix(problem, x, base_directory=tmp_path)
     rest = np.loadtxt(tmp_path / "markers_traction.txt")[:, :2]
-
-    def markers_at(x):
-        s = scene("traction")
-        E, nu = lame_to_E_nu(*np.exp(x))
-        s["bodies"][0]["material"].update(E=E, nu=nu)
-        _, tr = diffipc.simulate(s)
-        idx = [int(np.argmin(np.linalg.norm(tr["positions"][0] - X, axis=1))) for X in rest]
-        return tr["positions"][-1][idx].reshape(-1)
-
     h = 1e-4
     for k in range(2):
         e = np.zeros(2)
         e[k] = h
-        fd = (markers_at(x + e) - markers_at(x - e)) / (2 * h)
+        fd = (markers_at(x + e, rest, "traction") - markers_at(x - e, rest, "traction")) / (2 * h)
         assert np.allclose(R[:, k], fd, rtol=1e-5, atol=1e-9 * np.abs(fd).max()), k
+
+
+def test_timed_markers_rows_match_finite_differences(tmp_path):
+    """A transient run (implicit Euler, the traction block released from rest) with markers
+    measured at steps 1 and 3 (a marker file with a time column) and per-marker sigma: each row
+    of R is the marker coordinate's derivative at its time over its sigma."""
+    s = scene("traction")
+    s["time"] = {"integrator": "implicit_euler", "dt": 0.002, "steps": 3}
+    truth = np.log([MU, LAM])
+    rest = np.array([[0.04, 0.01], [0.04, 0.03], [0.02, 0.04]])
+    measured = markers_at(truth, rest, None, s, steps=(1, 3)).reshape(2, 3, 2) + 1e-5
+    lines = ["%.17g %.17g %.17g %.17g %.17g" % (*X, k * 0.002, *measured[i, m])
+             for i, k in enumerate((1, 3)) for m, X in enumerate(rest)]
+    (tmp_path / "timed.txt").write_text("\n".join(lines) + "\n")
+    sigma = [1e-5, 2e-5, 4e-5]
+    problem = {"scene": s, "objective": {"type": "markers", "file": "timed.txt", "sigma": sigma},
+               "parameters": [{"type": t, "per": "body", "maps": [{"type": "exp"}], "initial": 10}
+                              for t in ("mu", "lambda")]}
+    labels = []
+    R, _, _ = fisher_matrix(problem, truth, base_directory=tmp_path, labels=labels)
+    assert R.shape == (12, 2) and labels[0] == "marker 0 at t = 0.002, x" and labels[-1] == "marker 2 at t = 0.006, y"
+    scale = np.tile(np.repeat(1 / np.array(sigma), 2), 2)
+    h = 1e-4
+    for k in range(2):
+        e = np.zeros(2)
+        e[k] = h
+        fd = (markers_at(truth + e, rest, None, s, (1, 3)) - markers_at(truth - e, rest, None, s, (1, 3))) / (2 * h)
+        assert np.allclose(R[:, k], fd * scale, rtol=1e-5, atol=1e-9 * np.abs(fd * scale).max()), k
+
+
+def test_plane_stress_young_poisson_matches_the_delta_method():
+    from diffipc.identifiability import young_poisson
+    x = np.array([9.0, 10.5])
+    cov = np.array([[0.02, -0.004], [-0.004, 0.05]])
+
+    def plane_stress(x):
+        mu, lam = np.exp(x)
+        return 4 * mu * (lam + mu) / (lam + 2 * mu), lam / (lam + 2 * mu)
+
+    (E, nu), (se_log_e, se_nu) = young_poisson(x, cov, plane_stress=True)
+    assert (E, nu) == pytest.approx(plane_stress(x), rel=1e-14)
+    jac = np.zeros((2, 2))
+    for j in range(2):
+        e = np.zeros(2)
+        e[j] = 1e-6
+        (Ep, nup), (Em, num) = plane_stress(x + e), plane_stress(x - e)
+        jac[:, j] = [(math.log(Ep) - math.log(Em)) / 2e-6, (nup - num) / 2e-6]
+    c = jac @ cov @ jac.T
+    assert se_log_e == pytest.approx(math.sqrt(c[0, 0]), rel=1e-7)
+    assert se_nu == pytest.approx(math.sqrt(c[1, 1]), rel=1e-7)
+
+
+def test_a_problem_whose_scene_is_a_file(tmp_path):
+    problem = synthetic(tmp_path, "traction")
+    (tmp_path / "scene.json").write_text(json.dumps(problem["scene"]))
+    by_file = dict(problem, scene="scene.json")
+    x = np.log([MU, LAM])
+    R1, _, J1 = fisher_matrix(problem, x, base_directory=tmp_path)
+    R2, _, J2 = fisher_matrix(by_file, x, base_directory=tmp_path)
+    assert np.array_equal(R1, R2) and J1 == J2
+    with pytest.raises(ValueError, match="scenes"):
+        fisher_matrix({"scenes": [], "objective": problem["objective"]}, x, base_directory=tmp_path)
 
 
 def force_at(problem, x):
@@ -157,19 +221,24 @@ def test_a_force_term_weights_its_row_and_identifies_E(cli, tmp_path):
         {"objective": dict(problem["objective"], sigma=SIGMA)},
         {"weight": 2.0, "objective": {"type": "reaction_force", "dirichlet": 1, "axis": "y", "targets": [reading],
                                       "steps": [2], "sigma": sigma_f}}]}
-    labels = []
-    R, F, J = fisher_matrix(problem, truth, base_directory=tmp_path, labels=labels)
+    labels, misfits = [], []
+    R, F, J = fisher_matrix(problem, truth, base_directory=tmp_path, labels=labels, misfits=misfits)
     assert R.shape == (9 * 2 + 1, 2) and len(labels) == 19
-    assert labels[0] == "marker 0, x" and labels[-1] == "reaction force at step 2"
+    assert labels[0] == "marker 0, x" and labels[-1] == "reaction force of dirichlet[1] along y at step 2"
+    rest = np.loadtxt(tmp_path / "markers_displacement.txt")[:, :2]
     h = 1e-4
     for k in range(2):
         e = np.zeros(2)
         e[k] = h
         fd = (force_at(problem, truth + e) - force_at(problem, truth - e)) / (2 * h)
         assert R[-1, k] == pytest.approx(math.sqrt(2.0) / sigma_f * fd, rel=1e-5), k
-    # J = 1/2 |r|^2 with the weighted residuals at the truth: the weights are those of J
-    rf = diffipc.ReducedFunctional(problem, base_directory=str(tmp_path))
-    assert J == pytest.approx(rf(rf.parameters_of(truth)), rel=1e-12)
+        fd = (markers_at(truth + e, rest, "displacement") - markers_at(truth - e, rest, "displacement")) / (2 * h)
+        assert np.allclose(R[:-1, k], fd / SIGMA, rtol=1e-5, atol=1e-9 * np.abs(fd).max() / SIGMA), k
+    # J = 1/2 sum of the weighted misfits squared: the weights of R are those of J
+    assert len(misfits) == 10
+    weights = [1 / SIGMA**2] * 9 + [2.0 / sigma_f**2]
+    assert J == pytest.approx(0.5 * sum(w * m**2 for w, (_, m) in zip(weights, misfits)), rel=1e-9)
+    assert misfits[-1][1] == pytest.approx(abs(reading - force_at(problem, truth)), rel=1e-6)
     (l1, _, ok1), (l2, _, ok2) = identifiability(F)
     assert ok1 and ok2 and l2 > 1e-4 * l1
     (tmp_path / "problem_displacement.json").write_text(json.dumps(problem))

@@ -77,7 +77,7 @@ def test_study_407_a_load_cell_makes_E_identifiable(tmp_path):
     assert reading == pytest.approx(-7.544, abs=2e-3)  # README: -7.54427 N before the noise
     labels = []
     R, F, J = fisher_matrix(force.force_problem(base, reading), truth, labels=labels)
-    assert R.shape == (73, 2) and labels[-1] == "reaction force at step 4"
+    assert R.shape == (73, 2) and labels[-1] == "reaction force of dirichlet[0] along z at step 4"
     (l1, _, ok1), (l2, _, ok2) = identifiability(F)
     assert ok1 and ok2 and l2 / l1 > 1e-4
 
