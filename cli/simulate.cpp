@@ -115,7 +115,8 @@ int simulate(std::string scene_path, std::string out_dir, int vtu_every, bool qu
         h5 = std::make_unique<TrajectoryWriter>(path, sim.mesh(), stored ? stored->trajectory : sim.trajectory(),
             sim.contact() != nullptr,
             std::vector<std::pair<std::string, std::string>> {
-                { "diffipc_version", DIFFIPC_VERSION }, { "scene", sc.source } });
+                { "diffipc_version", DIFFIPC_VERSION }, { "scene", sc.source } },
+            sc.time.adaptive.enabled);
         if (stored) {
             try {
                 copy_steps(*stored, *h5);
@@ -189,8 +190,11 @@ int simulate(std::string scene_path, std::string out_dir, int vtu_every, bool qu
             timer.add_to(output_seconds);
         }
         if (!quiet && (total <= 50 || since_print.seconds() > 1.0 || r.index == total)) {
-            std::printf("  step %d/%d  t = %.4g s  newton %d  residual %.2e  %.3f s/step  min volume ratio %.3f\n",
+            std::printf("  step %d/%d  t = %.4g s  newton %d  residual %.2e  %.3f s/step  min volume ratio %.3f",
                 r.index, total, r.time, r.newton_iterations, r.residual, r.wall_time, r.min_volume_ratio);
+            if (r.substeps > 0)
+                std::printf("  %d sub-steps (%d cuts, smallest %.3g s)", r.substeps, r.cuts, r.min_increment);
+            std::printf("\n");
             std::fflush(stdout);
             since_print = Timer();
         }

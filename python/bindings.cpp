@@ -311,7 +311,7 @@ PYBIND11_MODULE(_diffipc, m)
         .def("write_hdf5",
             [](const Simulator& s, const std::string& path) {
                 const Exclusive exclusive(s);
-                write_hdf5(path, s.mesh(), s.trajectory(), s.contact() != nullptr);
+                write_hdf5(path, s.mesh(), s.trajectory(), s.contact() != nullptr, s.scene().time.adaptive.enabled);
             })
         .def("summary", [](const Simulator& s) {
             const Exclusive exclusive(s);

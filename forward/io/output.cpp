@@ -29,6 +29,11 @@ nlohmann::json summary_json(const Simulator& simulator)
     j["max_residual"] = totals.max_residual;
     j["linear_fallbacks"] = totals.linear_fallbacks;
     j["roundoff_limited_steps"] = totals.roundoff_limited_steps;
+    if (simulator.scene().time.adaptive.enabled)
+        j["load_stepping"] = { { "substepped_steps", totals.substepped_steps }, { "substeps", totals.substeps },
+            { "cuts", totals.cuts },
+            { "min_increment",
+                std::isfinite(totals.min_increment) ? nlohmann::json(totals.min_increment) : nlohmann::json(nullptr) } };
     j["threads"] = to_json(thread_config());
     j["wall_time"]
         = { { "total", tr.wall_time }, { "assembly", tr.phases.assembly }, { "factorization", tr.phases.factorization },

@@ -170,6 +170,15 @@ StoredTrajectory read_trajectory(const std::string& path, int last_states)
     }
     if (out.contact)
         T = std::min({ T, kappa.size(), min_distance.size(), active.size(), friction_residual.size() });
+    // Automatic load stepping (written when the scene enables it).
+    std::vector<int> substeps, cuts;
+    std::vector<double> min_increment;
+    if (file.has("substeps")) {
+        substeps = file.read<int>("substeps");
+        cuts = file.read<int>("cuts");
+        min_increment = file.read<double>("min_increment");
+        T = std::min({ T, substeps.size(), cuts.size(), min_increment.size() });
+    }
     out.vertices = Index(dims[1]);
     out.dim = int(dims[2]);
 
@@ -195,6 +204,11 @@ StoredTrajectory read_trajectory(const std::string& path, int last_states)
             r.min_distance = min_distance[k - 1];
             r.active_contacts = active[k - 1];
             r.friction_residual = friction_residual[k - 1];
+        }
+        if (!substeps.empty()) {
+            r.substeps = substeps[k - 1];
+            r.cuts = cuts[k - 1];
+            r.min_increment = min_increment[k - 1];
         }
         if (r.status != StepStatus::CONVERGED)
             throw InputError(path, "step " + std::to_string(k) + " is not a converged, finite state");

@@ -179,7 +179,7 @@ struct TrajectoryWriter::Impl {
 };
 
 TrajectoryWriter::TrajectoryWriter(const std::string& path, const Mesh& mesh, const Trajectory& initial, bool contact,
-    const std::vector<std::pair<std::string, std::string>>& attributes)
+    const std::vector<std::pair<std::string, std::string>>& attributes, bool load_stepping)
     : m_impl(std::make_unique<Impl>())
 {
     Impl& m = *m_impl;
@@ -226,6 +226,11 @@ TrajectoryWriter::TrajectoryWriter(const std::string& path, const Mesh& mesh, co
             m.columns.push_back({ "min_distance", D, {}, false, dbl(&StepRecord::min_distance) });
             m.columns.push_back({ "active_contacts", I, {}, false, integer(&StepRecord::active_contacts) });
             m.columns.push_back({ "kappa", D, {}, false, dbl(&StepRecord::kappa) });
+        }
+        if (load_stepping) {
+            m.columns.push_back({ "substeps", I, {}, false, integer(&StepRecord::substeps) });
+            m.columns.push_back({ "cuts", I, {}, false, integer(&StepRecord::cuts) });
+            m.columns.push_back({ "min_increment", D, {}, false, dbl(&StepRecord::min_increment) });
         }
         for (Column& c : m.columns)
             m.create(c);
@@ -313,9 +318,9 @@ void TrajectoryWriter::close()
 int TrajectoryWriter::steps() const { return m_impl->steps; }
 const std::string& TrajectoryWriter::path() const { return m_impl->path; }
 
-void write_hdf5(const std::string& path, const Mesh& mesh, const Trajectory& trajectory, bool contact)
+void write_hdf5(const std::string& path, const Mesh& mesh, const Trajectory& trajectory, bool contact, bool load_stepping)
 {
-    TrajectoryWriter writer(path, mesh, trajectory, contact);
+    TrajectoryWriter writer(path, mesh, trajectory, contact, {}, load_stepping);
     for (const StepRecord& r : trajectory.steps)
         writer.append(r);
     writer.close();

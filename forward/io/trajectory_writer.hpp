@@ -22,9 +22,10 @@ public:
     /// @brief Creates `path` (replacing it) with the mesh group and the initial state (row 0).
     /// @param contact also write the contact datasets (min_distance, active_contacts, kappa, ...)
     /// @param attributes text attributes of the root group (name, value), e.g. the program version
+    /// @param load_stepping also write the automatic load stepping datasets (substeps, cuts, min_increment)
     /// @throws InputError naming the file if it cannot be created or written
     TrajectoryWriter(const std::string& path, const Mesh& mesh, const Trajectory& initial, bool contact,
-        const std::vector<std::pair<std::string, std::string>>& attributes = {});
+        const std::vector<std::pair<std::string, std::string>>& attributes = {}, bool load_stepping = false);
     /// Closes the file; errors are swallowed here (call close() to see them).
     ~TrajectoryWriter();
     TrajectoryWriter(const TrajectoryWriter&) = delete;
@@ -48,6 +49,7 @@ private:
 };
 
 /// @brief Writes a whole trajectory at once (TrajectoryWriter over every step).
-void write_hdf5(const std::string& path, const Mesh& mesh, const Trajectory& trajectory, bool contact = false);
+void write_hdf5(const std::string& path, const Mesh& mesh, const Trajectory& trajectory, bool contact = false,
+    bool load_stepping = false);
 
 } // namespace diffipc

@@ -294,6 +294,52 @@ namespace {
         return mu;
     }
 
+    /// Is some friction coefficient (global, a body's or an obstacle's) positive?
+    bool any_friction(const Scene& scene)
+    {
+        bool any = scene.friction.coefficient > 0;
+        for (const auto& b : scene.bodies)
+            any = any || b.friction_coefficient > 0;
+        for (const auto& o : scene.obstacles)
+            any = any || o.friction_coefficient > 0;
+        return any;
+    }
+
+    /// "adaptive": true / false, or an object of the policy's settings (AdaptiveSpec).
+    AdaptiveSpec parse_adaptive(const JsonField& f, const TimeSpec& time)
+    {
+        AdaptiveSpec a;
+        if (f.json().is_boolean()) {
+            a.enabled = f.boolean();
+        } else {
+            f.require_object({ "min_increment", "cut", "growth", "iteration_target" });
+            a.enabled = true;
+            if (f.has("min_increment")) {
+                a.min_increment = f["min_increment"].positive();
+                if (a.min_increment > time.dt)
+                    f["min_increment"].fail("must not exceed time.dt (" + format_number(time.dt) + " s)");
+            }
+            if (f.has("cut")) {
+                a.cut = f["cut"].number();
+                if (!(a.cut > 0 && a.cut < 1))
+                    f["cut"].fail("must lie in (0, 1), got " + f["cut"].json().dump());
+            }
+            if (f.has("growth")) {
+                a.growth = f["growth"].number();
+                if (!(a.growth >= 1 && a.growth <= 10))
+                    f["growth"].fail("must lie in [1, 10], got " + f["growth"].json().dump());
+            }
+            if (f.has("iteration_target"))
+                a.iteration_target = f["iteration_target"].integer(1);
+        }
+        if (a.enabled && time.integrator != IntegratorType::STATIC)
+            f.fail("automatic load stepping is available for static scenes (time.integrator \"static\"); "
+                   "this scene is " + to_string(time.integrator));
+        if (a.min_increment == 0)
+            a.min_increment = time.dt / 1024;
+        return a;
+    }
+
     void parse_friction(const JsonField& root, Scene& scene)
     {
         FrictionSpec& fr = scene.friction;
@@ -316,12 +362,7 @@ namespace {
                 fr.strict = p == "strict";
             }
         }
-        bool any = fr.coefficient > 0;
-        for (const auto& b : scene.bodies)
-            any = any || b.friction_coefficient > 0;
-        for (const auto& o : scene.obstacles)
-            any = any || o.friction_coefficient > 0;
-        if (any && !scene.contact.enabled)
+        if (any_friction(scene) && !scene.contact.enabled)
             root[root.has("friction") ? "friction" : "bodies"].fail(
                 "friction needs contact (a \"contact\" block or obstacles)");
     }
@@ -586,7 +627,7 @@ Scene parse_scene(const nlohmann::json& document, const std::string& base_direct
     }
 
     const JsonField time = root["time"];
-    time.require_object({ "integrator", "dt", "steps" });
+    time.require_object({ "integrator", "dt", "steps", "adaptive" });
     {
         const std::string name = time["integrator"].string();
         if (name == "static")
@@ -606,6 +647,12 @@ Scene parse_scene(const nlohmann::json& document, const std::string& base_direct
                 "time step below 1e-12 s: the implicit schemes weight the elastic forces by dt^2, which then "
                 "vanish in round-off against inertia");
         scene.time.steps = time["steps"].integer(1);
+        if (time.has("adaptive")) {
+            scene.time.adaptive = parse_adaptive(time["adaptive"], scene.time);
+            if (scene.time.adaptive.enabled && any_friction(scene))
+                time["adaptive"].fail("automatic load stepping is not available with friction yet (the lagged "
+                                      "sliding of a sub-step would change the step's friction)");
+        }
     }
 
     if (root.has("mass")) {

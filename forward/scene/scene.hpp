@@ -62,10 +62,22 @@ struct NeumannSpec {
     std::string field;
 };
 
+/// Automatic load stepping ("time": {"adaptive": ...}, docs/scene_format.md): a static step whose
+/// solve fails is retried in sub-steps of its load increment, cut on failure and grown after
+/// easy sub-steps; the step's state is the equilibrium at its own time, as without sub-steps.
+struct AdaptiveSpec {
+    bool enabled = false;
+    double min_increment = 0; ///< smallest sub-step (s of load time); 0: dt / 1024
+    double cut = 0.5; ///< factor of the increment after a failed sub-step, in (0, 1)
+    double growth = 1.5; ///< factor after an easy sub-step, >= 1
+    int iteration_target = 10; ///< a sub-step that converged in at most this many Newton iterations is easy
+};
+
 struct TimeSpec {
     IntegratorType integrator = IntegratorType::IMPLICIT_EULER;
     double dt = 0.01;
     int steps = 1;
+    AdaptiveSpec adaptive;
 };
 
 struct SolverSpec {

@@ -423,6 +423,21 @@ void Simulator::dirichlet_targets(double t, VectorXd& x) const
             = dd.rest[dd.dof % m_scene.dim] + (*dd.expression)(t, dd.reference[0], dd.reference[1], dd.reference[2]);
 }
 
+void Simulator::prescribed_targets_at(int k, double t, VectorXd& x) const
+{
+    if (m_overrides.prescribed.size() == 0 || k < 1 || k > m_overrides.prescribed.rows()) {
+        dirichlet_targets(t, x);
+        return;
+    }
+    const double s = (t - (k - 1) * m_scene.time.dt) / m_scene.time.dt;
+    const VectorXd& committed = m_integrator->positions();
+    for (size_t j = 0; j < m_dirichlet.size(); ++j) {
+        const auto& dd = m_dirichlet[j];
+        const double g_k = dd.rest[dd.dof % m_scene.dim] + m_overrides.prescribed(k - 1, Index(j));
+        x[dd.dof] = committed[dd.dof] + s * (g_k - committed[dd.dof]);
+    }
+}
+
 void Simulator::prescribed_targets(int k, VectorXd& x) const
 {
     if (m_overrides.prescribed.size() == 0 || k < 1 || k > m_overrides.prescribed.rows()) {
@@ -602,6 +617,14 @@ StepStatus Simulator::step()
     }
     const double step_scale = m_integrator->dynamic() ? m_scene.time.dt : m_bbox_diagonal;
     NewtonResult result = newton.solve(x, target, m_constrained, w * m_force_scale, step_scale);
+    std::string substep_note;
+    if (result.status != StepStatus::CONVERGED && m_scene.time.adaptive.enabled) {
+        const NewtonResult first = result;
+        result = solve_in_substeps(index, newton, step_scale, kappa_before, x, record, substep_note);
+        result.iterations += first.iterations;
+        result.linear_fallbacks += first.linear_fallbacks;
+        result.times += first.times;
+    }
     if (m_friction && result.status == StepStatus::CONVERGED) {
         // Lagging: refresh normal forces, tangents and weights at the converged state and
         // solve again, up to `iterations` solves; the residual of the re-lagged problem
@@ -679,7 +702,7 @@ StepStatus Simulator::step()
         m_trajectory.failed_step = index;
         m_trajectory.failure_message = "step " + std::to_string(index) + " (t = " + format_number(t_next)
             + " s) failed: " + to_string(result.status) + " after " + std::to_string(result.iterations)
-            + " Newton iterations, residual " + format_number(result.residual);
+            + " Newton iterations, residual " + format_number(result.residual) + substep_note;
         if (result.status == StepStatus::INVALID_INITIAL_STATE) {
             const std::string problem = state_problem();
             m_trajectory.failure_message += ": the incremental potential is not finite at the step's start"

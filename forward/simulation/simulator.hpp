@@ -20,6 +20,9 @@
 
 namespace diffipc {
 
+class NewtonSolver;
+struct NewtonResult;
+
 class Simulator {
 public:
     explicit Simulator(Scene scene);
@@ -166,6 +169,15 @@ private:
     void dirichlet_targets(double t, VectorXd& x) const;
     /// Prescribed positions at step k (1-based): the override's g_k if given, else the expressions at t_k.
     void prescribed_targets(int k, VectorXd& x) const;
+    /// @brief Prescribed positions at a time t in step k's interval ((k-1) dt, k dt]: the
+    /// expressions at t, or, with an override, its g_k interpolated linearly from the committed g_{k-1}.
+    void prescribed_targets_at(int k, double t, VectorXd& x) const;
+    /// @brief Automatic load stepping (load_stepping.cpp): step k's static solve again in
+    /// sub-steps of its load increment after its full solve failed. On success x is the
+    /// equilibrium at t_k and the result CONVERGED; otherwise the last sub-step's status, with
+    /// `why` saying how far it got. Fills the record's substeps, cuts and min_increment.
+    NewtonResult solve_in_substeps(int k, const NewtonSolver& newton, double step_scale, double kappa_before,
+        VectorXd& x, StepRecord& record, std::string& why);
     void setup_contact();
     void setup_friction();
     /// max |free-dof gradient| / (w f_s) at x.

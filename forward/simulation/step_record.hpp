@@ -34,6 +34,11 @@ struct StepRecord {
     bool roundoff_limited = false;
     PhaseTimes phases;
 
+    // Automatic load stepping (time.adaptive): 0, 0, 0 for a step solved in one go.
+    int substeps = 0; ///< converged sub-steps the step took (its last one ends at `time`)
+    int cuts = 0; ///< failed solves (the full step's included) after which the increment was cut
+    double min_increment = 0; ///< the smallest converged sub-step's increment (s)
+
     // Contact (when the scene enables it).
     /// Minimum distance (m) over primitive pairs within 1e-2 of the bbox diagonal
     /// of each other and vertex-plane pairs; +inf if none is that close.
@@ -83,8 +88,18 @@ struct StepTotals {
     int roundoff_limited_steps = 0;
     double min_distance = std::numeric_limits<double>::infinity();
     int max_active_contacts = 0;
+    int substepped_steps = 0; ///< steps that automatic load stepping split
+    int substeps = 0; ///< their sub-steps
+    int cuts = 0;
+    double min_increment = std::numeric_limits<double>::infinity(); ///< over the split steps (s)
     void add(const StepRecord& r)
     {
+        if (r.substeps > 0) {
+            ++substepped_steps;
+            substeps += r.substeps;
+            cuts += r.cuts;
+            min_increment = std::min(min_increment, r.min_increment);
+        }
         min_volume_ratio = std::min(min_volume_ratio, r.min_volume_ratio);
         max_residual = std::max(max_residual, r.residual);
         linear_fallbacks += r.linear_fallbacks;

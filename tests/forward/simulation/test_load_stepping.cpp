@@ -1,0 +1,177 @@
+// Automatic load stepping (time.adaptive, forward/simulation/load_stepping.cpp): a static step
+// whose solve fails is solved again in sub-steps of its load increment.
+
+#include "forward/common/error.hpp"
+#include "forward/io/trajectory_reader.hpp"
+#include "forward/io/trajectory_writer.hpp"
+#include "tests/forward/test_utils.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cstdio>
+#include <string>
+
+using namespace diffipc;
+using json = nlohmann::json;
+
+namespace {
+
+/// A neo-Hookean block [0, 1]^dim on its bottom face, its top face pushed down by
+/// `compression` (a fraction of its height) in `steps` static steps; Newton may take at most
+/// `max_iterations` per solve, so that one large increment fails and small ones converge.
+json compressed_block(int dim, double compression, int steps, int max_iterations, const json& adaptive = nullptr)
+{
+    json s = dim == 2 ? test::box_scene(2, { 1, 1 }, { 4, 4 }, "neo_hookean", 1e5, 0.3, 1000)
+                      : test::box_scene(3, { 1, 1, 1 }, { 2, 2, 2 }, "neo_hookean", 1e5, 0.3, 1000);
+    const json zero = dim == 2 ? json { 0, 0 } : json { 0, 0, 0 };
+    json down = zero;
+    down[1] = std::to_string(-compression) + "*t";
+    std::vector<double> top_lo(size_t(dim), -1), top_hi(size_t(dim), 2), bottom_hi(size_t(dim), 2);
+    top_lo[1] = 1 - 1e-6;
+    bottom_hi[1] = 1e-6;
+    s["dirichlet"] = { { { "body", 0 }, { "region", test::region(std::vector<double>(size_t(dim), -1), bottom_hi) },
+                           { "displacement", zero } },
+        { { "body", 0 }, { "region", test::region(top_lo, top_hi) }, { "displacement", down } } };
+    s["time"] = { { "integrator", "static" }, { "dt", 1.0 / steps }, { "steps", steps } };
+    if (!adaptive.is_null())
+        s["time"]["adaptive"] = adaptive;
+    s["solver"] = { { "residual_tolerance", 1e-10 }, { "max_iterations", max_iterations } };
+    return s;
+}
+
+const Trajectory& run(Simulator& sim)
+{
+    const Trajectory& tr = sim.run();
+    return tr;
+}
+
+} // namespace
+
+TEST(LoadStepping, FailedStepsConvergeInSubstepsToTheSameEquilibrium)
+{
+    for (int dim : { 2, 3 }) {
+        SCOPED_TRACE(dim);
+        // Without the option the 60% compression in 2 steps of at most 4 Newton iterations fails.
+        Simulator plain(test::make_scene(compressed_block(dim, 0.6, 2, 4)));
+        EXPECT_NE(run(plain).final_status, StepStatus::CONVERGED);
+        // With it, every step converges, some in sub-steps.
+        Simulator adaptive(test::make_scene(compressed_block(dim, 0.6, 2, 4, true)));
+        const Trajectory& tr = run(adaptive);
+        ASSERT_EQ(tr.final_status, StepStatus::CONVERGED) << tr.failure_message;
+        ASSERT_EQ(tr.committed(), 2);
+        EXPECT_GT(tr.totals.substepped_steps, 0);
+        EXPECT_GE(tr.totals.cuts, tr.totals.substepped_steps);
+        // The requested times are hit exactly, and each state is the equilibrium at its time: the
+        // same as a run of 32 small steps (unlimited iterations) at t = 0.5 and 1.
+        EXPECT_EQ(tr.steps[0].time, 0.5);
+        EXPECT_EQ(tr.steps[1].time, 1.0);
+        Simulator fine(test::make_scene(compressed_block(dim, 0.6, 32, 100)));
+        const Trajectory& ref = run(fine);
+        ASSERT_EQ(ref.final_status, StepStatus::CONVERGED);
+        for (int k : { 1, 2 }) {
+            const VectorXd& x = tr.steps[size_t(k - 1)].positions;
+            const VectorXd& y = ref.steps[size_t(16 * k - 1)].positions;
+            EXPECT_LE((x - y).norm(), 1e-8 * y.norm()) << "step " << k;
+            const StepRecord& r = tr.steps[size_t(k - 1)];
+            if (r.substeps > 0) {
+                EXPECT_GT(r.min_increment, 0);
+                EXPECT_LE(r.min_increment, 0.25 + 1e-15); // the first sub-step is at most half the step
+            }
+        }
+    }
+}
+
+TEST(LoadStepping, SceneThatNeedsNoSubstepIsUnchangedBitForBit)
+{
+    Simulator plain(test::make_scene(compressed_block(2, 0.1, 2, 100)));
+    Simulator adaptive(test::make_scene(compressed_block(2, 0.1, 2, 100, true)));
+    const Trajectory& a = run(plain);
+    const Trajectory& b = run(adaptive);
+    ASSERT_EQ(a.final_status, StepStatus::CONVERGED);
+    ASSERT_EQ(b.final_status, StepStatus::CONVERGED);
+    for (size_t k = 0; k < a.steps.size(); ++k) {
+        EXPECT_EQ(a.steps[k].positions, b.steps[k].positions);
+        EXPECT_EQ(b.steps[k].substeps, 0);
+        EXPECT_EQ(b.steps[k].cuts, 0);
+    }
+    EXPECT_EQ(b.totals.substepped_steps, 0);
+}
+
+TEST(LoadStepping, AnImpossibleLoadEndsWithAStatusAtTheMinimumIncrement)
+{
+    // 130% compression cannot be reached without inverting elements: the run must end, with a
+    // failure status and a message that says how far the sub-steps got.
+    Simulator sim(test::make_scene(
+        compressed_block(2, 1.3, 1, 20, { { "min_increment", 1e-3 }, { "cut", 0.5 }, { "growth", 2 } })));
+    const Trajectory& tr = run(sim);
+    EXPECT_NE(tr.final_status, StepStatus::CONVERGED);
+    EXPECT_EQ(tr.committed(), 0);
+    EXPECT_NE(tr.failure_message.find("automatic load stepping took"), std::string::npos) << tr.failure_message;
+    EXPECT_NE(tr.failure_message.find("time.adaptive.min_increment = 0.001 s"), std::string::npos)
+        << tr.failure_message;
+    EXPECT_EQ(sim.positions(), sim.trajectory().initial_positions) << "a failed step leaves the state untouched";
+}
+
+TEST(LoadStepping, PrescribedOverridesAreInterpolatedWithinTheStep)
+{
+    // With prescribed displacements given as parameters (the adjoint's g_k), the sub-steps
+    // interpolate them from the committed step: the same equilibrium as the expressions give.
+    const Scene scene = test::make_scene(compressed_block(2, 0.6, 2, 4, true));
+    Simulator by_expression(scene);
+    ASSERT_EQ(run(by_expression).final_status, StepStatus::CONVERGED);
+    Simulator by_parameters(scene, by_expression.parameters());
+    const Trajectory& tr = run(by_parameters);
+    ASSERT_EQ(tr.final_status, StepStatus::CONVERGED);
+    EXPECT_GT(tr.totals.substepped_steps, 0);
+    for (size_t k = 0; k < tr.steps.size(); ++k) {
+        const VectorXd& x = by_expression.trajectory().steps[k].positions;
+        EXPECT_LE((tr.steps[k].positions - x).norm(), 1e-9 * x.norm()) << "step " << k + 1;
+    }
+}
+
+TEST(LoadStepping, SubstepCountsAreWrittenAndReadBack)
+{
+    Simulator sim(test::make_scene(compressed_block(2, 0.6, 2, 4, true)));
+    const Trajectory& tr = run(sim);
+    ASSERT_EQ(tr.final_status, StepStatus::CONVERGED);
+    const std::string path = testing::TempDir() + "load_stepping.h5";
+    write_hdf5(path, sim.mesh(), tr, false, true);
+    const StoredTrajectory stored = read_trajectory(path);
+    ASSERT_EQ(stored.trajectory.committed(), 2);
+    for (int k = 1; k <= 2; ++k) {
+        EXPECT_EQ(stored.trajectory.step(k).substeps, tr.step(k).substeps);
+        EXPECT_EQ(stored.trajectory.step(k).cuts, tr.step(k).cuts);
+        EXPECT_EQ(stored.trajectory.step(k).min_increment, tr.step(k).min_increment);
+    }
+    std::remove(path.c_str());
+}
+
+TEST(LoadStepping, SettingsAreCheckedNamingTheField)
+{
+    const auto message = [](const json& s) {
+        try {
+            test::make_scene(s);
+        } catch (const InputError& e) {
+            return std::string(e.what());
+        }
+        return std::string("no error");
+    };
+    EXPECT_EQ(message(compressed_block(2, 0.1, 2, 10, true)), "no error");
+    EXPECT_EQ(message(compressed_block(2, 0.1, 2, 10, false)), "no error");
+    json s = compressed_block(2, 0.1, 2, 10, true);
+    s["time"]["integrator"] = "implicit_euler";
+    EXPECT_NE(message(s).find("time.adaptive: automatic load stepping is available for static scenes"),
+        std::string::npos)
+        << message(s);
+    EXPECT_NE(message(compressed_block(2, 0.1, 2, 10, { { "cut", 1.5 } })).find("time.adaptive.cut"),
+        std::string::npos);
+    EXPECT_NE(message(compressed_block(2, 0.1, 2, 10, { { "growth", 0.5 } })).find("time.adaptive.growth"),
+        std::string::npos);
+    EXPECT_NE(message(compressed_block(2, 0.1, 2, 10, { { "min_increment", 2.0 } })).find("time.adaptive.min_increment"),
+        std::string::npos);
+    EXPECT_NE(message(compressed_block(2, 0.1, 2, 10, { { "cuts", 2 } })).find("time.adaptive.cuts"), std::string::npos);
+    s = compressed_block(2, 0.1, 2, 10, true);
+    s["obstacles"] = { { { "name", "floor" }, { "plane", { { "point", { 0, -0.01 } }, { "normal", { 0, 1 } } } } } };
+    s["friction"] = { { "coefficient", 0.3 } };
+    EXPECT_NE(message(s).find("not available with friction"), std::string::npos) << message(s);
+}
