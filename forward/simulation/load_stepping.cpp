@@ -67,7 +67,6 @@ NewtonResult Simulator::solve_in_substeps(int k, const NewtonSolver& newton, dou
             r.iterations = total.iterations;
             r.linear_fallbacks = total.linear_fallbacks;
             r.times = total.times;
-            m_external->set_force(external_forces(t1));
             return r;
         }
     }

@@ -6,19 +6,9 @@ import numpy as np
 from diffipc.identifiability import covariance, identifiability, young_poisson
 
 
-def lame_to_e_nu(x):
-    """(E, nu) of the design x = (log mu, log lambda)."""
-    return young_poisson(x)[0]
-
-
 def e_nu_to_design(E, nu):
     """(log mu, log lambda) of Young's modulus and Poisson's ratio (3D)."""
     return np.log([E / (2 * (1 + nu)), E * nu / ((1 + nu) * (1 - 2 * nu))])
-
-
-def e_nu_standard_errors(x, cov):
-    """Standard errors of log E and nu at x from the design's covariance."""
-    return young_poisson(x, cov)[1]
 
 
 def report(R, F, J, x, threshold=1e-6):

@@ -29,8 +29,10 @@ import diffipc
 HERE = pathlib.Path(__file__).resolve().parent
 ROOT = HERE.parents[1]
 sys.path.insert(0, str(HERE))
-from confidence import e_nu_to_design, lame_to_e_nu, report  # noqa: E402
-from plots import Markers  # noqa: E402
+from confidence import e_nu_to_design, report  # noqa: E402
+from cube_markers import Markers  # noqa: E402
+
+from diffipc.identifiability import young_poisson  # noqa: E402
 
 E_TRUE, NU_TRUE, DENSITY = 2e4, 0.4687, 1070.0
 SIGMA = 5e-5  # m, noise per coordinate
@@ -111,7 +113,7 @@ def main():
     x = np.array(s["design"])
     R, F, J = diffipc.identifiability.fisher_matrix(p, x)
     lines, cov = report(R, F, J, x)
-    E, nu = lame_to_e_nu(x)
+    E, nu = young_poisson(x)[0]
     print("fit from (10, 10): %s after %d iterations (%.0f s); RMS weighted residual %.2f (1 if the noise model holds)"
           % (s["stop_reason"], s["iterations"], time.time() - t1, math.sqrt(2 * J / len(R))))
     print("\n".join(lines))

@@ -28,10 +28,10 @@ import diffipc
 HERE = pathlib.Path(__file__).resolve().parent
 ROOT = HERE.parents[1]
 sys.path.insert(0, str(HERE))
-from confidence import e_nu_standard_errors, e_nu_to_design, lame_to_e_nu, report  # noqa: E402
+from confidence import e_nu_to_design, report  # noqa: E402
 from run_study import STARTS, absolute, residuals  # noqa: E402
 
-from diffipc.identifiability import identifiability  # noqa: E402
+from diffipc.identifiability import identifiability, young_poisson  # noqa: E402
 
 E_ASSUMED, NU_FIT = 2e4, 0.4687
 FORCE_NOISE = 0.01  # relative
@@ -90,8 +90,8 @@ def main():
         x = np.array(s["design"])
         R, F, J = diffipc.identifiability.fisher_matrix(q, x)
         lines, cov = report(R, F, J, x)
-        E, nu = lame_to_e_nu(x)
-        se = e_nu_standard_errors(x, cov) if cov is not None else (math.inf, math.inf)
+        (E, nu), se = young_poisson(x, cov)
+        se = se or (math.inf, math.inf)
         r = residuals(q, x[0], x[1], markers)
         lam = [v for v, _, _ in identifiability(F)]
         print("| (%g, %g) | %s | %d | %.4g | %.4f | %.3f | %.4f | %.4f | %.3f | %.3f | %.2e | %.1f |" % (

@@ -18,7 +18,7 @@ summary.json, history.csv) and writes into --out:
 - convergence.png: J (log scale) and the optimizer's gradient norm (inf-norm of the projected
   gradient of J / |J(x0)|; for Ipopt, of the Lagrangian) against iteration, one curve per run.
 
-The residuals are computed as in run_study.positions (each marker's rest position located once
+The residuals are computed by cube_markers.Markers (each marker's rest position located once
 in the rest mesh, carried to the deformed mesh by its barycentric coordinates); J is checked
 against lbfgsb_10_10's final_J. The landscape (45 simulations by default) takes about 70 s on
 2 cores.
@@ -37,65 +37,23 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-import diffipc  # noqa: E402
 
 HERE = pathlib.Path(__file__).resolve().parent
 ROOT = HERE.parents[1]
 sys.path.insert(0, str(HERE))
 import run_study  # noqa: E402
+from cube_markers import Markers  # noqa: E402
+
+from diffipc.identifiability import young_poisson  # noqa: E402
 
 RUNS = [f"lbfgsb_{m:g}_{l:g}" for m, l in run_study.STARTS] + ["ipopt_%g_%g" % run_study.STARTS[0]]
 FIT = RUNS[0]
 FACE_X = 0.0199  # rest x of the marker face's vertices (m)
 
 
-def lame_to_e_nu(log_mu, log_lambda):
-    """(E, nu) of the design (log mu, log lambda)."""
-    mu, lam = math.exp(log_mu), math.exp(log_lambda)
-    return mu * (3 * lam + 2 * mu) / (lam + mu), lam / (2 * (lam + mu))
-
-
 def design(out, run):
     """The fitted (log mu, log lambda) of a run."""
     return json.loads((out / run / "summary.json").read_text())["design"]
-
-
-class Markers:
-    """The markers located once in the rest mesh (as run_study.positions does), so that each
-    simulation costs one diffipc.simulate and no mesh search."""
-
-    def __init__(self, scene, markers):
-        sc = diffipc.scene(scene)
-        self.scene, self.measured = scene, markers[:, 3:]
-        self.rest = np.asarray(sc.rest_positions)
-        tets = np.asarray(sc.elements)
-        a = self.rest[tets[:, 0]]
-        inv = np.linalg.inv(np.stack([self.rest[tets[:, i]] - a for i in (1, 2, 3)], axis=2))
-        self.tets, self.weights = [], []
-        for X in markers[:, :3]:
-            b = np.einsum("eij,ej->ei", inv, X - a)
-            w = np.concatenate([1 - b.sum(1, keepdims=True), b], axis=1)
-            e = np.argmax(w.min(1))
-            self.tets.append(tets[e])
-            self.weights.append(w[e])
-        self.tets, self.weights = np.array(self.tets), np.array(self.weights)
-
-    def simulate(self, E, nu):
-        """The deformed mesh vertices (m) with material (E, nu)."""
-        scene = json.loads(json.dumps(self.scene))
-        scene["bodies"][0]["material"].update(E=E, nu=nu)
-        _, tr = diffipc.simulate(scene)
-        if tr["final_status"] != "CONVERGED":
-            raise RuntimeError(f"E = {E:g}, nu = {nu:g}: {tr['final_status']} {tr['failure_message']}")
-        return tr["positions"][-1]
-
-    def carry(self, deformed):
-        """The markers' deformed positions (m)."""
-        return np.einsum("mi,mic->mc", self.weights, deformed[self.tets])
-
-    def objective(self, E, nu):
-        """J = 1/2 sum of squared marker distances (m^2)."""
-        return 0.5 * np.sum((self.carry(self.simulate(E, nu)) - self.measured) ** 2)
 
 
 def rms_mm(J, n):
@@ -208,7 +166,7 @@ def main():
     problem = run_study.absolute(json.loads((HERE / "problem.json").read_text()))
     markers = np.loadtxt(problem["objective"]["file"])
     n = len(markers)
-    fits = {run: lame_to_e_nu(*design(out, run)) for run in RUNS}
+    fits = {run: young_poisson(design(out, run))[0] for run in RUNS}
     for run, (E, nu) in fits.items():
         print("%-13s E = %.4g Pa, nu = %.5f" % (run, E, nu))
     t0 = time.perf_counter()

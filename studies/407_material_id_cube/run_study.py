@@ -18,7 +18,7 @@ import subprocess
 
 import numpy as np
 
-import diffipc
+from cube_markers import Markers
 
 HERE = pathlib.Path(__file__).resolve().parent
 ROOT = HERE.parents[1]
@@ -34,51 +34,15 @@ def absolute(problem):
     return p
 
 
-def tetrahedra(path, rest):
-    """The mesh's tetrahedra in the simulation's vertex numbering (matched by position)."""
-    lines = pathlib.Path(path).read_text().split("\n")
-    i = lines.index("$Nodes")
-    n = int(lines[i + 1])
-    nodes = {}
-    for k in range(n):
-        f = lines[i + 2 + k].split()
-        nodes[int(f[0])] = np.array([float(v) for v in f[1:4]]) * 0.004 - 0.02
-    j = lines.index("$Elements")
-    order = {tuple(np.round(p, 12)): v for v, p in enumerate(rest)}
-    tets = []
-    for k in range(int(lines[j + 1])):
-        f = [int(v) for v in lines[j + 2 + k].split()]
-        if f[1] == 4:
-            tags = f[2]
-            tets.append([order[tuple(np.round(nodes[t], 12))] for t in f[3 + tags:7 + tags]])
-    return np.array(tets)
-
-
 def residuals(problem, log_mu, log_lambda, markers):
     """Per-marker distance (m) between the simulated and the measured position."""
     return np.linalg.norm(positions(problem, log_mu, log_lambda, markers) - markers[:, 3:], axis=1)
 
 
 def positions(problem, log_mu, log_lambda, markers):
-    """The markers' simulated positions (m): each rest position located in the rest mesh and
-    carried to the deformed mesh by its barycentric coordinates."""
-    scene = json.loads(json.dumps(problem["scene"]))
-    mu, lam = math.exp(log_mu), math.exp(log_lambda)
-    material = scene["bodies"][0]["material"]
-    material["E"] = mu * (3 * lam + 2 * mu) / (lam + mu)
-    material["nu"] = lam / (2 * (lam + mu))
-    _, tr = diffipc.simulate(scene)
-    rest, deformed = tr["positions"][0], tr["positions"][-1]
-    tets = tetrahedra(scene["bodies"][0]["mesh"]["file"], rest)
-    a = rest[tets[:, 0]]
-    inv = np.linalg.inv(np.stack([rest[tets[:, i]] - a for i in (1, 2, 3)], axis=2))
-    out = []
-    for X in markers[:, :3]:
-        lam_ = np.einsum("eij,ej->ei", inv, X - a)
-        w = np.concatenate([1 - lam_.sum(1, keepdims=True), lam_], axis=1)
-        e = np.argmax(w.min(1))
-        out.append(sum(w[e, i] * deformed[tets[e, i]] for i in range(4)))
-    return np.array(out)
+    """The markers' simulated positions (m), located in the rest mesh and carried to the deformed
+    mesh by their barycentric coordinates (cube_markers.Markers)."""
+    return Markers(problem["scene"], markers).positions(log_mu, log_lambda)
 
 
 def main():

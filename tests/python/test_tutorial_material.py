@@ -11,8 +11,6 @@ import shutil
 import subprocess
 import sys
 
-import pytest
-
 import diffipc
 from conftest import ROOT
 from tutorial_page import TutorialPage, TutorialRun
@@ -53,7 +51,7 @@ def test_make_data_reproduces_the_measurements(tmp_path):
     shutil.copytree(FILES, copy)
     (copy / "markers.txt").unlink()
     r = subprocess.run([sys.executable, str(copy / "make_data.py")], capture_output=True, text=True,
-                       env=dict(os.environ, PYTHONPATH=PACKAGE_PATH), timeout=120)
+                       env=dict(os.environ, PYTHONPATH=PACKAGE_PATH, PYTHONDONTWRITEBYTECODE="1"), timeout=120)
     assert r.returncode == 0, r.stderr
     assert (copy / "markers.txt").read_text() == (FILES / "markers.txt").read_text()
     reading = float(re.search(r"with 1% noise: (\S+) N", r.stdout).group(1))
@@ -75,7 +73,3 @@ def test_every_command_prints_what_the_page_shows(tmp_path, cli):
     summary = json.loads(t.path("output", "tutorial", "material", "force", "summary.json").read_text())
     assert summary["stop_reason"] == "gradient_tolerance"
 
-
-@pytest.fixture(autouse=True)
-def _no_bytecode(monkeypatch):
-    monkeypatch.setenv("PYTHONDONTWRITEBYTECODE", "1")

@@ -39,12 +39,6 @@ json compressed_block(int dim, double compression, int steps, int max_iterations
     return s;
 }
 
-const Trajectory& run(Simulator& sim)
-{
-    const Trajectory& tr = sim.run();
-    return tr;
-}
-
 } // namespace
 
 TEST(LoadStepping, FailedStepsConvergeInSubstepsToTheSameEquilibrium)
@@ -53,10 +47,10 @@ TEST(LoadStepping, FailedStepsConvergeInSubstepsToTheSameEquilibrium)
         SCOPED_TRACE(dim);
         // Without the option the 60% compression in 2 steps of at most 4 Newton iterations fails.
         Simulator plain(test::make_scene(compressed_block(dim, 0.6, 2, 4)));
-        EXPECT_NE(run(plain).final_status, StepStatus::CONVERGED);
+        EXPECT_NE(plain.run().final_status, StepStatus::CONVERGED);
         // With it, every step converges, some in sub-steps.
         Simulator adaptive(test::make_scene(compressed_block(dim, 0.6, 2, 4, true)));
-        const Trajectory& tr = run(adaptive);
+        const Trajectory& tr = adaptive.run();
         ASSERT_EQ(tr.final_status, StepStatus::CONVERGED) << tr.failure_message;
         ASSERT_EQ(tr.committed(), 2);
         EXPECT_GT(tr.totals.substepped_steps, 0);
@@ -66,7 +60,7 @@ TEST(LoadStepping, FailedStepsConvergeInSubstepsToTheSameEquilibrium)
         EXPECT_EQ(tr.steps[0].time, 0.5);
         EXPECT_EQ(tr.steps[1].time, 1.0);
         Simulator fine(test::make_scene(compressed_block(dim, 0.6, 32, 100)));
-        const Trajectory& ref = run(fine);
+        const Trajectory& ref = fine.run();
         ASSERT_EQ(ref.final_status, StepStatus::CONVERGED);
         for (int k : { 1, 2 }) {
             const VectorXd& x = tr.steps[size_t(k - 1)].positions;
@@ -85,8 +79,8 @@ TEST(LoadStepping, SceneThatNeedsNoSubstepIsUnchangedBitForBit)
 {
     Simulator plain(test::make_scene(compressed_block(2, 0.1, 2, 100)));
     Simulator adaptive(test::make_scene(compressed_block(2, 0.1, 2, 100, true)));
-    const Trajectory& a = run(plain);
-    const Trajectory& b = run(adaptive);
+    const Trajectory& a = plain.run();
+    const Trajectory& b = adaptive.run();
     ASSERT_EQ(a.final_status, StepStatus::CONVERGED);
     ASSERT_EQ(b.final_status, StepStatus::CONVERGED);
     for (size_t k = 0; k < a.steps.size(); ++k) {
@@ -103,7 +97,7 @@ TEST(LoadStepping, AnImpossibleLoadEndsWithAStatusAtTheMinimumIncrement)
     // failure status and a message that says how far the sub-steps got.
     Simulator sim(test::make_scene(
         compressed_block(2, 1.3, 1, 20, { { "min_increment", 1e-3 }, { "cut", 0.5 }, { "growth", 2 } })));
-    const Trajectory& tr = run(sim);
+    const Trajectory& tr = sim.run();
     EXPECT_NE(tr.final_status, StepStatus::CONVERGED);
     EXPECT_EQ(tr.committed(), 0);
     EXPECT_NE(tr.failure_message.find("automatic load stepping took"), std::string::npos) << tr.failure_message;
@@ -118,9 +112,9 @@ TEST(LoadStepping, PrescribedOverridesAreInterpolatedWithinTheStep)
     // interpolate them from the committed step: the same equilibrium as the expressions give.
     const Scene scene = test::make_scene(compressed_block(2, 0.6, 2, 4, true));
     Simulator by_expression(scene);
-    ASSERT_EQ(run(by_expression).final_status, StepStatus::CONVERGED);
+    ASSERT_EQ(by_expression.run().final_status, StepStatus::CONVERGED);
     Simulator by_parameters(scene, by_expression.parameters());
-    const Trajectory& tr = run(by_parameters);
+    const Trajectory& tr = by_parameters.run();
     ASSERT_EQ(tr.final_status, StepStatus::CONVERGED);
     EXPECT_GT(tr.totals.substepped_steps, 0);
     for (size_t k = 0; k < tr.steps.size(); ++k) {
@@ -132,7 +126,7 @@ TEST(LoadStepping, PrescribedOverridesAreInterpolatedWithinTheStep)
 TEST(LoadStepping, SubstepCountsAreWrittenAndReadBack)
 {
     Simulator sim(test::make_scene(compressed_block(2, 0.6, 2, 4, true)));
-    const Trajectory& tr = run(sim);
+    const Trajectory& tr = sim.run();
     ASSERT_EQ(tr.final_status, StepStatus::CONVERGED);
     const std::string path = testing::TempDir() + "load_stepping.h5";
     write_hdf5(path, sim.mesh(), tr, false, true);
