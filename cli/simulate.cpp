@@ -194,6 +194,8 @@ int simulate(std::string scene_path, std::string out_dir, int vtu_every, bool qu
                 r.index, total, r.time, r.newton_iterations, r.residual, r.wall_time, r.min_volume_ratio);
             if (r.substeps > 0)
                 std::printf("  %d sub-steps (%d cuts, smallest %.3g s)", r.substeps, r.cuts, r.min_increment);
+            if (r.control_steps > 0)
+                std::printf("  %d displacement-controlled", r.control_steps);
             std::printf("\n");
             std::fflush(stdout);
             since_print = Timer();

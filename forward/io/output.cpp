@@ -31,7 +31,7 @@ nlohmann::json summary_json(const Simulator& simulator)
     j["roundoff_limited_steps"] = totals.roundoff_limited_steps;
     if (simulator.scene().time.adaptive.enabled)
         j["load_stepping"] = { { "substepped_steps", totals.substepped_steps }, { "substeps", totals.substeps },
-            { "cuts", totals.cuts },
+            { "cuts", totals.cuts }, { "control_steps", totals.control_steps },
             { "min_increment",
                 std::isfinite(totals.min_increment) ? nlohmann::json(totals.min_increment) : nlohmann::json(nullptr) } };
     j["threads"] = to_json(thread_config());

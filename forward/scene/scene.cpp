@@ -312,7 +312,7 @@ namespace {
         if (f.json().is_boolean()) {
             a.enabled = f.boolean();
         } else {
-            f.require_object({ "min_increment", "cut", "growth", "iteration_target" });
+            f.require_object({ "min_increment", "cut", "growth", "iteration_target", "displacement_control" });
             a.enabled = true;
             if (f.has("min_increment")) {
                 a.min_increment = f["min_increment"].positive();
@@ -331,6 +331,8 @@ namespace {
             }
             if (f.has("iteration_target"))
                 a.iteration_target = f["iteration_target"].integer(1);
+            if (f.has("displacement_control"))
+                a.displacement_control = f["displacement_control"].boolean();
         }
         if (a.enabled && time.integrator != IntegratorType::STATIC)
             f.fail("automatic load stepping is available for static scenes (time.integrator \"static\"); "

@@ -71,6 +71,9 @@ struct AdaptiveSpec {
     double cut = 0.5; ///< factor of the increment after a failed sub-step, in (0, 1)
     double growth = 1.5; ///< factor after an easy sub-step, >= 1
     int iteration_target = 10; ///< a sub-step that converged in at most this many Newton iterations is easy
+    /// Past a limit point of the load (sub-steps cut below min_increment), follow the equilibria by
+    /// displacement control along the load increment (load_stepping.cpp).
+    bool displacement_control = true;
 };
 
 struct TimeSpec {

@@ -4,7 +4,9 @@
 /// an intermediate load time, started from the last converged sub-step; a failed one is retried
 /// with the increment cut, an easy one (few Newton iterations) lets the next grow. The step's
 /// state is the equilibrium at its own time t_k, which does not depend on the path in a static
-/// scene without friction: the adjoint of the step is unchanged.
+/// scene without friction: the adjoint of the step is unchanged. Past a limit point of the load,
+/// where no sub-step converges however small, pass_limit_point() follows the equilibria by
+/// displacement control along the load increment (docs/math.md, "Load stepping past limit points").
 
 #include "forward/common/error.hpp"
 #include "forward/contact/contact_potential.hpp"
@@ -64,6 +66,19 @@ NewtonResult Simulator::solve_in_substeps(int k, const NewtonSolver& newton, dou
                 + "] s, then failed to " + format_number(ts) + " s (" + to_string(r.status)
                 + ") and would cut the increment below time.adaptive.min_increment = "
                 + format_number(a.min_increment) + " s";
+            if (a.displacement_control) {
+                std::string control_why;
+                NewtonResult c = pass_limit_point(k, newton, step_scale, t, committed, r, record, total, control_why);
+                if (c.status == StepStatus::CONVERGED) {
+                    x = std::move(committed);
+                    c.iterations = total.iterations;
+                    c.linear_fallbacks = total.linear_fallbacks;
+                    c.times = total.times;
+                    return c;
+                }
+                why += "; " + control_why;
+                r = c;
+            }
             r.iterations = total.iterations;
             r.linear_fallbacks = total.linear_fallbacks;
             r.times = total.times;
@@ -75,6 +90,103 @@ NewtonResult Simulator::solve_in_substeps(int k, const NewtonSolver& newton, dou
     last.linear_fallbacks = total.linear_fallbacks;
     last.times = total.times;
     return last;
+}
+
+NewtonResult Simulator::pass_limit_point(int k, const NewtonSolver& newton, double step_scale, double t,
+    VectorXd& x, const NewtonResult& failed, StepRecord& record, NewtonResult& total, std::string& why)
+{
+    const AdaptiveSpec& a = m_scene.time.adaptive;
+    const double t1 = k * m_scene.time.dt;
+    const double w = m_integrator->potential_weight();
+    const auto add = [&](const NewtonResult& r) {
+        total.iterations += r.iterations;
+        total.linear_fallbacks += r.linear_fallbacks;
+        total.times += r.times;
+    };
+    // The load increment that could not be carried, on the free dofs: its direction is the one the
+    // control follows, and the multiplier says which fraction of it the bodies carry.
+    const VectorXd f0 = external_forces(t), f1 = external_forces(t1);
+    LoadControl control;
+    control.direction = f1 - f0;
+    for (Index i = 0; i < control.direction.size(); ++i)
+        if (m_constrained[size_t(i)])
+            control.direction[i] = 0;
+    const double increment = control.direction.norm();
+    if (!(increment > 0)) {
+        why = "displacement control needs a load (traction or gravity) that changes over the step, and this one "
+              "changes only prescribed displacements";
+        return failed;
+    }
+    control.direction /= increment;
+    control.tolerance = 1e-12 * m_bbox_diagonal;
+    // Prescribed displacements stay at t while the load is followed; they move to t_k in the final solve.
+    VectorXd target = x;
+    prescribed_targets_at(k, t, target);
+    const double start = control.direction.dot(x);
+    const double min_control = 1e-6 * m_bbox_diagonal;
+    double level = start, increment_s = 1e-3 * m_bbox_diagonal, carried = 0;
+    // The last converged state on the path and its level: the secant through it and x predicts the
+    // next state (a solve started there takes a few iterations, not the many that a start at x
+    // takes where the path turns), shortened to what CCD and the inversion bound allow.
+    VectorXd previous;
+    double previous_level = start;
+    while (record.control_steps < MAX_CONTROL_STEPS && level - start < m_bbox_diagonal) {
+        m_external->set_force(f0);
+        control.level = level + increment_s;
+        VectorXd y = x;
+        if (previous.size()) {
+            const VectorXd secant = (increment_s / (level - previous_level)) * (x - previous);
+            const double reach = m_problem.max_step(x, secant);
+            y += std::min(1.0, 0.9 * reach) * secant;
+        }
+        NewtonResult r = newton.solve(y, target, m_constrained, w * m_force_scale, step_scale, &control);
+        add(r);
+        if (r.status != StepStatus::CONVERGED) {
+                ++record.cuts;
+            increment_s *= a.cut;
+            if (increment_s < min_control) {
+                why = "displacement control followed the load to " + format_number(carried)
+                    + " of the step's increment over " + format_number(level - start) + " m, then failed ("
+                    + to_string(r.status) + ") with the control increment below " + format_number(min_control)
+                    + " m (1e-6 of the bounding-box diagonal)";
+                return r;
+            }
+            continue;
+        }
+        ++record.control_steps;
+        previous = std::move(x);
+        previous_level = level;
+        x = std::move(y);
+        level = control.level;
+        carried = control.multiplier / increment;
+        if (r.iterations <= a.iteration_target)
+            increment_s = std::min(increment_s * a.growth, 0.1 * m_bbox_diagonal);
+        if (carried < 1)
+            continue;
+        // The path carries the step's load again: solve at t_k itself from here (the same
+        // equilibrium branch, just below this state's load).
+        VectorXd z = x, final_target = x;
+        prescribed_targets_at(k, t1, final_target);
+        m_external->set_force(f1);
+        const double kappa_final = m_contact ? m_contact->kappa() : 0.0;
+        NewtonResult last = newton.solve(z, final_target, m_constrained, w * m_force_scale, step_scale);
+        add(last);
+        if (last.status == StepStatus::CONVERGED) {
+            x = std::move(z);
+            ++record.substeps;
+            record.min_increment = std::min(record.min_increment, t1 - t);
+            return last;
+        }
+        if (m_contact)
+            m_contact->set_kappa(kappa_final);
+    }
+    why = "displacement control moved " + format_number(level - start) + " m along the load in "
+        + std::to_string(record.control_steps) + " solves, carrying at most " + format_number(carried)
+        + " of the step's load increment: the load cannot be carried";
+    m_external->set_force(f1);
+    NewtonResult result = failed;
+    result.status = StepStatus::NEWTON_EXHAUSTED;
+    return result;
 }
 
 } // namespace diffipc

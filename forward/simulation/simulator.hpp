@@ -178,6 +178,14 @@ private:
     /// `why` saying how far it got. Fills the record's substeps, cuts and min_increment.
     NewtonResult solve_in_substeps(int k, const NewtonSolver& newton, double step_scale, double kappa_before,
         VectorXd& x, StepRecord& record, std::string& why);
+    /// @brief Displacement control past a limit point (load_stepping.cpp): from the equilibrium x at
+    /// time t of step k, follows the equilibria along the load increment f(t_k) - f(t) by
+    /// prescribing the displacement along it (the load is the constraint's multiplier) until the
+    /// bodies carry that increment, then solves at t_k. On success x is the equilibrium at t_k.
+    /// `failed` is the sub-step failure that led here: returned (with `why`) when the step changes no load.
+    NewtonResult pass_limit_point(int k, const NewtonSolver& newton, double step_scale, double t, VectorXd& x,
+        const NewtonResult& failed, StepRecord& record, NewtonResult& total, std::string& why);
+    static constexpr int MAX_CONTROL_STEPS = 2000;
     void setup_contact();
     void setup_friction();
     /// max |free-dof gradient| / (w f_s) at x.

@@ -38,6 +38,8 @@ struct StepRecord {
     int substeps = 0; ///< converged sub-steps the step took (its last one ends at `time`)
     int cuts = 0; ///< failed solves (the full step's included) after which the increment was cut
     double min_increment = 0; ///< the smallest converged sub-step's increment (s)
+    /// Displacement-controlled solves the step took past a limit point of its load (0: none)
+    int control_steps = 0;
 
     // Contact (when the scene enables it).
     /// Minimum distance (m) over primitive pairs within 1e-2 of the bbox diagonal
@@ -92,6 +94,7 @@ struct StepTotals {
     int substeps = 0; ///< their sub-steps
     int cuts = 0;
     double min_increment = std::numeric_limits<double>::infinity(); ///< over the split steps (s)
+    int control_steps = 0; ///< displacement-controlled solves past limit points
     void add(const StepRecord& r)
     {
         if (r.substeps > 0) {
@@ -99,6 +102,7 @@ struct StepTotals {
             substeps += r.substeps;
             cuts += r.cuts;
             min_increment = std::min(min_increment, r.min_increment);
+            control_steps += r.control_steps;
         }
         min_volume_ratio = std::min(min_volume_ratio, r.min_volume_ratio);
         max_residual = std::max(max_residual, r.residual);

@@ -13,12 +13,23 @@ namespace {
 } // namespace
 
 NewtonResult NewtonSolver::solve(VectorXd& x, const VectorXd& target, const std::vector<char>& constrained,
-    double force_scale, double step_scale) const
+    double force_scale, double step_scale, LoadControl* control) const
 {
     NewtonResult result;
     const Index n = x.size();
     // Work vectors allocated once per solve, reused by every iteration and trial.
     VectorXd g(n), p(n), rhs(n), pD(n), trial(n), g_trial(n);
+    const double a_norm2 = control ? control->direction.squaredNorm() : 0.0;
+    // max |free-dof gradient|, less the load the constraint carries under load control
+    const auto free_residual = [&](const VectorXd& gradient) {
+        const double carried = control ? control->direction.dot(gradient) / a_norm2 : 0.0;
+        double largest = 0;
+        for (Index i = 0; i < n; ++i)
+            if (!constrained[size_t(i)])
+                largest = std::max(largest,
+                    std::abs(control ? gradient[i] - carried * control->direction[i] : gradient[i]));
+        return largest;
+    };
     bool full_step_taken = false;
     int true_hessian_pause = 0;
 
@@ -46,17 +57,24 @@ NewtonResult NewtonSolver::solve(VectorXd& x, const VectorXd& target, const std:
             result.status = StepStatus::NON_FINITE;
             return result;
         }
-        double gmax = 0, dmax = 0;
+        // Under load control the multiplier's share lambda a of the gradient is the load the
+        // constraint carries, not a residual.
+        double gap = 0;
+        if (control) {
+            control->multiplier = control->direction.dot(g) / a_norm2;
+            gap = control->level - control->direction.dot(x);
+        }
+        double dmax = 0;
         for (Index i = 0; i < n; ++i) {
             if (constrained[size_t(i)]) {
                 pD[i] = target[i] - x[i];
                 dmax = std::max(dmax, std::abs(pD[i]));
             } else {
                 pD[i] = 0;
-                gmax = std::max(gmax, std::abs(g[i]));
             }
         }
-        const bool lifting = dmax > 0;
+        const double gmax = free_residual(g);
+        const bool lifting = dmax > 0 || (control && std::abs(gap) > control->tolerance);
         result.residual = gmax / force_scale;
         if (!std::isfinite(result.residual)) {
             // A force scale that underflowed or overflowed: no residual can be judged.
@@ -81,6 +99,7 @@ NewtonResult NewtonSolver::solve(VectorXd& x, const VectorXd& target, const std:
         if (true_hessian_pause > 0)
             --true_hessian_pause;
         bool factorized = false;
+        bool indefinite = false; // the true Hessian, factorized by LDL^T (load control only)
         for (int attempt = try_true ? 0 : 1; attempt < 2 && !factorized; ++attempt) {
             const bool project = attempt == 1;
             {
@@ -101,7 +120,10 @@ NewtonResult NewtonSolver::solve(VectorXd& x, const VectorXd& target, const std:
             Timer t;
             const double analysis_before = m_linear.analysis_time();
             const int analyses_before = m_linear.analyses();
-            const bool ok = m_linear.factorize(m_assembler.matrix(), /*allow_fallback=*/project);
+            // Under load control the true Hessian may be indefinite on a path past a limit point
+            // while the constrained problem is convex on the constraint surface: LDL^T is tried,
+            // and the step is kept if it descends (below).
+            const bool ok = m_linear.factorize(m_assembler.matrix(), /*allow_fallback=*/project || control);
             t.add_to(result.times.factorization);
             result.times.analysis += m_linear.analysis_time() - analysis_before;
             result.times.analyses += m_linear.analyses() - analyses_before;
@@ -109,6 +131,7 @@ NewtonResult NewtonSolver::solve(VectorXd& x, const VectorXd& target, const std:
                 // An indefinite true Hessian costs a second assembly and factorization:
                 // after a failure, skip the attempt for the next two iterations.
                 factorized = ok;
+                indefinite = ok && m_linear.used_fallback();
                 result.true_hessian_steps += ok;
                 if (!ok)
                     true_hessian_pause = 2;
@@ -125,6 +148,23 @@ NewtonResult NewtonSolver::solve(VectorXd& x, const VectorXd& target, const std:
             Timer t;
             p = m_linear.solve(rhs);
             t.add_to(result.times.solve);
+        }
+        if (control) {
+            // The constrained (KKT) step: p - beta H^-1 a, with beta such that a^T p = gap.
+            Timer t;
+            const VectorXd y = m_linear.solve(control->direction);
+            t.add_to(result.times.solve);
+            const double ay = control->direction.dot(y);
+            if (!(std::abs(ay) > 0) || !std::isfinite(ay)) {
+                if (indefinite) {
+                    true_hessian_pause = 2;
+                    --it; // the same iteration with the projected Hessian
+                    continue;
+                }
+                result.status = StepStatus::LINEAR_BREAKDOWN;
+                return result;
+            }
+            p -= ((control->direction.dot(p) - gap) / ay) * y;
         }
         if (!p.allFinite()) {
             result.status = StepStatus::LINEAR_BREAKDOWN;
@@ -145,9 +185,7 @@ NewtonResult NewtonSolver::solve(VectorXd& x, const VectorXd& target, const std:
             double trial_max = 0;
             if (improves) {
                 m_problem.gradient(trial, g_trial);
-                for (Index i = 0; i < n; ++i)
-                    if (!constrained[size_t(i)])
-                        trial_max = std::max(trial_max, std::abs(g_trial[i]));
+                trial_max = free_residual(g_trial);
                 improves = g_trial.allFinite() && trial_max < 0.5 * gmax;
             }
             if (!improves) {
@@ -173,6 +211,12 @@ NewtonResult NewtonSolver::solve(VectorXd& x, const VectorXd& target, const std:
             continue;
         }
         double slope = g.dot(p);
+        if (indefinite && !(slope < 0)) {
+            // The constrained problem is not convex here either: the projected Hessian's step instead.
+            true_hessian_pause = 2;
+            --it;
+            continue;
+        }
         if (!lifting && !(slope < 0)) {
             // An indefinite LDL^T can return an ascent direction: use the negative gradient
             // instead, scaled to the rejected step's length (g is a force: unscaled, the
@@ -185,6 +229,8 @@ NewtonResult NewtonSolver::solve(VectorXd& x, const VectorXd& target, const std:
             const double scale = gfree > 0 && length > 0 ? length / gfree : 1.0;
             for (Index i = 0; i < n; ++i)
                 p[i] = constrained[size_t(i)] ? 0.0 : -scale * g[i];
+            if (control) // stay on the constraint surface
+                p -= (control->direction.dot(p) / a_norm2) * control->direction;
             slope = g.dot(p);
             ++result.gradient_steps;
         }
@@ -226,10 +272,7 @@ NewtonResult NewtonSolver::solve(VectorXd& x, const VectorXd& target, const std:
             }
             if (unresolvable && h == 0) {
                 m_problem.gradient(trial, g_trial);
-                double trial_max = 0;
-                for (Index i = 0; i < n; ++i)
-                    if (!constrained[size_t(i)])
-                        trial_max = std::max(trial_max, std::abs(g_trial[i]));
+                const double trial_max = free_residual(g_trial);
                 if (g_trial.allFinite() && trial_max < 0.5 * gmax) {
                     accepted = true;
                     result.roundoff_limited = true;

@@ -43,6 +43,16 @@ struct NewtonResult {
     PhaseTimes times;
 };
 
+/// A linear constraint a^T x = level on the free dofs for displacement control (load_stepping.cpp):
+/// the solve minimizes the energy on the constraint surface, and the constraint's multiplier is
+/// the load along a that the converged state carries.
+struct LoadControl {
+    VectorXd direction; ///< a (#dofs, zero on constrained dofs)
+    double level = 0; ///< a^T x at the solution
+    double tolerance = 0; ///< |a^T x - level| below which the constraint holds
+    double multiplier = 0; ///< out: lambda with grad E = lambda a at the last iterate (least squares)
+};
+
 class NewtonSolver {
 public:
     NewtonSolver(const Problem& problem, SparseAssembler& assembler, LinearSolver& linear, NewtonSettings settings)
@@ -61,8 +71,11 @@ public:
     /// @param constrained #dofs flags
     /// @param force_scale the residual is max|g_free| / force_scale
     /// @param step_scale  the Newton step is max|alpha p| / step_scale
+    /// @param control     if given: minimize on the surface a^T x = level (reached like
+    ///                    prescribed values, by steps bounded only by CCD and inversion); the
+    ///                    residual is then that of grad E - lambda a, and control->multiplier is set
     NewtonResult solve(VectorXd& x, const VectorXd& target, const std::vector<char>& constrained, double force_scale,
-        double step_scale) const;
+        double step_scale, LoadControl* control = nullptr) const;
 
 private:
     const Problem& m_problem;

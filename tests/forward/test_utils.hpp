@@ -42,6 +42,34 @@ inline nlohmann::json region(std::vector<double> lo, std::vector<double> hi)
     return { { "min", lo }, { "max", hi } };
 }
 
+/// A shallow arch: the top of a thin ring (radius 1 m, 5 mm thick) between |x| = 0.31 m, clamped
+/// where the ring is fixed below y = 0.95, pressed at its apex by a traction ramped to 300 Pa over
+/// 20 steps. It snaps through between t = 0.1 and 0.15 s: the apex jumps from 0.985 m to 0.916 m
+/// (a limit point of the load), which no load increment, however small, avoids.
+inline nlohmann::json shallow_arch(int steps, int max_iterations, const nlohmann::json& adaptive)
+{
+    nlohmann::json s = { { "dimension", 2 },
+        { "bodies",
+            { { { "name", "ring" },
+                { "mesh",
+                    { { "annulus",
+                        { { "inner_radius", 0.995 }, { "outer_radius", 1.0 }, { "segments", 480 },
+                            { "layers", 1 } } } } },
+                { "material", { { "model", "neo_hookean" }, { "E", 1e6 }, { "nu", 0.3 }, { "density", 1000 } } } } } },
+        { "dirichlet",
+            { { { "body", 0 }, { "region", region({ -2, -2 }, { 2, 0.95 }) },
+                { "displacement", { 0, 0 } } } } },
+        { "neumann",
+            { { { "body", 0 }, { "region", region({ -0.05, 0.99 }, { 0.05, 1.1 }) },
+                { "traction", { 0, "-300*t" } } } } },
+        { "contact", { { "dhat", 1e-3 }, { "kappa", 1e5 } } },
+        { "time", { { "integrator", "static" }, { "dt", 0.05 }, { "steps", steps } } },
+        { "solver", { { "max_iterations", max_iterations } } } };
+    if (!adaptive.is_null())
+        s["time"]["adaptive"] = adaptive;
+    return s;
+}
+
 /// The bytes of a file ("" if it cannot be read).
 inline std::string read_file(const std::string& path)
 {

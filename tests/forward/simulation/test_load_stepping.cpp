@@ -2,6 +2,7 @@
 // whose solve fails is solved again in sub-steps of its load increment.
 
 #include "forward/common/error.hpp"
+#include "forward/contact/intersection.hpp"
 #include "forward/io/trajectory_reader.hpp"
 #include "forward/io/trajectory_writer.hpp"
 #include "tests/forward/test_utils.hpp"
@@ -37,6 +38,16 @@ json compressed_block(int dim, double compression, int steps, int max_iterations
         s["time"]["adaptive"] = adaptive;
     s["solver"] = { { "residual_tolerance", 1e-10 }, { "max_iterations", max_iterations } };
     return s;
+}
+
+double apex_height(const Simulator& sim, const VectorXd& x)
+{
+    Index apex = 0;
+    const VectorXd& X = sim.trajectory().initial_positions;
+    for (Index v = 0; v < X.size() / 2; ++v)
+        if (X[2 * v + 1] > X[2 * apex + 1])
+            apex = v;
+    return x[2 * apex + 1];
 }
 
 } // namespace
@@ -106,6 +117,61 @@ TEST(LoadStepping, AnImpossibleLoadEndsWithAStatusAtTheMinimumIncrement)
     EXPECT_EQ(sim.positions(), sim.trajectory().initial_positions) << "a failed step leaves the state untouched";
 }
 
+TEST(LoadStepping, DisplacementControlPassesASnapThroughThatSubstepsCannot)
+{
+    // Reference: Newton with 100 iterations per step crosses the snap in one solve.
+    Simulator reference(test::make_scene(test::shallow_arch(4, 100, nullptr)));
+    ASSERT_EQ(reference.run().final_status, StepStatus::CONVERGED);
+    ASSERT_GT(apex_height(reference, reference.trajectory().step(2).positions), 0.98);
+    ASSERT_LT(apex_height(reference, reference.trajectory().step(3).positions), 0.93) << "the arch snaps in step 3";
+
+    // With 8 iterations per solve, sub-steps get to the limit point (t ~ 0.106 s) and no further.
+    Simulator substeps_only(test::make_scene(test::shallow_arch(4, 8, { { "displacement_control", false } })));
+    const Trajectory& failed = substeps_only.run();
+    EXPECT_EQ(failed.committed(), 2);
+    EXPECT_EQ(failed.failed_step, 3);
+    EXPECT_NE(failed.failure_message.find("time.adaptive.min_increment"), std::string::npos)
+        << failed.failure_message;
+
+    // Displacement control follows the equilibria along the load through the limit point.
+    Simulator controlled(test::make_scene(test::shallow_arch(4, 8, true)));
+    const Trajectory& tr = controlled.run();
+    ASSERT_EQ(tr.final_status, StepStatus::CONVERGED) << tr.failure_message;
+    EXPECT_GT(tr.step(3).control_steps, 0);
+    EXPECT_EQ(tr.totals.control_steps, tr.step(3).control_steps);
+    for (int k = 1; k <= 4; ++k) {
+        SCOPED_TRACE(k);
+        const VectorXd& x = tr.step(k).positions;
+        const VectorXd& expected = reference.trajectory().step(k).positions;
+        EXPECT_LE(tr.step(k).residual, controlled.scene().solver.residual_tolerance);
+        EXPECT_EQ(tr.step(k).time, 0.05 * k);
+        // The same equilibrium (on the snapped branch from step 3 on) as the reference.
+        EXPECT_LE((x - expected).lpNorm<Eigen::Infinity>(), 1e-7);
+        // Checked by code independent of the solver's: no inverted element, no intersection.
+        const Positions X = unflatten(x, 2);
+        EXPECT_EQ(count_inverted_elements(controlled.mesh(), X), 0);
+        EXPECT_EQ(find_intersection(controlled.contact()->collision_mesh(), X, /*all_pairs=*/true), "");
+    }
+
+    // The control steps are written to trajectory.h5 and read back.
+    const std::string path = testing::TempDir() + "load_stepping_control.h5";
+    write_hdf5(path, controlled.mesh(), tr, true, true);
+    const StoredTrajectory stored = read_trajectory(path);
+    for (int k = 1; k <= 4; ++k)
+        EXPECT_EQ(stored.trajectory.step(k).control_steps, tr.step(k).control_steps);
+    std::remove(path.c_str());
+}
+
+TEST(LoadStepping, DisplacementControlNeedsALoadThatChanges)
+{
+    // Prescribed displacements only: the failure says why displacement control could not help.
+    Simulator sim(test::make_scene(
+        compressed_block(2, 1.3, 1, 20, { { "min_increment", 1e-3 }, { "cut", 0.5 }, { "growth", 2 } })));
+    const Trajectory& tr = sim.run();
+    EXPECT_NE(tr.final_status, StepStatus::CONVERGED);
+    EXPECT_NE(tr.failure_message.find("displacement control needs a load"), std::string::npos) << tr.failure_message;
+}
+
 TEST(LoadStepping, PrescribedOverridesAreInterpolatedWithinTheStep)
 {
     // With prescribed displacements given as parameters (the adjoint's g_k), the sub-steps
@@ -164,6 +230,9 @@ TEST(LoadStepping, SettingsAreCheckedNamingTheField)
     EXPECT_NE(message(compressed_block(2, 0.1, 2, 10, { { "min_increment", 2.0 } })).find("time.adaptive.min_increment"),
         std::string::npos);
     EXPECT_NE(message(compressed_block(2, 0.1, 2, 10, { { "cuts", 2 } })).find("time.adaptive.cuts"), std::string::npos);
+    EXPECT_NE(message(compressed_block(2, 0.1, 2, 10, { { "displacement_control", 1 } }))
+                  .find("time.adaptive.displacement_control"),
+        std::string::npos);
     s = compressed_block(2, 0.1, 2, 10, true);
     s["obstacles"] = { { { "name", "floor" }, { "plane", { { "point", { 0, -0.01 } }, { "normal", { 0, 1 } } } } } };
     s["friction"] = { { "coefficient", 0.3 } };
