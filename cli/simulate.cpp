@@ -196,6 +196,8 @@ int simulate(std::string scene_path, std::string out_dir, int vtu_every, bool qu
                 std::printf("  %d sub-steps (%d cuts, smallest %.3g s)", r.substeps, r.cuts, r.min_increment);
             if (r.control_steps > 0)
                 std::printf("  %d displacement-controlled", r.control_steps);
+            if (r.relaxation_steps > 0)
+                std::printf("  %d relaxation", r.relaxation_steps);
             std::printf("\n");
             std::fflush(stdout);
             since_print = Timer();

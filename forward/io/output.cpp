@@ -32,8 +32,8 @@ nlohmann::json summary_json(const Simulator& simulator)
     if (simulator.scene().time.adaptive.enabled)
         j["load_stepping"] = { { "substepped_steps", totals.substepped_steps }, { "substeps", totals.substeps },
             { "cuts", totals.cuts }, { "control_steps", totals.control_steps },
-            { "min_increment",
-                std::isfinite(totals.min_increment) ? nlohmann::json(totals.min_increment) : nlohmann::json(nullptr) } };
+            { "relaxation_steps", totals.relaxation_steps },
+            { "min_increment", std::isfinite(totals.min_increment) ? totals.min_increment : 0.0 } };
     j["threads"] = to_json(thread_config());
     j["wall_time"]
         = { { "total", tr.wall_time }, { "assembly", tr.phases.assembly }, { "factorization", tr.phases.factorization },

@@ -171,7 +171,7 @@ StoredTrajectory read_trajectory(const std::string& path, int last_states)
     if (out.contact)
         T = std::min({ T, kappa.size(), min_distance.size(), active.size(), friction_residual.size() });
     // Automatic load stepping (written when the scene enables it).
-    std::vector<int> substeps, cuts, control_steps;
+    std::vector<int> substeps, cuts, control_steps, relaxation_steps;
     std::vector<double> min_increment;
     if (file.has("substeps")) {
         substeps = file.read<int>("substeps");
@@ -180,7 +180,8 @@ StoredTrajectory read_trajectory(const std::string& path, int last_states)
         T = std::min({ T, substeps.size(), cuts.size(), min_increment.size() });
         if (file.has("control_steps")) { // files written before displacement control lack it
             control_steps = file.read<int>("control_steps");
-            T = std::min(T, control_steps.size());
+            relaxation_steps = file.read<int>("relaxation_steps");
+            T = std::min({ T, control_steps.size(), relaxation_steps.size() });
         }
     }
     out.vertices = Index(dims[1]);
@@ -214,6 +215,7 @@ StoredTrajectory read_trajectory(const std::string& path, int last_states)
             r.cuts = cuts[k - 1];
             r.min_increment = min_increment[k - 1];
             r.control_steps = control_steps.empty() ? 0 : control_steps[k - 1];
+            r.relaxation_steps = relaxation_steps.empty() ? 0 : relaxation_steps[k - 1];
         }
         if (r.status != StepStatus::CONVERGED)
             throw InputError(path, "step " + std::to_string(k) + " is not a converged, finite state");

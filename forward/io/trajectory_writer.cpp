@@ -232,6 +232,7 @@ TrajectoryWriter::TrajectoryWriter(const std::string& path, const Mesh& mesh, co
             m.columns.push_back({ "cuts", I, {}, false, integer(&StepRecord::cuts) });
             m.columns.push_back({ "min_increment", D, {}, false, dbl(&StepRecord::min_increment) });
             m.columns.push_back({ "control_steps", I, {}, false, integer(&StepRecord::control_steps) });
+            m.columns.push_back({ "relaxation_steps", I, {}, false, integer(&StepRecord::relaxation_steps) });
         }
         for (Column& c : m.columns)
             m.create(c);

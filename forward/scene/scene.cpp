@@ -312,7 +312,8 @@ namespace {
         if (f.json().is_boolean()) {
             a.enabled = f.boolean();
         } else {
-            f.require_object({ "min_increment", "cut", "growth", "iteration_target", "displacement_control" });
+            f.require_object({ "min_increment", "cut", "growth", "iteration_target", "displacement_control",
+                "relaxation" });
             a.enabled = true;
             if (f.has("min_increment")) {
                 a.min_increment = f["min_increment"].positive();
@@ -333,6 +334,8 @@ namespace {
                 a.iteration_target = f["iteration_target"].integer(1);
             if (f.has("displacement_control"))
                 a.displacement_control = f["displacement_control"].boolean();
+            if (f.has("relaxation"))
+                a.relaxation = f["relaxation"].boolean();
         }
         if (a.enabled && time.integrator != IntegratorType::STATIC)
             f.fail("automatic load stepping is available for static scenes (time.integrator \"static\"); "

@@ -74,6 +74,9 @@ struct AdaptiveSpec {
     /// Past a limit point of the load (sub-steps cut below min_increment), follow the equilibria by
     /// displacement control along the load increment (load_stepping.cpp).
     bool displacement_control = true;
+    /// Then (or for loads of prescribed displacements only), relax to the equilibrium at t_k by
+    /// proximal (pseudo-transient) solves (load_stepping.cpp).
+    bool relaxation = true;
 };
 
 struct TimeSpec {

@@ -15,6 +15,7 @@
 #include "forward/solver/newton.hpp"
 
 #include <algorithm>
+#include <cmath>
 #include <limits>
 
 namespace diffipc {
@@ -79,6 +80,20 @@ NewtonResult Simulator::solve_in_substeps(int k, const NewtonSolver& newton, dou
                 why += "; " + control_why;
                 r = c;
             }
+            if (a.relaxation) {
+                // From where the control got to (or the last sub-step), relax at t_k itself.
+                std::string relax_why;
+                NewtonResult c = relax_to_equilibrium(k, newton, step_scale, committed, record, total, relax_why);
+                if (c.status == StepStatus::CONVERGED) {
+                    x = std::move(committed);
+                    c.iterations = total.iterations;
+                    c.linear_fallbacks = total.linear_fallbacks;
+                    c.times = total.times;
+                    return c;
+                }
+                why += "; " + relax_why;
+                r = c;
+            }
             r.iterations = total.iterations;
             r.linear_fallbacks = total.linear_fallbacks;
             r.times = total.times;
@@ -123,8 +138,11 @@ NewtonResult Simulator::pass_limit_point(int k, const NewtonSolver& newton, doub
     VectorXd target = x;
     prescribed_targets_at(k, t, target);
     const double start = control.direction.dot(x);
-    const double min_control = 1e-6 * m_bbox_diagonal;
-    double level = start, increment_s = 1e-3 * m_bbox_diagonal, carried = 0;
+    const double min_control = 1e-4 * m_bbox_diagonal;
+    double level = start, increment_s = 1e-3 * m_bbox_diagonal, carried = 0, largest = 0;
+    // A control solve that needs many times the easy count is cut rather than finished: failing
+    // solves then cost little where the path turns.
+    const NewtonSolver control_newton = newton.limited(4 * a.iteration_target);
     // The last converged state on the path and its level: the secant through it and x predicts the
     // next state (a solve started there takes a few iterations, not the many that a start at x
     // takes where the path turns), shortened to what CCD and the inversion bound allow.
@@ -139,21 +157,24 @@ NewtonResult Simulator::pass_limit_point(int k, const NewtonSolver& newton, doub
             const double reach = m_problem.max_step(x, secant);
             y += std::min(1.0, 0.9 * reach) * secant;
         }
-        NewtonResult r = newton.solve(y, target, m_constrained, w * m_force_scale, step_scale, &control);
+        NewtonResult r = control_newton.solve(y, target, m_constrained, w * m_force_scale, step_scale, &control);
         add(r);
         if (r.status != StepStatus::CONVERGED) {
                 ++record.cuts;
             increment_s *= a.cut;
-            if (increment_s < min_control) {
+            // Cut to a hundredth of the longest increment that converged, or to 1e-4 of the
+            // bounding-box diagonal: the path has stalled (it turns back in a^T x) and relaxation
+            // takes over.
+            if (increment_s < std::max(min_control, 1e-2 * largest)) {
                 why = "displacement control followed the load to " + format_number(carried)
                     + " of the step's increment over " + format_number(level - start) + " m, then failed ("
-                    + to_string(r.status) + ") with the control increment below " + format_number(min_control)
-                    + " m (1e-6 of the bounding-box diagonal)";
+                    + to_string(r.status) + ") with the control increment cut to " + format_number(increment_s) + " m";
                 return r;
             }
             continue;
         }
         ++record.control_steps;
+        largest = std::max(largest, increment_s);
         previous = std::move(x);
         previous_level = level;
         x = std::move(y);
@@ -187,6 +208,96 @@ NewtonResult Simulator::pass_limit_point(int k, const NewtonSolver& newton, doub
     NewtonResult result = failed;
     result.status = StepStatus::NEWTON_EXHAUSTED;
     return result;
+}
+
+NewtonResult Simulator::relax_to_equilibrium(
+    int k, const NewtonSolver& newton, double step_scale, VectorXd& x, StepRecord& record, NewtonResult& total,
+    std::string& why)
+{
+    const AdaptiveSpec& a = m_scene.time.adaptive;
+    const double t1 = k * m_scene.time.dt;
+    const double w = m_integrator->potential_weight();
+    VectorXd target = x;
+    prescribed_targets_at(k, t1, target);
+    m_external->set_force(external_forces(t1));
+    // The proximal weight c (1/s^2) starts where the mass-weighted term is as stiff as a typical
+    // element (force scale / element size over the mean nodal mass).
+    double mean_volume = 0;
+    for (double v : m_space->rest_volumes())
+        mean_volume += v / double(m_space->num_elements());
+    const double size = std::pow(mean_volume, 1.0 / m_scene.dim);
+    const double c0 = m_force_scale / size / m_inertia->lumped_masses().mean();
+    // The inertia potential lends its mass matrix and target to the proximal term while it runs.
+    struct Term {
+        Problem& problem;
+        const Potential* potential;
+        ~Term() { problem.remove(potential); }
+    } term { m_problem, m_inertia.get() };
+    m_problem.add(m_inertia.get(), 0.0);
+    double c = c0;
+    int plain_tries = 0;
+    const VectorXd start = x;
+    const VectorXd& mass = m_inertia->lumped_masses();
+    const int d = m_scene.dim;
+    bool plain = false;
+    const NewtonSolver proximal_newton = newton.limited(4 * a.iteration_target);
+    // A plain solve is tried once the proximal imbalance is below this; each failed try lowers it.
+    double threshold = 1e3 * m_scene.solver.residual_tolerance;
+    NewtonResult last;
+    last.status = StepStatus::NEWTON_EXHAUSTED;
+    while (record.relaxation_steps < MAX_RELAXATION_STEPS) {
+        const double kappa = m_contact ? m_contact->kappa() : 0.0;
+        m_problem.set_weight(m_inertia.get(), plain ? 0.0 : w * c);
+        m_inertia->set_target(x);
+        VectorXd y = x;
+        last = (plain ? newton : proximal_newton).solve(y, target, m_constrained, w * m_force_scale, step_scale);
+        total.iterations += last.iterations;
+        total.linear_fallbacks += last.linear_fallbacks;
+        total.times += last.times;
+        if (last.status == StepStatus::CONVERGED && plain) {
+            x = std::move(y);
+            ++record.substeps;
+            return last;
+        }
+        if (last.status != StepStatus::CONVERGED) {
+            if (m_contact)
+                m_contact->set_kappa(kappa);
+            ++record.cuts;
+            if (plain) {
+                ++plain_tries;
+                plain = false;
+                threshold *= 0.1;
+                continue;
+            }
+            c *= 4;
+            if (c > 1e6 * c0)
+                break;
+            continue;
+        }
+        // The proximal solution balances the forces up to c M (y - x_j): the plain residual there.
+        double imbalance = 0;
+        for (Index i = 0; i < y.size(); ++i)
+            if (!m_constrained[size_t(i)])
+                imbalance = std::max(imbalance, c * mass[i / d] * std::abs(y[i] - x[i]));
+        ++record.relaxation_steps;
+        x = std::move(y);
+        if (last.iterations <= a.iteration_target)
+            c = std::max(0.25 * c, 1e-12 * c0);
+        // Close to an equilibrium: finish with a plain solve (the proximal term would only slow it).
+        plain = imbalance / m_force_scale <= threshold;
+        if ((x - start).lpNorm<Eigen::Infinity>() > m_bbox_diagonal) {
+            why = "relaxation moved a vertex farther than the bodies' bounding-box diagonal in "
+                + std::to_string(record.relaxation_steps)
+                + " proximal solves without reaching an equilibrium: the load cannot be carried";
+            last.status = StepStatus::NEWTON_EXHAUSTED;
+            return last;
+        }
+    }
+    why = "relaxation took " + std::to_string(record.relaxation_steps) + " proximal solves (" + std::to_string(plain_tries)
+        + " plain solves failed), then " + (record.relaxation_steps >= MAX_RELAXATION_STEPS
+            ? std::string("stopped at its limit of ") + std::to_string(MAX_RELAXATION_STEPS)
+            : std::string("failed even with a proximal weight 1e6 times its start (") + to_string(last.status) + ")");
+    return last;
 }
 
 } // namespace diffipc

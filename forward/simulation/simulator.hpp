@@ -186,6 +186,13 @@ private:
     NewtonResult pass_limit_point(int k, const NewtonSolver& newton, double step_scale, double t, VectorXd& x,
         const NewtonResult& failed, StepRecord& record, NewtonResult& total, std::string& why);
     static constexpr int MAX_CONTROL_STEPS = 2000;
+    /// @brief Proximal relaxation (load_stepping.cpp): from x, a sequence of static solves at t_k
+    /// of step k, each with a mass-weighted proximal term c/2 |y - x_j|_M^2 centred at the last
+    /// one (an inertia-like regularization that keeps each solve well posed), c shrinking after
+    /// easy solves, then a plain solve at t_k: on success x is the equilibrium at t_k.
+    NewtonResult relax_to_equilibrium(int k, const NewtonSolver& newton, double step_scale, VectorXd& x,
+        StepRecord& record, NewtonResult& total, std::string& why);
+    static constexpr int MAX_RELAXATION_STEPS = 2000;
     void setup_contact();
     void setup_friction();
     /// max |free-dof gradient| / (w f_s) at x.

@@ -40,6 +40,8 @@ struct StepRecord {
     double min_increment = 0; ///< the smallest converged sub-step's increment (s)
     /// Displacement-controlled solves the step took past a limit point of its load (0: none)
     int control_steps = 0;
+    /// Proximal relaxation solves the step took to reach its equilibrium (0: none)
+    int relaxation_steps = 0;
 
     // Contact (when the scene enables it).
     /// Minimum distance (m) over primitive pairs within 1e-2 of the bbox diagonal
@@ -95,6 +97,7 @@ struct StepTotals {
     int cuts = 0;
     double min_increment = std::numeric_limits<double>::infinity(); ///< over the split steps (s)
     int control_steps = 0; ///< displacement-controlled solves past limit points
+    int relaxation_steps = 0; ///< proximal relaxation solves
     void add(const StepRecord& r)
     {
         if (r.substeps > 0) {
@@ -103,6 +106,7 @@ struct StepTotals {
             cuts += r.cuts;
             min_increment = std::min(min_increment, r.min_increment);
             control_steps += r.control_steps;
+            relaxation_steps += r.relaxation_steps;
         }
         min_volume_ratio = std::min(min_volume_ratio, r.min_volume_ratio);
         max_residual = std::max(max_residual, r.residual);

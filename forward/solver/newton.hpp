@@ -7,6 +7,7 @@
 #include "forward/solver/problem.hpp"
 #include "forward/solver/status.hpp"
 
+#include <algorithm>
 #include <vector>
 
 namespace diffipc {
@@ -76,6 +77,15 @@ public:
     ///                    residual is then that of grad E - lambda a, and control->multiplier is set
     NewtonResult solve(VectorXd& x, const VectorXd& target, const std::vector<char>& constrained, double force_scale,
         double step_scale, LoadControl* control = nullptr) const;
+
+    const NewtonSettings& settings() const { return m_settings; }
+    /// The same solver with at most `max_iterations` per solve.
+    NewtonSolver limited(int max_iterations) const
+    {
+        NewtonSettings s = m_settings;
+        s.max_iterations = std::min(s.max_iterations, max_iterations);
+        return NewtonSolver(m_problem, m_assembler, m_linear, s);
+    }
 
 private:
     const Problem& m_problem;

@@ -16,6 +16,16 @@ void Problem::set_weight(const Potential* potential, double weight)
     throw std::logic_error("Problem::set_weight: potential not in the problem");
 }
 
+void Problem::remove(const Potential* potential)
+{
+    for (auto it = m_terms.begin(); it != m_terms.end(); ++it)
+        if (it->potential == potential) {
+            m_terms.erase(it);
+            return;
+        }
+    throw std::logic_error("Problem::remove: potential not in the problem");
+}
+
 double Problem::weight(const Potential* potential) const
 {
     for (const auto& t : m_terms)

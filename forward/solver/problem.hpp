@@ -14,6 +14,8 @@ namespace diffipc {
 class Problem {
 public:
     void add(Potential* potential, double weight) { m_terms.push_back({ potential, weight }); }
+    /// Removes the potential's term (std::logic_error if it is not in the problem).
+    void remove(const Potential* potential);
     void set_weight(const Potential* potential, double weight);
     double weight(const Potential* potential) const;
 

@@ -436,24 +436,28 @@ TEST(AdjointLoadStepping, GradientsThroughSubsteppedStaticStepsMatchFiniteDiffer
     }
 }
 
-TEST(AdjointLoadStepping, GradientsThroughADisplacementControlledSnapMatchFiniteDifferences)
+TEST(AdjointLoadStepping, GradientsThroughASnapPassedByControlOrRelaxationMatchFiniteDifferences)
 {
     // The shallow arch snaps through in step 3; with 8 Newton iterations per solve, the step
-    // follows the equilibria by displacement control past the limit point and ends with a solve at
-    // t_3 (forward/simulation/load_stepping.cpp). That state is the equilibrium at t_3 on the snapped
-    // branch, so the step's adjoint is the usual one; every forward run of the differences
-    // takes its own control path.
-    json s = shallow_arch(3, 8, true);
-    s["solver"]["residual_tolerance"] = 1e-11;
-    Simulator sim(make_scene(s));
-    sim.run();
-    ASSERT_EQ(sim.trajectory().final_status, StepStatus::CONVERGED) << sim.trajectory().failure_message;
-    ASSERT_GT(sim.trajectory().step(3).control_steps, 0) << "no displacement control: the check would be plain";
-    CheckSettings settings;
-    // Rest positions move by at most 3e-6 of the diagonal (0.2% of the arch's thickness) in the
-    // differences and 1e-4 in the Taylor test: the snapped arch is so nonlinear in its shape that
-    // the fourth-order difference's truncation error is 2.5e-5 at 1e-3 and 2e-3 at 3e-3.
-    settings.fd_step = 3e-4;
-    settings.taylor_step = 0.01;
-    check_adjoint(s, { Block::REST_POSITIONS, Block::MU, Block::LAMBDA }, settings, 1e5);
+    // passes the limit point by displacement control, or (without it) by proximal relaxation,
+    // and ends with a plain solve at t_3 (forward/simulation/load_stepping.cpp). That state is the
+    // equilibrium at t_3 on the snapped branch, so the step's adjoint is the usual one; every
+    // forward run of the differences takes its own path.
+    for (bool control : { true, false }) {
+        SCOPED_TRACE(control ? "displacement control" : "relaxation");
+        json s = shallow_arch(3, 8, { { "displacement_control", control } });
+        s["solver"]["residual_tolerance"] = 1e-11;
+        Simulator sim(make_scene(s));
+        sim.run();
+        ASSERT_EQ(sim.trajectory().final_status, StepStatus::CONVERGED) << sim.trajectory().failure_message;
+        const StepRecord& snap = sim.trajectory().step(3);
+        ASSERT_GT(control ? snap.control_steps : snap.relaxation_steps, 0) << "the check would be plain";
+        CheckSettings settings;
+        // Rest positions move by at most 3e-6 of the diagonal (0.2% of the arch's thickness) in
+        // the differences and 1e-4 in the Taylor test: the snapped arch is so nonlinear in its
+        // shape that the fourth-order difference's truncation error is 2.5e-5 at 1e-3, 2e-3 at 3e-3.
+        settings.fd_step = 3e-4;
+        settings.taylor_step = 0.01;
+        check_adjoint(s, { Block::REST_POSITIONS, Block::MU, Block::LAMBDA }, settings, 1e5);
+    }
 }

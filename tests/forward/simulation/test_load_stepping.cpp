@@ -50,6 +50,24 @@ double apex_height(const Simulator& sim, const VectorXd& x)
     return x[2 * apex + 1];
 }
 
+/// Every step of `run` converged to the reference's equilibrium at the same time (within 1e-7 m),
+/// with no inverted element and no intersection by checks independent of the solver's.
+void expect_reference_states(const Simulator& run, const Simulator& reference)
+{
+    const Trajectory& tr = run.trajectory();
+    ASSERT_EQ(tr.committed(), reference.trajectory().committed());
+    for (int k = 1; k <= tr.committed(); ++k) {
+        SCOPED_TRACE(k);
+        const VectorXd& x = tr.step(k).positions;
+        EXPECT_LE(tr.step(k).residual, run.scene().solver.residual_tolerance);
+        EXPECT_EQ(tr.step(k).time, reference.trajectory().step(k).time);
+        EXPECT_LE((x - reference.trajectory().step(k).positions).lpNorm<Eigen::Infinity>(), 1e-7);
+        const Positions X = unflatten(x, run.scene().dim);
+        EXPECT_EQ(count_inverted_elements(run.mesh(), X), 0);
+        EXPECT_EQ(find_intersection(run.contact()->collision_mesh(), X, /*all_pairs=*/true), "");
+    }
+}
+
 } // namespace
 
 TEST(LoadStepping, FailedStepsConvergeInSubstepsToTheSameEquilibrium)
@@ -126,7 +144,8 @@ TEST(LoadStepping, DisplacementControlPassesASnapThroughThatSubstepsCannot)
     ASSERT_LT(apex_height(reference, reference.trajectory().step(3).positions), 0.93) << "the arch snaps in step 3";
 
     // With 8 iterations per solve, sub-steps get to the limit point (t ~ 0.106 s) and no further.
-    Simulator substeps_only(test::make_scene(test::shallow_arch(4, 8, { { "displacement_control", false } })));
+    Simulator substeps_only(test::make_scene(
+        test::shallow_arch(4, 8, { { "displacement_control", false }, { "relaxation", false } })));
     const Trajectory& failed = substeps_only.run();
     EXPECT_EQ(failed.committed(), 2);
     EXPECT_EQ(failed.failed_step, 3);
@@ -138,20 +157,9 @@ TEST(LoadStepping, DisplacementControlPassesASnapThroughThatSubstepsCannot)
     const Trajectory& tr = controlled.run();
     ASSERT_EQ(tr.final_status, StepStatus::CONVERGED) << tr.failure_message;
     EXPECT_GT(tr.step(3).control_steps, 0);
+    EXPECT_EQ(tr.step(3).relaxation_steps, 0) << "the control alone got there";
     EXPECT_EQ(tr.totals.control_steps, tr.step(3).control_steps);
-    for (int k = 1; k <= 4; ++k) {
-        SCOPED_TRACE(k);
-        const VectorXd& x = tr.step(k).positions;
-        const VectorXd& expected = reference.trajectory().step(k).positions;
-        EXPECT_LE(tr.step(k).residual, controlled.scene().solver.residual_tolerance);
-        EXPECT_EQ(tr.step(k).time, 0.05 * k);
-        // The same equilibrium (on the snapped branch from step 3 on) as the reference.
-        EXPECT_LE((x - expected).lpNorm<Eigen::Infinity>(), 1e-7);
-        // Checked by code independent of the solver's: no inverted element, no intersection.
-        const Positions X = unflatten(x, 2);
-        EXPECT_EQ(count_inverted_elements(controlled.mesh(), X), 0);
-        EXPECT_EQ(find_intersection(controlled.contact()->collision_mesh(), X, /*all_pairs=*/true), "");
-    }
+    expect_reference_states(controlled, reference);
 
     // The control steps are written to trajectory.h5 and read back.
     const std::string path = testing::TempDir() + "load_stepping_control.h5";
@@ -159,6 +167,23 @@ TEST(LoadStepping, DisplacementControlPassesASnapThroughThatSubstepsCannot)
     const StoredTrajectory stored = read_trajectory(path);
     for (int k = 1; k <= 4; ++k)
         EXPECT_EQ(stored.trajectory.step(k).control_steps, tr.step(k).control_steps);
+    std::remove(path.c_str());
+}
+
+TEST(LoadStepping, RelaxationPassesASnapThroughToo)
+{
+    // Without displacement control, proximal relaxation at t_3 finds the snapped equilibrium.
+    Simulator reference(test::make_scene(test::shallow_arch(4, 100, nullptr)));
+    ASSERT_EQ(reference.run().final_status, StepStatus::CONVERGED);
+    Simulator relaxed(test::make_scene(test::shallow_arch(4, 8, { { "displacement_control", false } })));
+    const Trajectory& tr = relaxed.run();
+    ASSERT_EQ(tr.final_status, StepStatus::CONVERGED) << tr.failure_message;
+    EXPECT_GT(tr.step(3).relaxation_steps, 0);
+    EXPECT_EQ(tr.step(3).control_steps, 0);
+    expect_reference_states(relaxed, reference);
+    const std::string path = testing::TempDir() + "load_stepping_relaxation.h5";
+    write_hdf5(path, relaxed.mesh(), tr, true, true);
+    EXPECT_EQ(read_trajectory(path).trajectory.step(3).relaxation_steps, tr.step(3).relaxation_steps);
     std::remove(path.c_str());
 }
 
@@ -170,6 +195,8 @@ TEST(LoadStepping, DisplacementControlNeedsALoadThatChanges)
     const Trajectory& tr = sim.run();
     EXPECT_NE(tr.final_status, StepStatus::CONVERGED);
     EXPECT_NE(tr.failure_message.find("displacement control needs a load"), std::string::npos) << tr.failure_message;
+    // Relaxation cannot reach an impossible state either, and says so.
+    EXPECT_NE(tr.failure_message.find("relaxation took"), std::string::npos) << tr.failure_message;
 }
 
 TEST(LoadStepping, PrescribedOverridesAreInterpolatedWithinTheStep)
@@ -233,8 +260,31 @@ TEST(LoadStepping, SettingsAreCheckedNamingTheField)
     EXPECT_NE(message(compressed_block(2, 0.1, 2, 10, { { "displacement_control", 1 } }))
                   .find("time.adaptive.displacement_control"),
         std::string::npos);
+    EXPECT_NE(message(compressed_block(2, 0.1, 2, 10, { { "relaxation", "on" } })).find("time.adaptive.relaxation"),
+        std::string::npos);
     s = compressed_block(2, 0.1, 2, 10, true);
     s["obstacles"] = { { { "name", "floor" }, { "plane", { { "point", { 0, -0.01 } }, { "normal", { 0, 1 } } } } } };
     s["friction"] = { { "coefficient", 0.3 } };
     EXPECT_NE(message(s).find("not available with friction"), std::string::npos) << message(s);
+}
+
+TEST(LoadStepping, ALoadWithoutEquilibriumEndsWithAClearStatus)
+{
+    // A box on a frictionless floor pushed sideways by a traction: no static equilibrium exists.
+    // Sub-steps, displacement control and relaxation all give up in bounded time, and say why.
+    json s = test::box_scene(2, { 1, 1 }, { 3, 3 }, "neo_hookean", 1e5, 0.3, 1000);
+    s["obstacles"] = { { { "name", "floor" }, { "plane", { { "point", { 0, -0.01 } }, { "normal", { 0, 1 } } } } } };
+    s["contact"] = { { "dhat", 5e-3 }, { "kappa", 1e5 } };
+    s["gravity"] = { 0, -9.81 };
+    s["neumann"] = { { { "body", 0 }, { "region", test::region({ 1 - 1e-6, -1 }, { 2, 2 }) },
+        { "traction", { "1000*t", 0 } } } };
+    s["time"] = { { "integrator", "static" }, { "dt", 1.0 }, { "steps", 1 },
+        { "adaptive", { { "min_increment", 0.1 } } } };
+    s["solver"] = { { "max_iterations", 20 } };
+    Simulator sim(test::make_scene(s));
+    const Trajectory& tr = sim.run();
+    EXPECT_NE(tr.final_status, StepStatus::CONVERGED);
+    EXPECT_EQ(tr.committed(), 0);
+    EXPECT_NE(tr.failure_message.find("the load cannot be carried"), std::string::npos) << tr.failure_message;
+    EXPECT_EQ(sim.positions(), sim.trajectory().initial_positions) << "a failed step leaves the state untouched";
 }
