@@ -32,6 +32,13 @@ NewtonResult Simulator::solve_in_substeps(int k, const NewtonSolver& newton, dou
     VectorXd committed = m_integrator->positions();
     double t = t0, h = a.cut * dt;
     NewtonResult total, last;
+    // A result with the iterations, fallbacks and times of every solve the step took.
+    const auto with_totals = [&total](NewtonResult r) {
+        r.iterations = total.iterations;
+        r.linear_fallbacks = total.linear_fallbacks;
+        r.times = total.times;
+        return r;
+    };
     record.cuts = 1;
     record.substeps = 0;
     record.min_increment = std::numeric_limits<double>::infinity();
@@ -44,9 +51,7 @@ NewtonResult Simulator::solve_in_substeps(int k, const NewtonSolver& newton, dou
         const double kappa = m_contact ? m_contact->kappa() : 0.0;
         VectorXd y = committed;
         NewtonResult r = newton.solve(y, target, m_constrained, w * m_force_scale, step_scale);
-        total.iterations += r.iterations;
-        total.linear_fallbacks += r.linear_fallbacks;
-        total.times += r.times;
+        total.add_costs(r);
         if (r.status == StepStatus::CONVERGED) {
             record.min_increment = std::min(record.min_increment, ts - t);
             ++record.substeps;
@@ -67,44 +72,27 @@ NewtonResult Simulator::solve_in_substeps(int k, const NewtonSolver& newton, dou
                 + "] s, then failed to " + format_number(ts) + " s (" + to_string(r.status)
                 + ") and would cut the increment below time.adaptive.min_increment = "
                 + format_number(a.min_increment) + " s";
-            if (a.displacement_control) {
-                std::string control_why;
-                NewtonResult c = pass_limit_point(k, newton, step_scale, t, committed, r, record, total, control_why);
+            // Past a limit point: displacement control, then relaxation from where it got to (or
+            // from the last sub-step).
+            for (const bool control : { true, false }) {
+                if (!(control ? a.displacement_control : a.relaxation))
+                    continue;
+                std::string note;
+                NewtonResult c = control
+                    ? pass_limit_point(k, newton, step_scale, t, committed, r, record, total, note)
+                    : relax_to_equilibrium(k, newton, step_scale, committed, record, total, note);
                 if (c.status == StepStatus::CONVERGED) {
                     x = std::move(committed);
-                    c.iterations = total.iterations;
-                    c.linear_fallbacks = total.linear_fallbacks;
-                    c.times = total.times;
-                    return c;
+                    return with_totals(c);
                 }
-                why += "; " + control_why;
+                why += "; " + note;
                 r = c;
             }
-            if (a.relaxation) {
-                // From where the control got to (or the last sub-step), relax at t_k itself.
-                std::string relax_why;
-                NewtonResult c = relax_to_equilibrium(k, newton, step_scale, committed, record, total, relax_why);
-                if (c.status == StepStatus::CONVERGED) {
-                    x = std::move(committed);
-                    c.iterations = total.iterations;
-                    c.linear_fallbacks = total.linear_fallbacks;
-                    c.times = total.times;
-                    return c;
-                }
-                why += "; " + relax_why;
-                r = c;
-            }
-            r.iterations = total.iterations;
-            r.linear_fallbacks = total.linear_fallbacks;
-            r.times = total.times;
-            return r;
+            return with_totals(r);
         }
     }
     x = std::move(committed);
-    last.iterations = total.iterations;
-    last.linear_fallbacks = total.linear_fallbacks;
-    last.times = total.times;
-    return last;
+    return with_totals(last);
 }
 
 NewtonResult Simulator::pass_limit_point(int k, const NewtonSolver& newton, double step_scale, double t,
@@ -113,11 +101,6 @@ NewtonResult Simulator::pass_limit_point(int k, const NewtonSolver& newton, doub
     const AdaptiveSpec& a = m_scene.time.adaptive;
     const double t1 = k * m_scene.time.dt;
     const double w = m_integrator->potential_weight();
-    const auto add = [&](const NewtonResult& r) {
-        total.iterations += r.iterations;
-        total.linear_fallbacks += r.linear_fallbacks;
-        total.times += r.times;
-    };
     // The load increment that could not be carried, on the free dofs: its direction is the one the
     // control follows, and the multiplier says which fraction of it the bodies carry.
     const VectorXd f0 = external_forces(t), f1 = external_forces(t1);
@@ -158,7 +141,7 @@ NewtonResult Simulator::pass_limit_point(int k, const NewtonSolver& newton, doub
             y += std::min(1.0, 0.9 * reach) * secant;
         }
         NewtonResult r = control_newton.solve(y, target, m_constrained, w * m_force_scale, step_scale, &control);
-        add(r);
+        total.add_costs(r);
         if (r.status != StepStatus::CONVERGED) {
                 ++record.cuts;
             increment_s *= a.cut;
@@ -191,7 +174,7 @@ NewtonResult Simulator::pass_limit_point(int k, const NewtonSolver& newton, doub
         m_external->set_force(f1);
         const double kappa_final = m_contact ? m_contact->kappa() : 0.0;
         NewtonResult last = newton.solve(z, final_target, m_constrained, w * m_force_scale, step_scale);
-        add(last);
+        total.add_costs(last);
         if (last.status == StepStatus::CONVERGED) {
             x = std::move(z);
             ++record.substeps;
@@ -251,9 +234,7 @@ NewtonResult Simulator::relax_to_equilibrium(
         m_inertia->set_target(x);
         VectorXd y = x;
         last = (plain ? newton : proximal_newton).solve(y, target, m_constrained, w * m_force_scale, step_scale);
-        total.iterations += last.iterations;
-        total.linear_fallbacks += last.linear_fallbacks;
-        total.times += last.times;
+        total.add_costs(last);
         if (last.status == StepStatus::CONVERGED && plain) {
             x = std::move(y);
             ++record.substeps;

@@ -42,6 +42,13 @@ struct NewtonResult {
     /// while the residual was still above its tolerance.
     bool roundoff_limited = false;
     PhaseTimes times;
+    /// Adds another solve's iterations, LDL^T fallbacks and times to this one's.
+    void add_costs(const NewtonResult& r)
+    {
+        iterations += r.iterations;
+        linear_fallbacks += r.linear_fallbacks;
+        times += r.times;
+    }
 };
 
 /// A linear constraint a^T x = level on the free dofs for displacement control (load_stepping.cpp):
