@@ -82,6 +82,8 @@ NewtonResult Simulator::solve_in_substeps(int k, const NewtonSolver& newton, dou
                     ? pass_limit_point(k, newton, step_scale, t, committed, r, record, total, note)
                     : relax_to_equilibrium(k, newton, step_scale, committed, record, total, note);
                 if (c.status == StepStatus::CONVERGED) {
+                    // Its last solve took the load from t to t_k.
+                    record.min_increment = std::min(record.min_increment, t1 - t);
                     x = std::move(committed);
                     return with_totals(c);
                 }
@@ -178,7 +180,6 @@ NewtonResult Simulator::pass_limit_point(int k, const NewtonSolver& newton, doub
         if (last.status == StepStatus::CONVERGED) {
             x = std::move(z);
             ++record.substeps;
-            record.min_increment = std::min(record.min_increment, t1 - t);
             return last;
         }
         if (m_contact)
