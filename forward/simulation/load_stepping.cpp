@@ -142,10 +142,13 @@ NewtonResult Simulator::pass_limit_point(int k, const NewtonSolver& newton, doub
             const double reach = m_problem.max_step(x, secant);
             y += std::min(1.0, 0.9 * reach) * secant;
         }
+        const double kappa = m_contact ? m_contact->kappa() : 0.0;
         NewtonResult r = control_newton.solve(y, target, m_constrained, w * m_force_scale, step_scale, &control);
         total.add_costs(r);
         if (r.status != StepStatus::CONVERGED) {
-                ++record.cuts;
+            if (m_contact)
+                m_contact->set_kappa(kappa); // a failed solve leaves no trace
+            ++record.cuts;
             increment_s *= a.cut;
             // Cut to a hundredth of the longest increment that converged, or to 1e-4 of the
             // bounding-box diagonal: the path has stalled (it turns back in a^T x) and relaxation
