@@ -621,9 +621,7 @@ StepStatus Simulator::step()
     if (result.status != StepStatus::CONVERGED && m_scene.time.adaptive.enabled) {
         const NewtonResult first = result;
         result = solve_in_substeps(index, newton, step_scale, kappa_before, x, record, substep_note);
-        result.iterations += first.iterations;
-        result.linear_fallbacks += first.linear_fallbacks;
-        result.times += first.times;
+        result.add_costs(first);
     }
     if (m_friction && result.status == StepStatus::CONVERGED) {
         // Lagging: refresh normal forces, tangents and weights at the converged state and
@@ -644,9 +642,7 @@ StepStatus Simulator::step()
             VectorXd y = x;
             NewtonResult again = newton.solve(y, target, m_constrained, w * m_force_scale, step_scale);
             ++record.friction_iterations;
-            result.iterations += again.iterations;
-            result.linear_fallbacks += again.linear_fallbacks;
-            result.times += again.times;
+            result.add_costs(again);
             if (again.status != StepStatus::CONVERGED) {
                 record.friction = std::move(used);
                 record.friction_converged = false;
