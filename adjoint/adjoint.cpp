@@ -39,6 +39,10 @@ namespace {
         for (const StepRecord& r : tr.steps) {
             if (!r.positions.allFinite())
                 throw AdjointError("no gradient: non-finite state at step " + std::to_string(r.index));
+            if (sim.friction() && r.substeps > 0)
+                throw AdjointError("no gradient: step " + std::to_string(r.index)
+                    + " was solved in sub-steps with friction (time.adaptive); its friction slid from the start of "
+                      "its last sub-step, not from the previous step's state as the adjoint differentiates");
             if (sim.friction() && r.friction_iterations > 1)
                 throw AdjointError("no gradient: step " + std::to_string(r.index)
                     + " re-lagged friction within the step (friction.iterations > 1); the adjoint differentiates "

@@ -49,7 +49,8 @@ struct AdjointStatistics {
 /// @param stats    optional timings
 /// @throws AdjointError if the run failed or stopped early, if contact used the
 ///         adaptive barrier stiffness (differentiate with a fixed kappa), if a
-///         friction step re-lagged within the step, or if an adjoint system is singular.
+///         friction step re-lagged within the step or was solved in sub-steps (time.adaptive),
+///         or if an adjoint system is singular.
 ParameterGradient adjoint_gradient(
     Simulator& sim, const StateSeed& seed, const ParameterRequest& request, AdjointStatistics* stats = nullptr);
 

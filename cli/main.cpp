@@ -1,4 +1,4 @@
-// diffipc command-line interface: simulate, validate, bench.
+// diffipc command-line interface: simulate, validate, check, bench, gradcheck, optimize.
 // Exit codes: 0 success, 1 bad input (one line naming the field or file),
 // 2 a simulation step failed (outputs of the committed steps are still written),
 // 3 internal error, 4 gradcheck: a direction failed, 130 / 143 simulate or optimize stopped by
@@ -6,6 +6,7 @@
 
 #include "adjoint/adjoint.hpp"
 #include "cli/bench.hpp"
+#include "cli/check.hpp"
 #include "cli/gradcheck.hpp"
 #include "cli/optimize.hpp"
 #include "cli/simulate.hpp"
@@ -88,6 +89,15 @@ int main(int argc, char** argv)
     auto* val_cmd = app.add_subcommand("validate", "Check a scene file and report what it contains");
     val_cmd->add_option("scene", validate_path, "scene file (JSON)")->required();
 
+    std::string check_dir, check_scene;
+    bool check_quiet = false;
+    auto* check_cmd = app.add_subcommand("check",
+        "Check every committed state of a run (its trajectory.h5) for inverted elements, intersections and "
+        "containment by exact tests independent of the solver's");
+    check_cmd->add_option("run", check_dir, "the run's output directory")->required();
+    check_cmd->add_option("--scene", check_scene, "the scene of the run (default: the one its trajectory names)");
+    check_cmd->add_flag("-q,--quiet", check_quiet, "print only invalid states and the total");
+
     BenchOptions bench_options;
     auto* bench_cmd = app.add_subcommand("bench", "Run the fixed benchmark scenes and print per-phase timings");
     bench_cmd->add_option("--size", bench_options.size, "small | full")->check(CLI::IsMember({ "small", "full" }));
@@ -160,6 +170,8 @@ int main(int argc, char** argv)
             return simulate(scene_path, out_dir, vtu_every, quiet, restart_dir);
         if (*val_cmd)
             return validate(validate_path);
+        if (*check_cmd)
+            return check_run(check_dir, check_scene, check_quiet);
         if (*opt_cmd) {
             if (optimize_options.problem_path.empty() && optimize_options.resume_dir.empty())
                 throw InputError("problem", "a problem file is required (or --resume DIR)");

@@ -654,9 +654,6 @@ Scene parse_scene(const nlohmann::json& document, const std::string& base_direct
         scene.time.steps = time["steps"].integer(1);
         if (time.has("adaptive")) {
             scene.time.adaptive = parse_adaptive(time["adaptive"], scene.time);
-            if (scene.time.adaptive.enabled && any_friction(scene))
-                time["adaptive"].fail("automatic load stepping is not available with friction yet (the lagged "
-                                      "sliding of a sub-step would change the step's friction)");
         }
     }
 

@@ -50,8 +50,10 @@ NewtonResult Simulator::solve_in_substeps(int k, const NewtonSolver& newton, dou
         m_external->set_force(external_forces(ts));
         const double kappa = m_contact ? m_contact->kappa() : 0.0;
         VectorXd y = committed;
+        restart_friction(committed, ts - t);
         NewtonResult r = newton.solve(y, target, m_constrained, w * m_force_scale, step_scale);
         total.add_costs(r);
+        r = relag_friction(newton, step_scale, target, y, r, total);
         if (r.status == StepStatus::CONVERGED) {
             record.min_increment = std::min(record.min_increment, ts - t);
             ++record.substeps;
@@ -95,6 +97,41 @@ NewtonResult Simulator::solve_in_substeps(int k, const NewtonSolver& newton, dou
     }
     x = std::move(committed);
     return with_totals(last);
+}
+
+void Simulator::restart_friction(const VectorXd& from, double h)
+{
+    if (!m_friction)
+        return;
+    m_friction->set_step(from, h);
+    m_friction->lag(*m_contact, from);
+}
+
+NewtonResult Simulator::relag_friction(const NewtonSolver& newton, double step_scale, const VectorXd& target,
+    VectorXd& y, NewtonResult r, NewtonResult& total)
+{
+    const double w = m_integrator->potential_weight();
+    for (int solves = 1; m_friction && r.status == StepStatus::CONVERGED && solves < m_scene.friction.iterations;
+         ++solves) {
+        const std::vector<FrictionContact> satisfied = m_friction->lagged();
+        m_friction->lag(*m_contact, y);
+        if (force_residual(y) <= m_scene.solver.residual_tolerance)
+            break;
+        VectorXd z = y;
+        const double kappa = m_contact->kappa();
+        NewtonResult again = newton.solve(z, target, m_constrained, w * m_force_scale, step_scale);
+        total.add_costs(again);
+        if (again.status != StepStatus::CONVERGED) {
+            // A failed re-solve fails the solve: its increment is cut.
+            m_friction->set_lagged(satisfied);
+            m_contact->set_kappa(kappa);
+            again.iterations = r.iterations;
+            return again;
+        }
+        y = std::move(z);
+        r = again;
+    }
+    return r;
 }
 
 NewtonResult Simulator::pass_limit_point(int k, const NewtonSolver& newton, double step_scale, double t,
@@ -143,6 +180,7 @@ NewtonResult Simulator::pass_limit_point(int k, const NewtonSolver& newton, doub
             y += std::min(1.0, 0.9 * reach) * secant;
         }
         const double kappa = m_contact ? m_contact->kappa() : 0.0;
+        restart_friction(x, m_scene.time.dt);
         NewtonResult r = control_newton.solve(y, target, m_constrained, w * m_force_scale, step_scale, &control);
         total.add_costs(r);
         if (r.status != StepStatus::CONVERGED) {
@@ -178,8 +216,10 @@ NewtonResult Simulator::pass_limit_point(int k, const NewtonSolver& newton, doub
         prescribed_targets_at(k, t1, final_target);
         m_external->set_force(f1);
         const double kappa_final = m_contact ? m_contact->kappa() : 0.0;
+        restart_friction(x, t1 - t);
         NewtonResult last = newton.solve(z, final_target, m_constrained, w * m_force_scale, step_scale);
         total.add_costs(last);
+        last = relag_friction(newton, step_scale, final_target, z, last, total);
         if (last.status == StepStatus::CONVERGED) {
             x = std::move(z);
             ++record.substeps;
@@ -236,9 +276,12 @@ NewtonResult Simulator::relax_to_equilibrium(
         const double kappa = m_contact ? m_contact->kappa() : 0.0;
         m_problem.set_weight(m_inertia.get(), plain ? 0.0 : w * c);
         m_inertia->set_target(x);
+        restart_friction(x, m_scene.time.dt);
         VectorXd y = x;
         last = (plain ? newton : proximal_newton).solve(y, target, m_constrained, w * m_force_scale, step_scale);
         total.add_costs(last);
+        if (plain)
+            last = relag_friction(newton, step_scale, target, y, last, total);
         if (last.status == StepStatus::CONVERGED && plain) {
             x = std::move(y);
             ++record.substeps;

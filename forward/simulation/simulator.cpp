@@ -617,16 +617,12 @@ StepStatus Simulator::step()
     }
     const double step_scale = m_integrator->dynamic() ? m_scene.time.dt : m_bbox_diagonal;
     NewtonResult result = newton.solve(x, target, m_constrained, w * m_force_scale, step_scale);
-    std::string substep_note;
-    if (result.status != StepStatus::CONVERGED && m_scene.time.adaptive.enabled) {
-        const NewtonResult first = result;
-        result = solve_in_substeps(index, newton, step_scale, kappa_before, x, record, substep_note);
-        result.add_costs(first);
-    }
-    if (m_friction && result.status == StepStatus::CONVERGED) {
-        // Lagging: refresh normal forces, tangents and weights at the converged state and
-        // solve again, up to `iterations` solves; the residual of the re-lagged problem
-        // at the converged state says whether the lagged data describes it.
+    const bool adaptive = m_scene.time.adaptive.enabled;
+    // Lagging: refresh normal forces, tangents and weights at the converged state and solve
+    // again, up to `iterations` solves; the residual of the re-lagged problem at the converged
+    // state says whether the lagged data describes it. With automatic load stepping a failed
+    // re-solve fails the step, which is then sub-stepped.
+    const auto lag_friction = [&](NewtonResult& r) {
         record.friction_iterations = 1;
         for (;;) {
             std::vector<FrictionContact> used = m_friction->lagged();
@@ -642,21 +638,32 @@ StepStatus Simulator::step()
             VectorXd y = x;
             NewtonResult again = newton.solve(y, target, m_constrained, w * m_force_scale, step_scale);
             ++record.friction_iterations;
-            result.add_costs(again);
+            r.add_costs(again);
             if (again.status != StepStatus::CONVERGED) {
+                m_friction->set_lagged(used);
                 record.friction = std::move(used);
                 record.friction_converged = false;
-                if (m_scene.friction.strict)
-                    result.status = again.status;
+                if (m_scene.friction.strict || adaptive)
+                    r.status = again.status;
                 break;
             }
-            result.residual = again.residual;
-            result.newton_step = again.newton_step;
-            result.roundoff_limited = again.roundoff_limited;
+            r.residual = again.residual;
+            r.newton_step = again.newton_step;
+            r.roundoff_limited = again.roundoff_limited;
             x = std::move(y);
         }
-        if (result.status == StepStatus::CONVERGED && !record.friction_converged && m_scene.friction.strict)
-            result.status = StepStatus::FRICTION_EXHAUSTED;
+        if (r.status == StepStatus::CONVERGED && !record.friction_converged && m_scene.friction.strict)
+            r.status = StepStatus::FRICTION_EXHAUSTED;
+    };
+    if (m_friction && result.status == StepStatus::CONVERGED)
+        lag_friction(result);
+    std::string substep_note;
+    if (result.status != StepStatus::CONVERGED && adaptive) {
+        const NewtonResult first = result;
+        result = solve_in_substeps(index, newton, step_scale, kappa_before, x, record, substep_note);
+        result.add_costs(first);
+        if (m_friction && result.status == StepStatus::CONVERGED)
+            lag_friction(result); // the last sub-step's friction, as lagged by the sub-stepping
     }
 
     record.status = result.status;

@@ -193,6 +193,16 @@ private:
     NewtonResult relax_to_equilibrium(int k, const NewtonSolver& newton, double step_scale, VectorXd& x,
         StepRecord& record, NewtonResult& total, std::string& why);
     static constexpr int MAX_RELAXATION_STEPS = 2000;
+    /// @brief With friction, each solve of load stepping slides from its own start: friction's
+    /// start positions set to `from` with increment h, its data lagged there. A sub-stepped step's
+    /// state is then its last solve's (friction from that solve's start), which the adjoint refuses.
+    void restart_friction(const VectorXd& from, double h);
+    /// @brief With friction, a converged load-stepping solve r at y is re-lagged at y and solved
+    /// again, up to friction.iterations solves in all, as step() does with a step's solve (the
+    /// sliding then feels the normal forces of its end, not of its start). A failed re-solve is
+    /// returned as the solve's failure (y keeps the last solution, the friction its data).
+    NewtonResult relag_friction(const NewtonSolver& newton, double step_scale, const VectorXd& target, VectorXd& y,
+        NewtonResult r, NewtonResult& total);
     void setup_contact();
     void setup_friction();
     /// max |free-dof gradient| / (w f_s) at x.

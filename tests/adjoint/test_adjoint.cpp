@@ -436,6 +436,34 @@ TEST(AdjointLoadStepping, GradientsThroughSubsteppedStaticStepsMatchFiniteDiffer
     }
 }
 
+TEST(AdjointLoadStepping, SubsteppedStepsWithFrictionAreRefusedNamingTheStep)
+{
+    // With friction a sub-stepped step's state slid from its last sub-step's start, not from the
+    // previous step's state that the adjoint differentiates: no gradient, and a message saying so.
+    json s = box_scene(2, { 1, 1 }, { 4, 4 }, "neo_hookean", 1e5, 0.3, 1000);
+    s["dirichlet"] = { { { "body", 0 }, { "region", region({ -1, 1 - 1e-6 }, { 2, 2 }) },
+        { "displacement", { "0.3*t", "-0.6*t" } } } };
+    s["obstacles"] = { { { "name", "floor" }, { "plane", { { "point", { 0, -0.002 } }, { "normal", { 0, 1 } } } } } };
+    s["contact"] = { { "dhat", 0.01 }, { "kappa", 1e5 } };
+    s["friction"] = { { "coefficient", 0.3 }, { "eps_v", 1e-3 } };
+    s["time"] = { { "integrator", "static" }, { "dt", 0.5 }, { "steps", 2 }, { "adaptive", true } };
+    s["solver"] = { { "residual_tolerance", 1e-10 }, { "max_iterations", 8 } };
+    Simulator sim(make_scene(s));
+    sim.run();
+    ASSERT_EQ(sim.trajectory().final_status, StepStatus::CONVERGED) << sim.trajectory().failure_message;
+    ASSERT_GT(sim.trajectory().step(1).substeps, 0);
+    const StateObjective objective(sim.steps_done(), sim.mesh().num_dofs(), sim.bbox_diagonal(), 0.01, 3);
+    ParameterRequest request;
+    request.rest_positions = true;
+    try {
+        adjoint_gradient(sim, objective.seed(sim), request);
+        FAIL() << "no error";
+    } catch (const AdjointError& e) {
+        EXPECT_NE(std::string(e.what()).find("step 1 was solved in sub-steps with friction"), std::string::npos)
+            << e.what();
+    }
+}
+
 TEST(AdjointLoadStepping, GradientsThroughASnapPassedByControlOrRelaxationMatchFiniteDifferences)
 {
     // The shallow arch snaps through in step 3; with 8 Newton iterations per solve, the step

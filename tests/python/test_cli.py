@@ -411,3 +411,41 @@ def test_an_initial_state_with_inverted_elements_writes_no_nan(cli, tmp_path):
     for vtu in out.glob("*.vtu"):
         assert "nan" not in vtu.read_bytes().decode("latin-1").lower(), vtu
     assert not list(out.glob("frame_*.vtu"))
+
+
+def test_check_validates_a_run_and_names_corrupted_states(cli, tmp_path):
+    # `diffipc check` re-checks every stored state with the exact tests; states edited in the file
+    # to overlap or to invert an element are named, and the exit code is 2.
+    h5py = pytest.importorskip("h5py")
+    box = lambda name, y0: {"name": name, "mesh": {"box": {"min": [0, y0], "max": [1, y0 + 1], "cells": [2, 2]}},
+                            "material": {"model": "neo_hookean", "E": 1e5, "nu": 0.3, "density": 1000}}
+    s = {"dimension": 2, "bodies": [box("low", 0), box("high", 1.05)], "gravity": [0, -9.81],
+         "dirichlet": [{"body": "low", "region": {"min": [-1, -1], "max": [2, 1e-6]}, "displacement": [0, 0]}],
+         "contact": {"dhat": 0.01, "kappa": 1e5},
+         "time": {"integrator": "implicit_euler", "dt": 0.05, "steps": 3}}
+    scene = tmp_path / "stack.json"
+    scene.write_text(json.dumps(s))
+    out = tmp_path / "out"
+    assert run(cli, "simulate", scene, "-o", out, "-q").returncode == 0
+    r = run(cli, "check", out, "--scene", scene)
+    assert r.returncode == 0, r.stdout + r.stderr
+    assert "4 of 4 states valid" in r.stdout
+    with h5py.File(out / "trajectory.h5", "r+") as f:
+        x = f["positions"][:]
+        body = f["mesh/body"][:]
+        elements = f["mesh/elements"][:]
+        high = np.flatnonzero(body == 1)
+        lowest = high[np.argmin(x[2, high, 1])]
+        x[2, lowest, 1] = 0.5  # a vertex of the upper box inside the lower one: its edges cross
+        a, b, c = elements[0]
+        x[3, a], x[3, b] = x[3, b].copy(), x[3, a].copy()  # two vertices of an element swapped: inverted
+        f["positions"][...] = x
+    r = run(cli, "check", out, "--scene", scene, "-q")
+    assert r.returncode == 2, r.stdout + r.stderr
+    assert "2 of 4 states valid" in r.stdout
+    lines = [l for l in r.stdout.splitlines() if l.startswith("state ")]
+    assert len(lines) == 2
+    assert lines[0].startswith("state 2") and "intersection: " in lines[0]
+    assert lines[1].startswith("state 3") and "0 inverted" not in lines[1]
+    r = run(cli, "check", tmp_path / "missing")
+    assert r.returncode == 1 and "trajectory.h5" in r.stderr
