@@ -125,7 +125,6 @@ NewtonResult Simulator::relag_friction(const NewtonSolver& newton, double step_s
             // A failed re-solve fails the solve: its increment is cut.
             m_friction->set_lagged(satisfied);
             m_contact->set_kappa(kappa);
-            again.iterations = r.iterations;
             return again;
         }
         y = std::move(z);
