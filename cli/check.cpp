@@ -7,6 +7,7 @@
 #include "forward/io/trajectory_reader.hpp"
 #include "forward/scene/scene.hpp"
 
+#include <algorithm>
 #include <cstdio>
 #include <filesystem>
 
@@ -17,7 +18,9 @@ namespace diffipc {
 int check_run(const std::string& run_dir, std::string scene_path, bool quiet)
 {
     const std::string path = (fs::path(run_dir) / "trajectory.h5").string();
-    StoredTrajectory stored = read_trajectory(path);
+    // The states are read a block at a time and released after their check: a long run's
+    // states need not fit in memory together.
+    StoredTrajectory stored = read_trajectory(path, 0);
     if (scene_path.empty())
         scene_path = stored.scene;
     if (scene_path.empty())
@@ -30,7 +33,10 @@ int check_run(const std::string& run_dir, std::string scene_path, bool quiet)
                 + scene_path + " " + std::to_string(mesh.num_vertices()) + " in " + std::to_string(mesh.dim) + "D");
     const Trajectory& tr = stored.trajectory;
     int invalid = 0;
+    constexpr int BLOCK = 16;
     for (int k = 0; k <= tr.committed(); ++k) {
+        if (k > 0 && (k - 1) % BLOCK == 0)
+            read_states(stored, k, std::min(k + BLOCK - 1, tr.committed()));
         const VectorXd& x = k == 0 ? tr.initial_positions : tr.step(k).positions;
         const double t = k == 0 ? tr.initial_time : tr.step(k).time;
         const Positions X = unflatten(x, mesh.dim);
@@ -47,6 +53,8 @@ int check_run(const std::string& run_dir, std::string scene_path, bool quiet)
             std::printf("state %d (t = %g s): %ld inverted elements, %s, %s\n", k, t, long(inverted),
                 crossing.empty() ? "no intersection" : ("intersection: " + crossing).c_str(),
                 inside.empty() ? "no containment" : ("containment: " + inside).c_str());
+        if (k > 0)
+            stored.trajectory.step(k).release_state();
     }
     std::printf("diffipc check: %s: %d of %d states valid (exact inversion%s tests)\n", path.c_str(),
         tr.committed() + 1 - invalid, tr.committed() + 1, sim->contact() ? ", intersection and containment" : "");

@@ -1,6 +1,6 @@
 // diffipc command-line interface: simulate, validate, check, bench, gradcheck, optimize.
 // Exit codes: 0 success, 1 bad input (one line naming the field or file),
-// 2 a simulation step failed (outputs of the committed steps are still written),
+// 2 a simulation step failed (outputs of the committed steps are still written; check: a state is invalid),
 // 3 internal error, 4 gradcheck: a direction failed, 130 / 143 simulate or optimize stopped by
 // SIGINT / SIGTERM (committed steps or iterations written; simulate's summary status INTERRUPTED).
 
