@@ -98,6 +98,7 @@ struct AdjointStepSystem {
     LinearSolver linear;
     std::vector<Coupling> couplings;
     int step = -1; ///< the step whose system is factorized (-1: none)
+    int substep = 0; ///< and its sub-step (0: the step's own problem)
 
     explicit AdjointStepSystem(const Simulator& sim)
         : linear(sim.scene().solver.linear_solver)
@@ -173,20 +174,40 @@ struct AdjointSweep::Impl {
         v = VectorXd();
     }
 
+    /// The adjoint bars of one state: dJ/dx, dJ/dv, dJ/da (null pointers: no such state).
+    struct StateBars {
+        VectorXd* x = nullptr;
+        VectorXd* v = nullptr;
+        VectorXd* a = nullptr;
+    };
+
+    /// How a state's prescribed positions depend on X and g_k (per dof, the same for all) and
+    /// on state k - 1's.
+    struct PrescribedMap {
+        double rest = 1, g = 1, previous = 0;
+    };
+
     void step(int k);
+    /// @brief Sweeps one state back: state k's own (j = 0), or sub-step j's of a sub-stepped step k
+    /// (j = m: the step's own). v and a into x through the scheme s, the adjoint solve, the
+    /// history's and the parameters' terms, and the prescribed dofs, a fraction of whose
+    /// adjoint goes to g_k and X (the rest to x_{k-1}: inside a sub-stepped step with an override).
+    void sweep_state(int k, int j, const VectorXd& x, double time, const StepScheme& s, StateBars cur, StateBars prev,
+        StateBars prev2, PrescribedMap map);
     void finish();
-    /// Assembles and factorizes the adjoint system of step k at x_k, unless the shared system holds it.
-    void factorize(int k, const VectorXd& x);
+    /// Assembles and factorizes the adjoint system of step k (j = 0) or of its sub-step j at x,
+    /// unless the shared system holds it.
+    void factorize(int k, int j, const VectorXd& x);
 };
 
-void AdjointSweep::Impl::factorize(int k, const VectorXd& x)
+void AdjointSweep::Impl::factorize(int k, int j, const VectorXd& x)
 {
     AdjointStepSystem& a = *system;
-    if (a.step == k)
+    if (a.step == k && a.substep == j)
         return;
     a.step = -1;
     Timer ta;
-    const Problem& problem = sim.step_problem(k);
+    const Problem& problem = j == 0 ? sim.step_problem(k) : sim.substep_problem(k, j);
     problem.hessian(x, false, a.assembler);
     // The couplings of prescribed dofs (lower triangle), before the constraints replace them.
     const SparseMatrixd& A = a.assembler.matrix();
@@ -203,6 +224,7 @@ void AdjointSweep::Impl::factorize(int k, const VectorXd& x)
             + " is singular (true Hessian at the converged state)");
     tf.add_to(st.factorization_time);
     a.step = k;
+    a.substep = j;
 }
 
 AdjointSweep::AdjointSweep(Simulator& sim, const ParameterRequest& request)
@@ -276,23 +298,69 @@ void AdjointSweep::Impl::step(int k)
     const StepRecord& record = tr.steps[size_t(k - 1)];
     if (!record.holds_state())
         throw std::logic_error("AdjointSweep::step: the record of step " + std::to_string(k) + " was released");
-    const StepScheme s = sim.step_scheme(k);
-    // v_k and a_k are linear in x_k and the history.
+    const auto bars_of = [this](int j) {
+        return j < 0 ? StateBars {} : StateBars { &xbar[size_t(j)], &vbar[size_t(j)], &abar[size_t(j)] };
+    };
+    const int m = int(record.substep_times.size());
+    if (m == 0) {
+        sweep_state(k, 0, record.positions, record.time, sim.step_scheme(k), bars_of(k), bars_of(k - 1),
+            bars_of(k - 2), PrescribedMap {});
+    } else {
+        // A dynamic step taken in sub-steps: its states j = m (the step's own) .. 1, each a step of
+        // the integrator from state j - 1 (j = 1: from step k - 1), swept back in turn.
+        const double dt = sim.scene().time.dt, t0 = (k - 1) * dt;
+        std::vector<VectorXd> lx(static_cast<size_t>(m)), lv(static_cast<size_t>(m)), la(static_cast<size_t>(m));
+        for (int j = m; j >= 1; --j) {
+            const bool own = j == m;
+            const StepRecord::SubState* sub = own ? nullptr : &record.path[size_t(j - 1)];
+            const StateBars cur = own ? bars_of(k) : StateBars { &lx[size_t(j)], &lv[size_t(j)], &la[size_t(j)] };
+            const StateBars prev = j == 1 ? bars_of(k - 1) : StateBars { &lx[size_t(j - 1)], &lv[size_t(j - 1)], &la[size_t(j - 1)] };
+            const double t = own ? record.time : sub->time;
+            // The prescribed positions inside the step, as a run with g overridden takes them
+            // (SimulationParameters::prescribed): interpolated from step k - 1's to X + g_k by
+            // the fraction s of the step. Without an override they are the expressions at t; their
+            // derivative in X is the same (s + (1 - s) through x_{k-1}), and the one in g is that
+            // of the run with g overridden.
+            PrescribedMap map;
+            if (!own) {
+                const double s = (t - t0) / dt;
+                map = { s, s, 1 - s };
+            }
+            sweep_state(k, j, own ? record.positions : sub->positions, t, sim.substep_scheme(k, j), cur, prev,
+                StateBars {}, map);
+            if (!own) {
+                release(lx[size_t(j)]);
+                release(lv[size_t(j)]);
+                release(la[size_t(j)]);
+            }
+        }
+    }
+    // Nothing reads the adjoint of state k after its step.
+    release(xbar[size_t(k)]);
+    release(vbar[size_t(k)]);
+    release(abar[size_t(k)]);
+}
+
+void AdjointSweep::Impl::sweep_state(int k, int j, const VectorXd& x, double time, const StepScheme& s,
+    StateBars cur, StateBars prev, StateBars prev2, PrescribedMap map)
+{
+    const StateBars history[3] = { {}, prev, prev2 };
+    // v and a are linear in x and the history.
     for (int which = 0; which < 2; ++which) {
-        VectorXd& bar = which == 0 ? abar[size_t(k)] : vbar[size_t(k)];
+        VectorXd& bar = which == 0 ? *cur.a : *cur.v;
         if (!nonzero(bar))
             continue;
         const double* cx = which == 0 ? s.ax : s.vx;
         const double* cv = which == 0 ? s.av : s.vv;
         const double* ca = which == 0 ? s.aa : s.va;
-        push(xbar[size_t(k)], cx[0], bar);
-        for (int j = 1; j <= 2 && k - j >= 0; ++j) {
-            push(xbar[size_t(k - j)], cx[j], bar);
-            push(vbar[size_t(k - j)], cv[j], bar);
-            push(abar[size_t(k - j)], ca[j], bar);
+        push(*cur.x, cx[0], bar);
+        for (int h = 1; h <= 2 && history[h].x; ++h) {
+            push(*history[h].x, cx[h], bar);
+            push(*history[h].v, cv[h], bar);
+            push(*history[h].a, ca[h], bar);
         }
     }
-    VectorXd& xb = xbar[size_t(k)];
+    VectorXd& xb = *cur.x;
     if (xb.size() == 0) {
         xb = VectorXd::Zero(n);
         grew(xb);
@@ -301,9 +369,8 @@ void AdjointSweep::Impl::step(int k)
     for (Index i = 0; i < n; ++i)
         if (constrained[size_t(i)])
             rhs[i] = 0;
-    const VectorXd& x = record.positions;
     if (!rhs.isZero(0.0)) {
-        factorize(k, record.positions);
+        factorize(k, j, x);
         Timer ts;
         VectorXd lambda = system->linear.solve(rhs);
         ts.add_to(st.solve_time);
@@ -314,7 +381,7 @@ void AdjointSweep::Impl::step(int k)
                 lambda[i] = 0;
         ++st.steps;
         Timer tp;
-        // Prescribed entries of x_k enter every free row through H: (H lambda)_i for prescribed i
+        // Prescribed entries of x enter every free row through H: (H lambda)_i for prescribed i
         // (lambda vanishes on prescribed dofs, so only their couplings to free dofs count).
         for (const Coupling& c : system->couplings) {
             if (constrained[size_t(c.row)])
@@ -322,16 +389,16 @@ void AdjointSweep::Impl::step(int k)
             if (c.row != c.col && constrained[size_t(c.col)])
                 xb[c.col] -= c.value * lambda[c.row];
         }
-        // History: g_k contains -M x~_k.
+        // History: g contains -M x~.
         if (s.inertia) {
             const VectorXd Ml = sim.inertia().apply_mass(lambda);
-            for (int j = 1; j <= 2 && k - j >= 0; ++j) {
-                push(xbar[size_t(k - j)], s.tx[j], Ml);
-                push(vbar[size_t(k - j)], s.tv[j], Ml);
-                push(abar[size_t(k - j)], s.ta[j], Ml);
+            for (int h = 1; h <= 2 && history[h].x; ++h) {
+                push(*history[h].x, s.tx[h], Ml);
+                push(*history[h].v, s.tv[h], Ml);
+                push(*history[h].a, s.ta[h], Ml);
             }
         }
-        // Parameters: dJ/dp -= lambda^T dg_k/dp.
+        // Parameters: dJ/dp -= lambda^T dg/dp.
         const double w = s.weight;
         const ElasticPotential& elastic = sim.elastic();
         if (d_rest) {
@@ -345,34 +412,37 @@ void AdjointSweep::Impl::step(int k)
             elastic.add_lame_derivative(x, lambda, -w, grad.mu, grad.lambda);
         if (d_density && s.inertia)
             sim.inertia().add_density_derivative(x, lambda, -1.0, *d_density);
-        // g_k contains -w f_ext(t_k).
+        // g contains -w f_ext(t).
         if (d_rest || d_density)
-            sim.external_force_derivatives(record.time, w * lambda, d_rest, d_density);
-        // The friction potential of step k depends on x_{k-1} (start of step and lagged data).
-        if (sim.friction() && (!sim.friction()->lagged().empty() || grad.friction.size())) {
-            if (xbar[size_t(k - 1)].size() == 0) {
-                xbar[size_t(k - 1)] = VectorXd::Zero(n);
-                grew(xbar[size_t(k - 1)]);
+            sim.external_force_derivatives(time, w * lambda, d_rest, d_density);
+        // The friction potential of step k depends on x_{k-1} (start of step and lagged data);
+        // sub-stepped steps with friction are refused (check_run).
+        if (j == 0 && sim.friction() && (!sim.friction()->lagged().empty() || grad.friction.size())) {
+            if (prev.x->size() == 0) {
+                *prev.x = VectorXd::Zero(n);
+                grew(*prev.x);
             }
-            FrictionAdjointTerms terms { &xbar[size_t(k - 1)], grad.friction.size() ? &grad.friction : nullptr,
-                d_rest };
+            FrictionAdjointTerms terms { prev.x, grad.friction.size() ? &grad.friction : nullptr, d_rest };
             friction_step_adjoint(sim, k, lambda, w, terms);
         }
         tp.add_to(st.assembly_time);
         tp.add_to(st.parameter_time);
     }
-    // Prescribed dofs: x_k = X + g_k.
-    for (size_t j = 0; j < prescribed.size(); ++j) {
-        const Index i = prescribed[j];
+    // Prescribed dofs: x = X + g_k at the step's own state; inside a sub-stepped step,
+    // x = (1 - s) x_{k-1} + s (X + g_k).
+    for (size_t q = 0; q < prescribed.size(); ++q) {
+        const Index i = prescribed[q];
         if (d_rest)
-            (*d_rest)[i] += xb[i];
+            (*d_rest)[i] += map.rest * xb[i];
         if (grad.prescribed.size())
-            grad.prescribed(k - 1, Index(j)) += xb[i];
+            grad.prescribed(k - 1, Index(q)) += map.g * xb[i];
     }
-    // Nothing reads the adjoint of state k after its step.
-    release(xbar[size_t(k)]);
-    release(vbar[size_t(k)]);
-    release(abar[size_t(k)]);
+    if (map.previous != 0) {
+        VectorXd part = VectorXd::Zero(n);
+        for (const Index i : prescribed)
+            part[i] = map.previous * xb[i];
+        push(xbar[size_t(k - 1)], 1.0, part);
+    }
 }
 
 ParameterGradient AdjointSweep::finish()

@@ -53,7 +53,7 @@ NewtonResult Simulator::solve_in_substeps(int k, const NewtonSolver& newton, dou
         restart_friction(committed, ts - t);
         NewtonResult r = newton.solve(y, target, m_constrained, w * m_force_scale, step_scale);
         total.add_costs(r);
-        r = relag_friction(newton, step_scale, target, y, r, total);
+        r = relag_friction(newton, w, step_scale, target, y, r, total);
         if (r.status == StepStatus::CONVERGED) {
             record.min_increment = std::min(record.min_increment, ts - t);
             ++record.substeps;
@@ -69,11 +69,7 @@ NewtonResult Simulator::solve_in_substeps(int k, const NewtonSolver& newton, dou
         ++record.cuts;
         h *= a.cut;
         if (h < a.min_increment * (1 - 1e-12)) {
-            why = "; automatic load stepping took " + std::to_string(record.substeps) + " sub-steps to t = "
-                + format_number(t) + " s of (" + format_number(t0) + ", " + format_number(t1)
-                + "] s, then failed to " + format_number(ts) + " s (" + to_string(r.status)
-                + ") and would cut the increment below time.adaptive.min_increment = "
-                + format_number(a.min_increment) + " s";
+            why = substeps_exhausted("automatic load stepping", record.substeps, t, k, ts, r.status);
             // Past a limit point: displacement control, then relaxation from where it got to (or
             // from the last sub-step).
             for (const bool control : { true, false }) {
@@ -99,6 +95,16 @@ NewtonResult Simulator::solve_in_substeps(int k, const NewtonSolver& newton, dou
     return with_totals(last);
 }
 
+std::string Simulator::substeps_exhausted(
+    const char* what, int substeps, double t, int k, double ts, StepStatus status) const
+{
+    const double dt = m_scene.time.dt;
+    return "; " + std::string(what) + " took " + std::to_string(substeps) + " sub-steps to t = " + format_number(t)
+        + " s of (" + format_number((k - 1) * dt) + ", " + format_number(k * dt) + "] s, then failed to "
+        + format_number(ts) + " s (" + to_string(status) + ") and would cut the increment below "
+        + "time.adaptive.min_increment = " + format_number(m_scene.time.adaptive.min_increment) + " s";
+}
+
 void Simulator::restart_friction(const VectorXd& from, double h)
 {
     if (!m_friction)
@@ -107,15 +113,14 @@ void Simulator::restart_friction(const VectorXd& from, double h)
     m_friction->lag(*m_contact, from);
 }
 
-NewtonResult Simulator::relag_friction(const NewtonSolver& newton, double step_scale, const VectorXd& target,
-    VectorXd& y, NewtonResult r, NewtonResult& total)
+NewtonResult Simulator::relag_friction(const NewtonSolver& newton, double w, double step_scale,
+    const VectorXd& target, VectorXd& y, NewtonResult r, NewtonResult& total)
 {
-    const double w = m_integrator->potential_weight();
     for (int solves = 1; m_friction && r.status == StepStatus::CONVERGED && solves < m_scene.friction.iterations;
          ++solves) {
         const std::vector<FrictionContact> satisfied = m_friction->lagged();
         m_friction->lag(*m_contact, y);
-        if (force_residual(y) <= m_scene.solver.residual_tolerance)
+        if (force_residual(y, w) <= m_scene.solver.residual_tolerance)
             break;
         VectorXd z = y;
         const double kappa = m_contact->kappa();
@@ -218,7 +223,7 @@ NewtonResult Simulator::pass_limit_point(int k, const NewtonSolver& newton, doub
         restart_friction(x, t1 - t);
         NewtonResult last = newton.solve(z, final_target, m_constrained, w * m_force_scale, step_scale);
         total.add_costs(last);
-        last = relag_friction(newton, step_scale, final_target, z, last, total);
+        last = relag_friction(newton, w, step_scale, final_target, z, last, total);
         if (last.status == StepStatus::CONVERGED) {
             x = std::move(z);
             ++record.substeps;
@@ -280,7 +285,7 @@ NewtonResult Simulator::relax_to_equilibrium(
         last = (plain ? newton : proximal_newton).solve(y, target, m_constrained, w * m_force_scale, step_scale);
         total.add_costs(last);
         if (plain)
-            last = relag_friction(newton, step_scale, target, y, last, total);
+            last = relag_friction(newton, w, step_scale, target, y, last, total);
         if (last.status == StepStatus::CONVERGED && plain) {
             x = std::move(y);
             ++record.substeps;

@@ -35,6 +35,13 @@ struct SimulationParameters {
     /// > 0: a fixed barrier stiffness (the adaptive rule is off), as in a
     /// differentiated run; 0 keeps the scene's setting.
     double kappa = 0;
+    /// Per step k (T entries, or none): the end times of the sub-steps that dynamic step k takes,
+    /// increasing in ((k-1) dt, k dt], the last one k dt; an empty entry leaves the step to the
+    /// scene (one solve, or time.adaptive's sub-steps). A step given sub-steps takes exactly those
+    /// (a failed one fails the step). Simulator::parameters() reports the sub-steps a run took, so
+    /// that a run built from them repeats its path: the sub-stepped run that the adjoint
+    /// differentiates, held fixed when the other parameters are perturbed.
+    std::vector<std::vector<double>> substeps;
 };
 
 } // namespace diffipc

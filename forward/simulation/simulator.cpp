@@ -227,6 +227,8 @@ Simulator::Simulator(Scene scene, const SimulationParameters& parameters)
         throw InputError("prescribed",
             "expected " + std::to_string(m_scene.time.steps) + " by " + std::to_string(m_dirichlet.size())
                 + " values (steps by prescribed dofs)");
+    if (const std::string bad = check_substep_plan(P.substeps); !bad.empty())
+        throw InputError("substeps", bad);
     {
         const double dt = m_scene.time.dt * 1e-3;
         VectorXd x1 = x0;
@@ -364,7 +366,7 @@ void Simulator::setup_friction()
     m_problem.add(m_friction.get(), m_integrator->potential_weight());
 }
 
-double Simulator::force_residual(const VectorXd& x) const
+double Simulator::force_residual(const VectorXd& x, double w) const
 {
     VectorXd g;
     m_problem.gradient(x, g);
@@ -372,7 +374,7 @@ double Simulator::force_residual(const VectorXd& x) const
     for (Index i = 0; i < g.size(); ++i)
         if (!m_constrained[size_t(i)])
             gmax = std::max(gmax, std::abs(g[i]));
-    return gmax / (m_integrator->potential_weight() * m_force_scale);
+    return gmax / (w * m_force_scale);
 }
 
 void Simulator::update_kappa_for_step(const VectorXd& x)
@@ -616,7 +618,19 @@ StepStatus Simulator::step()
         }
     }
     const double step_scale = m_integrator->dynamic() ? m_scene.time.dt : m_bbox_diagonal;
-    NewtonResult result = newton.solve(x, target, m_constrained, w * m_force_scale, step_scale);
+    // Sub-steps given (a recomputed step repeats its own, SimulationParameters::substeps): taken
+    // as they are, without a full solve first.
+    const std::vector<double>* plan = nullptr;
+    if (recompute && m_trajectory.has_record(index) && !m_trajectory.step(index).substep_times.empty())
+        plan = &m_trajectory.step(index).substep_times;
+    else if (size_t(index) <= m_overrides.substeps.size() && !m_overrides.substeps[size_t(index - 1)].empty())
+        plan = &m_overrides.substeps[size_t(index - 1)];
+    std::string substep_note;
+    NewtonResult result;
+    if (plan)
+        result = solve_dynamic_substeps(index, newton, plan, kappa_before, x, record, substep_note);
+    else
+        result = newton.solve(x, target, m_constrained, w * m_force_scale, step_scale);
     const bool adaptive = m_scene.time.adaptive.enabled;
     // Lagging: refresh normal forces, tangents and weights at the converged state and solve
     // again, up to `iterations` solves; the residual of the re-lagged problem at the converged
@@ -655,15 +669,18 @@ StepStatus Simulator::step()
         if (r.status == StepStatus::CONVERGED && !record.friction_converged && m_scene.friction.strict)
             r.status = StepStatus::FRICTION_EXHAUSTED;
     };
-    if (m_friction && result.status == StepStatus::CONVERGED)
+    if (m_friction && result.status == StepStatus::CONVERGED && !plan)
         lag_friction(result);
-    std::string substep_note;
-    if (result.status != StepStatus::CONVERGED && adaptive) {
+    if (result.status != StepStatus::CONVERGED && adaptive && !plan) {
         const NewtonResult first = result;
-        result = solve_in_substeps(index, newton, step_scale, kappa_before, x, record, substep_note);
+        if (m_integrator->dynamic()) {
+            result = solve_dynamic_substeps(index, newton, nullptr, kappa_before, x, record, substep_note);
+        } else {
+            result = solve_in_substeps(index, newton, step_scale, kappa_before, x, record, substep_note);
+            if (m_friction && result.status == StepStatus::CONVERGED)
+                lag_friction(result); // the last sub-step's friction, as lagged by the sub-stepping
+        }
         result.add_costs(first);
-        if (m_friction && result.status == StepStatus::CONVERGED)
-            lag_friction(result); // the last sub-step's friction, as lagged by the sub-stepping
     }
 
     record.status = result.status;
@@ -687,7 +704,9 @@ StepStatus Simulator::step()
     }
     if (result.status == StepStatus::CONVERGED) {
         record.positions = x;
-        m_integrator->update(x, record.velocities, record.accelerations);
+        // A dynamic sub-stepped step has its velocities and accelerations from its last sub-step.
+        if (record.substep_times.empty())
+            m_integrator->update(x, record.velocities, record.accelerations);
         record.min_volume_ratio = m_space->min_volume_ratio(x);
         if (m_contact) {
             record.contacts = m_contact->contacts(x);
@@ -725,6 +744,7 @@ StepStatus Simulator::step()
         kept.accelerations = std::move(record.accelerations);
         kept.contacts = std::move(record.contacts);
         kept.friction = std::move(record.friction);
+        kept.path = std::move(record.path);
         m_friction_at_last_step = result.status == StepStatus::CONVERGED && index == steps_done();
         return result.status;
     }
@@ -898,6 +918,14 @@ SimulationParameters Simulator::parameters() const
             p.prescribed(k - 1, Index(j)) = x[m_dirichlet[j].dof] - m_dirichlet[j].rest[m_dirichlet[j].dof % d];
     }
     p.kappa = m_contact ? m_contact->kappa() : 0.0;
+    // The sub-steps the run took (dynamic steps): a run from these parameters repeats them.
+    for (int k = m_trajectory.first_index; k <= steps_done(); ++k)
+        if (!m_trajectory.step(k).substep_times.empty()) {
+            p.substeps.resize(size_t(T));
+            p.substeps[size_t(k - 1)] = m_trajectory.step(k).substep_times;
+        }
+    if (p.substeps.empty() && !m_overrides.substeps.empty())
+        p.substeps = m_overrides.substeps;
     return p;
 }
 

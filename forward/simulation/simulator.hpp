@@ -119,6 +119,13 @@ public:
     const Problem& step_problem(int k);
     /// The integrator's linear maps of step k (1-based).
     StepScheme step_scheme(int k) const { return m_integrator->scheme(k); }
+    /// @brief Sets the problem to that of sub-step j (1-based, up to substep_times.size()) of
+    /// committed dynamic step k, solved in sub-steps (StepRecord::substep_times): inertial target
+    /// from the state sub-step j started at, weights of its increment, loads at its end time,
+    /// the step's barrier stiffness. Without friction (the adjoint refuses sub-stepped steps with it).
+    const Problem& substep_problem(int k, int j);
+    /// The integrator's linear maps of sub-step j of step k (as substep_problem()).
+    StepScheme substep_scheme(int k, int j) const;
     /// @brief Adds d(direction^T f_ext(t))/dX (#V*dim) and d/drho (#E) to the
     /// non-null outputs: gravity through the lumped masses, tractions through facet areas.
     void external_force_derivatives(
@@ -193,6 +200,23 @@ private:
     NewtonResult relax_to_equilibrium(int k, const NewtonSolver& newton, double step_scale, VectorXd& x,
         StepRecord& record, NewtonResult& total, std::string& why);
     static constexpr int MAX_RELAXATION_STEPS = 2000;
+    /// @brief Automatic step control in dynamic scenes (dynamic_substepping.cpp): dynamic step k
+    /// taken in sub-steps of its time increment, each a step of the integrator with its own
+    /// increment from the last sub-step's state; the sub-steps given in `plan` (their end times),
+    /// or chosen by time.adaptive's policy when plan is null. On success x is the state at t_k,
+    /// and the record holds its velocities, accelerations, sub-step times and intermediate states.
+    NewtonResult solve_dynamic_substeps(int k, const NewtonSolver& newton, const std::vector<double>* plan,
+        double kappa_before, VectorXd& x, StepRecord& record, std::string& why);
+    /// The message of sub-stepping (`what`) in step k that got to time t in `substeps` sub-steps and
+    /// failed to ts with `status`, its increment then below time.adaptive.min_increment.
+    std::string substeps_exhausted(const char* what, int substeps, double t, int k, double ts, StepStatus status) const;
+    /// Weight w of the elastic, external, contact and friction potentials.
+    void set_potential_weights(double w);
+    /// @brief The problem of a sub-step of integrator `sub` (initialized at the sub-step's start)
+    /// ending at time t: weights, inertial target, external forces. Returns the weight.
+    double setup_substep(const TimeIntegrator& sub, double t);
+    /// Empty if SimulationParameters::substeps fits this scene; otherwise why not.
+    std::string check_substep_plan(const std::vector<std::vector<double>>& plan) const;
     /// @brief With friction, each solve of load stepping slides from its own start: friction's
     /// start positions set to `from` with increment h, its data lagged there. A sub-stepped step's
     /// state is then its last solve's (friction from that solve's start), which the adjoint refuses.
@@ -201,12 +225,15 @@ private:
     /// again, up to friction.iterations solves in all, as step() does with a step's solve (the
     /// sliding then feels the normal forces of its end, not of its start). A failed re-solve is
     /// returned as the solve's failure (y keeps the last solution, the friction its data).
-    NewtonResult relag_friction(const NewtonSolver& newton, double step_scale, const VectorXd& target, VectorXd& y,
-        NewtonResult r, NewtonResult& total);
+    /// w: the weight of the solve's non-inertial potentials.
+    NewtonResult relag_friction(const NewtonSolver& newton, double w, double step_scale, const VectorXd& target,
+        VectorXd& y, NewtonResult r, NewtonResult& total);
     void setup_contact();
     void setup_friction();
-    /// max |free-dof gradient| / (w f_s) at x.
-    double force_residual(const VectorXd& x) const;
+    /// max |free-dof gradient| / (w f_s) at x, w the weight of the non-inertial potentials
+    /// (default: the integrator's).
+    double force_residual(const VectorXd& x, double w) const;
+    double force_residual(const VectorXd& x) const { return force_residual(x, m_integrator->potential_weight()); }
     /// Adaptive kappa at the start of a step (docs/math.md "Barrier stiffness").
     void update_kappa_for_step(const VectorXd& x);
     /// IPC's balancing stiffness -(grad B . grad E) / (w |grad B|^2), clamped.

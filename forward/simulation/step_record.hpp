@@ -42,6 +42,18 @@ struct StepRecord {
     int control_steps = 0;
     /// Proximal relaxation solves the step took to reach its equilibrium (0: none)
     int relaxation_steps = 0;
+    /// A dynamic step solved in sub-steps (time.adaptive, or SimulationParameters::substeps): the
+    /// end time of each sub-step, the last one `time`; empty for a step solved in one go and for
+    /// static steps (whose state does not depend on the path). Kept by release_state().
+    std::vector<double> substep_times;
+    /// The state at the end of a dynamic sub-step.
+    struct SubState {
+        double time = 0;
+        VectorXd positions, velocities, accelerations;
+    };
+    /// A dynamic sub-stepped step's states at the ends of its sub-steps but the last (which is
+    /// the record's own): the adjoint sweeps back through them.
+    std::vector<SubState> path;
 
     // Contact (when the scene enables it).
     /// Minimum distance (m) over primitive pairs within 1e-2 of the bbox diagonal
@@ -74,12 +86,16 @@ struct StepRecord {
         accelerations = VectorXd();
         ContactSet().swap(contacts);
         std::vector<FrictionContact>().swap(friction);
+        std::vector<SubState>().swap(path);
     }
     /// Bytes held by the state (the heap part that release_state() frees).
     size_t state_bytes() const
     {
-        return sizeof(double) * size_t(positions.size() + velocities.size() + accelerations.size())
+        size_t bytes = sizeof(double) * size_t(positions.size() + velocities.size() + accelerations.size())
             + sizeof(Contact) * contacts.capacity() + sizeof(FrictionContact) * friction.capacity();
+        for (const SubState& s : path)
+            bytes += sizeof(double) * size_t(s.positions.size() + s.velocities.size() + s.accelerations.size());
+        return bytes;
     }
     /// @}
 };

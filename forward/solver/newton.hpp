@@ -85,6 +85,8 @@ public:
     NewtonResult solve(VectorXd& x, const VectorXd& target, const std::vector<char>& constrained, double force_scale,
         double step_scale, LoadControl* control = nullptr) const;
 
+    const NewtonSettings& settings() const { return m_settings; }
+
     /// The same solver with at most `max_iterations` per solve.
     NewtonSolver limited(int max_iterations) const
     {

@@ -102,12 +102,14 @@ struct CheckSettings {
 /// @brief Runs the scene, the adjoint for `blocks`, and checks each block in a
 /// random direction against central differences and by a Taylor test.
 /// @param kappa fixed barrier stiffness for contact scenes (0: none)
+/// @param substeps SimulationParameters::substeps of the nominal run (dynamic sub-steps given)
 inline void check_adjoint(const nlohmann::json& scene_json, const std::vector<Block>& blocks,
-    const CheckSettings& settings = {}, double kappa = 0)
+    const CheckSettings& settings = {}, double kappa = 0, const std::vector<std::vector<double>>& substeps = {})
 {
     const Scene scene = make_scene(scene_json);
     SimulationParameters nominal;
     nominal.kappa = kappa;
+    nominal.substeps = substeps;
     Simulator sim(scene, nominal);
     sim.run();
     ASSERT_EQ(sim.trajectory().final_status, StepStatus::CONVERGED) << sim.trajectory().failure_message;

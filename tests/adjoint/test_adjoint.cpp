@@ -436,6 +436,45 @@ TEST(AdjointLoadStepping, GradientsThroughSubsteppedStaticStepsMatchFiniteDiffer
     }
 }
 
+TEST(AdjointLoadStepping, GradientsThroughSubsteppedDynamicStepsMatchFiniteDifferences)
+{
+    // The box on the rising plane, its dynamic steps taken in sub-steps, each a step of the
+    // integrator from the last sub-step's state; the adjoint sweeps back through them. The
+    // differentiated run is the path the run took: check_adjoint's forward runs are built from
+    // sim.parameters(), which hold its sub-steps (SimulationParameters::substeps).
+    // Given sub-steps of unequal lengths (0.3, 0.5 and 0.2 of each step), both integrators:
+    for (int dim : { 2, 3 })
+        for (const char* integrator : { "implicit_euler", "newmark" }) {
+            SCOPED_TRACE(std::to_string(dim) + "D " + integrator + ", given sub-steps");
+            const json s = box_on_plane(dim, integrator);
+            std::vector<std::vector<double>> substeps;
+            for (int k = 1; k <= 3; ++k)
+                substeps.push_back({ 0.01 * (k - 1) + 0.003, 0.01 * (k - 1) + 0.008, 0.01 * k });
+            check_adjoint(s, ALL_BLOCKS, box_on_plane_settings(integrator), 0, substeps);
+        }
+    // Sub-steps chosen by time.adaptive: the box falls onto the plane (rising at 0.2 m/s); with at
+    // most 9 Newton iterations per solve its landing step fails as one and is split.
+    for (int dim : { 2, 3 }) {
+        SCOPED_TRACE(std::to_string(dim) + "D implicit_euler, time.adaptive");
+        json s = box_over_rising_plane(dim, "implicit_euler", 2e-3, 0.04, 2);
+        s["bodies"][0]["translation"] = dim == 2 ? json { 0, 0.01 } : json { 0, 0.01, 0 };
+        s["bodies"][0]["initial_velocity"] = dim == 2 ? json { 0.1, -0.5 } : json { 0.1, -0.5, -0.05 };
+        s["obstacles"][0]["plane"]["motion"] = dim == 2 ? json { 0, "0.2*t" } : json { 0, "0.2*t", 0 };
+        s["contact"]["kappa"] = 1e7;
+        s["time"]["adaptive"] = { { "min_increment", 0.04 / 64 } };
+        s["solver"]["max_iterations"] = 9;
+        Simulator sim(make_scene(s));
+        sim.run();
+        ASSERT_EQ(sim.trajectory().final_status, StepStatus::CONVERGED) << sim.trajectory().failure_message;
+        ASSERT_GT(sim.trajectory().totals.substepped_steps, 0) << "no step was sub-stepped: the check would be plain";
+        ASSERT_GT(sim.trajectory().step(2).active_contacts, 0) << "the box does not land";
+        // The finite differences repeat the sub-steps taken (the run's parameters()). Their
+        // perturbed solves may need a few more iterations than the 9 that made the steps fail.
+        s["solver"]["max_iterations"] = 100;
+        check_adjoint(s, ALL_BLOCKS, box_on_plane_settings("implicit_euler"), 0, sim.parameters().substeps);
+    }
+}
+
 TEST(AdjointLoadStepping, SubsteppedStepsWithFrictionAreRefusedNamingTheStep)
 {
     // With friction a sub-stepped step's state slid from its last sub-step's start, not from the
