@@ -1,11 +1,11 @@
-// Periodic meshes (forward/mesh/periodic.hpp): the pairing of vertices on opposite faces of a
+// Periodic meshes (forward/periodic/pairing.hpp): the pairing of vertices on opposite faces of a
 // periodic box, checked against the definition (each vertex is its class representative
 // translated by whole box edges) on generated and gmsh meshes, and the errors for meshes and
 // boxes that do not fit.
 
 #include "forward/common/error.hpp"
 #include "forward/mesh/gmsh_reader.hpp"
-#include "forward/mesh/periodic.hpp"
+#include "forward/periodic/pairing.hpp"
 
 #include <gtest/gtest.h>
 

@@ -1,4 +1,4 @@
-#include "forward/mesh/periodic.hpp"
+#include "forward/periodic/pairing.hpp"
 
 #include "forward/common/error.hpp"
 

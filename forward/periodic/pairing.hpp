@@ -1,5 +1,5 @@
 #pragma once
-/// @file periodic.hpp
+/// @file pairing.hpp
 /// Periodic meshes (issue 14): the pairing of boundary vertices on opposite faces of a periodic
 /// box. Vertices that are copies of each other under a translation by a multiple of the box's
 /// edge along its periodic axes form one class (a corner of a 2D cell: four vertices, one class);

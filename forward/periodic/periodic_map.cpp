@@ -1,0 +1,49 @@
+#include "forward/periodic/periodic_map.hpp"
+
+#include <Eigen/SparseCore>
+
+#include <stdexcept>
+#include <vector>
+
+namespace diffipc {
+
+PeriodicMap::PeriodicMap(const Mesh& mesh, const PeriodicPairing& pairing)
+    : m_dim(mesh.dim)
+    , m_classes(pairing.num_classes())
+    , m_rest(mesh.num_dofs())
+{
+    const int d = m_dim;
+    const Index nv = mesh.num_vertices();
+    if (pairing.vertex_class.size() != nv)
+        throw std::invalid_argument("PeriodicMap: the pairing has " + std::to_string(pairing.vertex_class.size())
+            + " vertices, the mesh " + std::to_string(nv));
+    std::vector<Eigen::Triplet<double, int>> entries;
+    entries.reserve(size_t(nv) * size_t(d) * size_t(d + 1));
+    for (Index v = 0; v < nv; ++v)
+        for (int i = 0; i < d; ++i) {
+            const int row = int(v * d + i);
+            m_rest[row] = mesh.rest_positions(v, i);
+            entries.emplace_back(row, int(fluctuation_dof(pairing.vertex_class[v], i)), 1.0);
+            for (int j = 0; j < d; ++j)
+                if (mesh.rest_positions(v, j) != 0)
+                    entries.emplace_back(row, int(macro_dof(i, j)), mesh.rest_positions(v, j));
+        }
+    m_P.resize(nv * d, num_reduced());
+    m_P.setFromTriplets(entries.begin(), entries.end());
+}
+
+VectorXd PeriodicMap::positions(const VectorXd& q) const
+{
+    if (q.size() != num_reduced())
+        throw std::invalid_argument("PeriodicMap::positions: expected " + std::to_string(num_reduced()) + " values");
+    return m_rest + m_P * q;
+}
+
+SparseMatrixd PeriodicMap::reduce_matrix(const SparseMatrixd& lower) const
+{
+    const SparseMatrixd full = lower.selfadjointView<Eigen::Lower>();
+    const SparseMatrixd reduced = m_P.transpose() * full * m_P;
+    return reduced.triangularView<Eigen::Lower>();
+}
+
+} // namespace diffipc
