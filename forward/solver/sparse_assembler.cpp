@@ -274,6 +274,26 @@ void SparseAssembler::add_element(Index e, const double* Ke)
 
 void SparseAssembler::add_diagonal(Index dof, double v) { m_matrix.valuePtr()[m_diagonal_slots[size_t(dof)]] += v; }
 
+void SparseAssembler::add_matrix(const SparseMatrixd& lower)
+{
+    if (lower.rows() != m_matrix.rows() || lower.cols() != m_matrix.cols())
+        throw std::logic_error("SparseAssembler::add_matrix: a " + std::to_string(lower.rows()) + " by "
+            + std::to_string(lower.cols()) + " matrix into a pattern of size " + std::to_string(m_matrix.rows()));
+    for (Index col = 0; col < lower.outerSize(); ++col) {
+        SparseMatrixd::InnerIterator target(m_matrix, col);
+        for (SparseMatrixd::InnerIterator it(lower, col); it; ++it) {
+            if (it.row() < col)
+                continue;
+            while (target && target.row() < it.row())
+                ++target;
+            if (!target || target.row() != it.row())
+                throw std::logic_error("SparseAssembler::add_matrix: entry (" + std::to_string(it.row()) + ", "
+                    + std::to_string(col) + ") is outside the element pattern");
+            target.valueRef() += it.value();
+        }
+    }
+}
+
 void SparseAssembler::apply_constraints(const std::vector<char>& constrained)
 {
     SparseMatrixd& A = matrix();

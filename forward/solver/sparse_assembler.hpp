@@ -44,6 +44,10 @@ public:
     /// thread count. The extra pattern remembers vertex pairs seen before, so that a contact
     /// set that comes back does not change the pattern (and CHOLMOD's analysis) again.
     void finalize();
+    /// @brief Adds a matrix (lower triangle, this assembler's size) whose pattern lies in the element
+    /// pattern (a periodic cell's reduced Hessian: forward/periodic/periodic_potential.hpp).
+    /// @throws std::logic_error naming an entry outside the pattern.
+    void add_matrix(const SparseMatrixd& lower);
     /// @brief Replaces the rows and columns of `constrained` dofs by identity rows.
     void apply_constraints(const std::vector<char>& constrained);
 
