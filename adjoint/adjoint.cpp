@@ -33,6 +33,8 @@ namespace {
         if (sim.steps_done() != sim.scene().time.steps)
             throw AdjointError("no gradient: the forward run committed " + std::to_string(sim.steps_done()) + " of "
                 + std::to_string(sim.scene().time.steps) + " steps");
+        if (sim.periodic())
+            throw AdjointError("no gradient: the adjoint of periodic cells is not built yet (issue 14)");
         if (sim.contact() && sim.scene().contact.adaptive_kappa)
             throw AdjointError("no gradient: the barrier stiffness must be fixed during a differentiated run "
                                "(give contact.kappa a number, or SimulationParameters::kappa)");

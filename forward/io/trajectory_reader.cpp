@@ -184,11 +184,20 @@ StoredTrajectory read_trajectory(const std::string& path, int last_states)
             T = std::min({ T, control_steps.size(), relaxation_steps.size() });
         }
     }
+    // Periodic cells: G and the cell-average stress per step, d^2 values each.
+    std::vector<double> macro_gradient, macro_stress;
+    const size_t dd = size_t(dims[2] * dims[2]);
+    if (file.has("macro_gradient")) {
+        macro_gradient = file.read<double>("macro_gradient");
+        macro_stress = file.read<double>("macro_stress");
+        T = std::min({ T, macro_gradient.size() / dd, macro_stress.size() / dd });
+    }
     out.vertices = Index(dims[1]);
     out.dim = int(dims[2]);
 
     Trajectory& tr = out.trajectory;
     tr.initial_time = time[0];
+    tr.macro_dim = macro_gradient.empty() ? 0 : out.dim;
     read_state_rows(file, out, 0, 1, [&](hsize_t, VectorXd x, VectorXd v, VectorXd a) {
         tr.initial_positions = std::move(x);
         tr.initial_velocities = std::move(v);
@@ -216,6 +225,10 @@ StoredTrajectory read_trajectory(const std::string& path, int last_states)
             r.min_increment = min_increment[k - 1];
             r.control_steps = control_steps.empty() ? 0 : control_steps[k - 1];
             r.relaxation_steps = relaxation_steps.empty() ? 0 : relaxation_steps[k - 1];
+        }
+        if (!macro_gradient.empty()) {
+            r.macro_gradient = Eigen::Map<const VectorXd>(macro_gradient.data() + (k - 1) * dd, Index(dd));
+            r.macro_stress = Eigen::Map<const VectorXd>(macro_stress.data() + (k - 1) * dd, Index(dd));
         }
         if (r.status != StepStatus::CONVERGED)
             throw InputError(path, "step " + std::to_string(k) + " is not a converged, finite state");

@@ -227,6 +227,11 @@ TrajectoryWriter::TrajectoryWriter(const std::string& path, const Mesh& mesh, co
             m.columns.push_back({ "active_contacts", I, {}, false, integer(&StepRecord::active_contacts) });
             m.columns.push_back({ "kappa", D, {}, false, dbl(&StepRecord::kappa) });
         }
+        if (initial.macro_dim > 0) {
+            const hsize_t dm = hsize_t(initial.macro_dim);
+            m.columns.push_back({ "macro_gradient", D, { dm, dm }, false, vec(&StepRecord::macro_gradient) });
+            m.columns.push_back({ "macro_stress", D, { dm, dm }, false, vec(&StepRecord::macro_stress) });
+        }
         if (load_stepping) {
             m.columns.push_back({ "substeps", I, {}, false, integer(&StepRecord::substeps) });
             m.columns.push_back({ "cuts", I, {}, false, integer(&StepRecord::cuts) });

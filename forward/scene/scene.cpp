@@ -11,6 +11,7 @@
 #include <unistd.h>
 
 #include <cmath>
+#include <cstring>
 #include <optional>
 
 #include <filesystem>
@@ -345,6 +346,99 @@ namespace {
         return a;
     }
 
+    /// "periodic": the box, its periodic axes, the tolerance, the macro gradient's prescribed and
+    /// free components; pairs the bodies' vertices and drops the periodic faces' facets.
+    void parse_periodic(const JsonField& f, Scene& scene)
+    {
+        f.require_object({ "box", "axes", "tolerance", "gradient", "free" });
+        const int d = scene.dim;
+        PeriodicSpec& p = scene.periodic;
+        p.enabled = true;
+        const char* names = "xyz";
+        const auto rows = scene.mesh.rest_positions.topRows(scene.body_vertices);
+        if (f.has("box")) {
+            const BoxRegion r = parse_region(f["box"], d);
+            p.box.lower = r.lower;
+            p.box.upper = r.upper;
+        } else {
+            p.box.lower = rows.colwise().minCoeff().transpose();
+            p.box.upper = rows.colwise().maxCoeff().transpose();
+        }
+        const double diagonal = (p.box.upper - p.box.lower).norm();
+        p.tolerance = f.has("tolerance") ? f["tolerance"].positive() : 1e-9 * diagonal;
+        if (f.has("axes")) {
+            const JsonField axes = f["axes"];
+            axes.require_array(1);
+            p.box.periodic = { { false, false, false } };
+            for (size_t i = 0; i < axes.size(); ++i) {
+                const std::string a = axes.at(i).string();
+                const char* at = a.size() == 1 ? std::strchr(names, a[0]) : nullptr;
+                if (!at || at - names >= d)
+                    axes.at(i).fail("expected one of " + std::string(names, size_t(d)) + ", got \"" + a + "\"");
+                p.box.periodic[size_t(at - names)] = true;
+            }
+        } else {
+            p.box.periodic = { { true, true, d == 3 } };
+        }
+        // G: prescribed entries (default 0), and the free ones.
+        p.gradient.assign(size_t(d * d), Expression(0.0));
+        if (f.has("gradient")) {
+            const JsonField g = f["gradient"];
+            g.require_array();
+            if (int(g.size()) != d)
+                g.fail("expected " + std::to_string(d) + " rows of " + std::to_string(d) + " entries");
+            for (int i = 0; i < d; ++i) {
+                const auto row = parse_components(g.at(size_t(i)), d, true); // null: free
+                for (int j = 0; j < d; ++j)
+                    p.gradient[size_t(i * d + j)] = row[size_t(j)];
+            }
+        }
+        if (f.has("free")) {
+            const JsonField free = f["free"];
+            free.require_array();
+            for (size_t k = 0; k < free.size(); ++k) {
+                const std::string c = free.at(k).string();
+                const char* i = c.size() == 2 ? std::strchr(names, c[0]) : nullptr;
+                const char* j = c.size() == 2 ? std::strchr(names, c[1]) : nullptr;
+                if (!i || !j || i - names >= d || j - names >= d)
+                    free.at(k).fail("expected a component such as \"xx\" or \"yx\" (row, column of G), got \""
+                        + c + "\"");
+                const int a = int(i - names), b = int(j - names);
+                if (f.has("gradient") && !f["gradient"].at(size_t(a)).at(size_t(b)).json().is_null())
+                    free.at(k).fail("G_" + c + " is both prescribed (" + f["gradient"].path() + "[" + std::to_string(a)
+                        + "][" + std::to_string(b) + "]) and free");
+                p.gradient[size_t(a * d + b)] = std::nullopt;
+            }
+        }
+        // Free components (null in "gradient" or listed in "free"): not along a non-periodic axis,
+        // and not both of a symmetric pair.
+        const JsonField where = f.has("free") ? f["free"] : f["gradient"];
+        for (int a = 0; a < d; ++a)
+            for (int b = 0; b < d; ++b) {
+                if (p.gradient[size_t(a * d + b)])
+                    continue;
+                const std::string c = std::string("G_") + names[a] + names[b];
+                if (!p.box.periodic[size_t(b)])
+                    where.fail(c + " multiplies the non-periodic axis " + std::string(1, names[b])
+                        + ": the fluctuation carries it, so it cannot be free");
+                if (b > a && !p.gradient[size_t(b * d + a)])
+                    where.fail(c + " and G_" + names[b] + names[a]
+                        + " are both free: a rigid rotation of the cell would be free too (prescribe one)");
+            }
+        // Not built yet for periodic cells: say so, naming the field.
+        if (scene.contact.enabled)
+            f.fail("contact in a periodic cell (across its boundary) is not built yet: remove \"contact\"");
+        if (!scene.obstacles.empty())
+            f.fail("obstacles in a periodic cell are not supported");
+        if (!scene.dirichlet.empty())
+            f.fail("Dirichlet conditions in a periodic cell are not supported: prescribe the macro gradient");
+        if (scene.time.adaptive.enabled)
+            f.fail("time.adaptive in a periodic cell is not built yet");
+        p.pairing = pair_periodic_vertices(
+            scene.mesh, p.box, p.tolerance, scene.bodies.size() == 1 ? "bodies[0].mesh" : "bodies");
+        remove_periodic_facets(scene.mesh, p.box, p.tolerance);
+    }
+
     void parse_friction(const JsonField& root, Scene& scene)
     {
         FrictionSpec& fr = scene.friction;
@@ -503,7 +597,7 @@ Scene parse_scene(const nlohmann::json& document, const std::string& base_direct
     scene.source = source;
     const JsonField root(document, "");
     root.require_object({ "dimension", "bodies", "gravity", "dirichlet", "neumann", "time", "mass", "solver", "output",
-        "description", "contact", "obstacles", "friction" });
+        "description", "contact", "obstacles", "friction", "periodic" });
     if (root.has("description"))
         root["description"].string();
 
@@ -727,6 +821,8 @@ Scene parse_scene(const nlohmann::json& document, const std::string& base_direct
                 o["vtu_encoding"].fail("expected \"binary\" or \"ascii\", got \"" + encoding + "\"");
         }
     }
+    if (root.has("periodic"))
+        parse_periodic(root["periodic"], scene);
     return scene;
 }
 

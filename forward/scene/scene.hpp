@@ -7,6 +7,7 @@
 #include "forward/io/vtu_encoding.hpp"
 #include "forward/materials/material.hpp"
 #include "forward/mesh/mesh.hpp"
+#include "forward/periodic/pairing.hpp"
 #include "forward/scene/expression.hpp"
 
 #include <nlohmann/json_fwd.hpp>
@@ -146,6 +147,17 @@ struct OutputSpec {
     VtuEncoding vtu_encoding = VtuEncoding::BINARY;
 };
 
+/// A periodic cell (docs/scene_format.md, "periodic"; forward/periodic/).
+struct PeriodicSpec {
+    bool enabled = false;
+    PeriodicBox box;
+    double tolerance = 0; ///< m: a vertex this close to a face is on it
+    /// The macroscopic displacement gradient G, d x d row-major: an expression of t where the
+    /// component is prescribed, none where it is free (solved for: zero average stress).
+    std::vector<std::optional<Expression>> gradient;
+    PeriodicPairing pairing; ///< of the bodies' vertices
+};
+
 struct Scene {
     int dim = 3;
     std::vector<BodySpec> bodies;
@@ -163,6 +175,7 @@ struct Scene {
     FrictionSpec friction;
     std::vector<ObstacleSpec> obstacles;
     OutputSpec output;
+    PeriodicSpec periodic;
     std::string source; ///< file name, or "<dict>"
 };
 

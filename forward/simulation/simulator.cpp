@@ -134,6 +134,12 @@ Simulator::Simulator(Scene scene, const SimulationParameters& parameters)
         setup_friction();
     }
     m_linear = std::make_unique<LinearSolver>(m_scene.solver.linear_solver);
+    if (m_scene.periodic.enabled) {
+        // forward/periodic/periodic_cell.hpp: each step solves for the fluctuation and G.
+        m_periodic = std::make_unique<PeriodicCell>(m_scene, m_problem, m_assembler);
+        m_macro = VectorXd::Zero(d * d);
+        m_trajectory.macro_dim = d;
+    }
 
     // Dirichlet dofs: later entries override earlier ones on the same dof.
     const double tol = 1e-9 * m_bbox_diagonal;
@@ -210,6 +216,8 @@ Simulator::Simulator(Scene scene, const SimulationParameters& parameters)
     // Initial state: rest positions with Dirichlet values at t = 0; body
     // velocities, with the prescribed rate on Dirichlet dofs.
     VectorXd x0 = flatten(mesh.rest_positions);
+    if (P.initial_displacement.size() && m_periodic && !P.initial_displacement.isZero(0.0))
+        throw InputError("initial_displacement", "a periodic cell starts from its rest positions (G = 0, w = 0)");
     if (P.initial_displacement.size())
         x0 += P.initial_displacement;
     dirichlet_targets(0.0, x0);
@@ -504,6 +512,8 @@ void Simulator::set_initial_state(const VectorXd& positions, const VectorXd& vel
         throw InputError("initial_state", "expected " + std::to_string(n) + " positions and velocities (#V*dim)");
     if (!positions.allFinite() || !velocities.allFinite())
         throw InputError("initial_state", "non-finite value");
+    if (m_periodic && positions != m_integrator->positions())
+        throw InputError("initial_state", "a periodic cell starts from its rest positions (G = 0, w = 0)");
     VectorXd x = positions, v = velocities;
     for (Index i = 0; i < n; ++i)
         if (m_constrained[size_t(i)]) {
@@ -627,10 +637,14 @@ StepStatus Simulator::step()
         plan = &m_overrides.substeps[size_t(index - 1)];
     std::string substep_note;
     NewtonResult result;
-    if (plan)
+    if (plan) {
         result = solve_dynamic_substeps(index, newton, plan, kappa_before, x, record, substep_note);
-    else
+    } else if (m_periodic) {
+        record.macro_gradient = m_macro;
+        result = m_periodic->solve(x, record.macro_gradient, t_next, settings, w * m_force_scale, step_scale);
+    } else {
         result = newton.solve(x, target, m_constrained, w * m_force_scale, step_scale);
+    }
     const bool adaptive = m_scene.time.adaptive.enabled;
     // Lagging: refresh normal forces, tangents and weights at the converged state and solve
     // again, up to `iterations` solves; the residual of the re-lagged problem at the converged
@@ -708,6 +722,10 @@ StepStatus Simulator::step()
         if (record.substep_times.empty())
             m_integrator->update(x, record.velocities, record.accelerations);
         record.min_volume_ratio = m_space->min_volume_ratio(x);
+        if (m_periodic) {
+            m_macro = record.macro_gradient;
+            record.macro_stress = m_periodic->average_stress(*m_elastic, x);
+        }
         if (m_contact) {
             record.contacts = m_contact->contacts(x);
             record.active_contacts = int(record.contacts.size());
@@ -797,6 +815,12 @@ void Simulator::resume(const Trajectory& stored, bool stored_contact)
     m_integrator->restore(k, last.positions, last.velocities, last.accelerations, x_prev, v_prev);
     if (m_contact)
         m_contact->set_kappa(last.kappa);
+    if (m_periodic) {
+        if (last.macro_gradient.size() != m_scene.dim * m_scene.dim)
+            throw InputError("restart", "the stored trajectory has no macro_gradient (the periodic cell's G at step "
+                    + std::to_string(k) + "): it was not written by this periodic scene");
+        m_macro = last.macro_gradient;
+    }
     m_trajectory.steps.clear();
     m_trajectory.first_index = k + 1;
     m_trajectory.totals = stored.totals;
@@ -849,6 +873,8 @@ void Simulator::restore_state(int k)
         const VectorXd& v_prev = j == 0 ? tr.initial_velocities : tr.step(j).velocities;
         m_integrator->restore(k, r.positions, r.velocities, r.accelerations, x_prev, v_prev);
     }
+    if (m_periodic)
+        m_macro = k == 0 ? VectorXd::Zero(m_scene.dim * m_scene.dim) : tr.step(k).macro_gradient;
     // step_problem() and adaptive steps change kappa; step k + 1 started from the value step k ended with.
     if (m_contact)
         m_contact->set_kappa(k == 0 ? m_kappa_initial : tr.step(k).kappa);

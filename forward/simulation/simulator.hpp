@@ -5,6 +5,7 @@
 
 #include "forward/contact/contact_potential.hpp"
 #include "forward/fem/fe_space.hpp"
+#include "forward/periodic/periodic_cell.hpp"
 #include "forward/potentials/elastic_potential.hpp"
 #include "forward/potentials/inertia_potential.hpp"
 #include "forward/scene/scene.hpp"
@@ -130,6 +131,8 @@ public:
     /// non-null outputs: gravity through the lumped masses, tractions through facet areas.
     void external_force_derivatives(
         double t, const VectorXd& direction, VectorXd* d_rest_positions, VectorXd* d_density) const;
+    /// The periodic cell's solver and map (scene "periodic"), or null.
+    const PeriodicCell* periodic() const { return m_periodic.get(); }
     /// False for a static (quasi-static) scene.
     bool dynamic() const { return m_integrator->dynamic(); }
     /// Number of contact groups (bodies, then obstacles).
@@ -279,6 +282,8 @@ private:
 
     Trajectory m_trajectory;
     StepRecord m_last_attempt;
+    std::unique_ptr<PeriodicCell> m_periodic;
+    VectorXd m_macro; ///< the periodic cell's G at the integrator's committed step
     /// m_friction holds the start positions of committed step steps_done() (friction_forces())
     bool m_friction_at_last_step = false;
 };

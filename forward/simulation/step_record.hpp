@@ -55,6 +55,10 @@ struct StepRecord {
     /// the record's own): the adjoint sweeps back through them.
     std::vector<SubState> path;
 
+    // Periodic cells (scene "periodic"): d^2 values each, row-major; kept by release_state().
+    VectorXd macro_gradient; ///< the macroscopic displacement gradient G at the step's end
+    VectorXd macro_stress; ///< the cell-average first Piola stress of the elastic potential (Pa)
+
     // Contact (when the scene enables it).
     /// Minimum distance (m) over primitive pairs within 1e-2 of the bbox diagonal
     /// of each other and vertex-plane pairs; +inf if none is that close.
@@ -155,6 +159,8 @@ struct Trajectory {
     PhaseTimes phases;
     double wall_time = 0;
     int newton_iterations = 0;
+    /// d for a periodic cell (its records hold macro_gradient and macro_stress), 0 otherwise.
+    int macro_dim = 0;
 };
 
 } // namespace diffipc

@@ -45,20 +45,23 @@ TEST(PeriodicMap, PositionsFollowTheDefinitionAndTile)
         SCOPED_TRACE(d);
         const Mesh m = cell(d);
         const PeriodicPairing p = pairing_of(m);
-        const PeriodicMap map(m, p);
+        // An origin and a length: x = X + G (X - X_o) + w, q's macro entries L G.
+        const VectorXd origin = 0.3 * random(d, 21);
+        const double L = 0.7;
+        const PeriodicMap map(m, p, origin, L);
         ASSERT_EQ(map.num_reduced(), p.num_classes() * d + d * d);
         const VectorXd q = 0.1 * random(map.num_reduced(), 3 + unsigned(d));
         const VectorXd x = map.positions(q);
         MatrixXd G(d, d);
         for (int i = 0; i < d; ++i)
             for (int j = 0; j < d; ++j)
-                G(i, j) = q[map.macro_dof(i, j)];
+                G(i, j) = q[map.macro_dof(i, j)] / L;
         for (Index v = 0; v < m.num_vertices(); ++v) {
             const VectorXd X = m.rest_positions.row(v).transpose();
             VectorXd w(d);
             for (int i = 0; i < d; ++i)
                 w[i] = q[map.fluctuation_dof(p.vertex_class[v], i)];
-            const VectorXd expected = X + G * X + w;
+            const VectorXd expected = X + G * (X - origin) + w;
             EXPECT_LE((x.segment(v * d, d) - expected).lpNorm<Eigen::Infinity>(), 1e-14) << "vertex " << v;
             // Tiling: a vertex and its class representative differ by (I + G) times their rest offset.
             const Index r = p.representative[p.vertex_class[v]];
@@ -66,6 +69,8 @@ TEST(PeriodicMap, PositionsFollowTheDefinitionAndTile)
             const VectorXd deformed = x.segment(v * d, d) - x.segment(r * d, d);
             EXPECT_LE((deformed - (MatrixXd::Identity(d, d) + G) * rest).lpNorm<Eigen::Infinity>(), 1e-14);
         }
+        // Positions and G give q back.
+        EXPECT_LE((map.reduced(x, map.macro_gradient(q)) - q).lpNorm<Eigen::Infinity>(), 1e-14);
     }
 }
 
@@ -78,6 +83,14 @@ TEST(PeriodicMap, ReductionsAreTheTransposedProducts)
         const Index n = m.num_dofs(), k = map.num_reduced();
         const VectorXd g = random(n, 11), q = random(k, 12);
         EXPECT_NEAR(map.reduce(g).dot(q), g.dot(map.expand(q)), 1e-12 * g.norm() * q.norm());
+        // dE/dG of a gradient: sum_v g_v X_v^T (origin 0).
+        MatrixXd expected_dG = MatrixXd::Zero(d, d);
+        for (Index v = 0; v < m.num_vertices(); ++v)
+            expected_dG += g.segment(v * d, d) * m.rest_positions.row(v);
+        const VectorXd dG = map.macro_derivative(g);
+        for (int i = 0; i < d; ++i)
+            for (int j = 0; j < d; ++j)
+                EXPECT_NEAR(dG[i * d + j], expected_dG(i, j), 1e-12 * expected_dG.norm());
         // A symmetric sparse matrix given by its lower triangle, against the dense product.
         MatrixXd A = MatrixXd::Zero(n, n);
         const VectorXd r = random(n * 3, 13);

@@ -1,0 +1,54 @@
+#pragma once
+/// @file periodic_cell.hpp
+/// A periodic scene's step solve (docs/scene_format.md, "periodic"; docs/math.md, "Periodic
+/// cells"): the step's full-space problem in the cell's reduced unknowns q = [w, G], the
+/// prescribed components of G at the step's time and the pinned class as q's constrained
+/// entries, solved by the Newton solver; and the cell-average stress of a potential.
+
+#include "forward/periodic/periodic_map.hpp"
+#include "forward/periodic/periodic_potential.hpp"
+#include "forward/scene/scene.hpp"
+#include "forward/solver/linear_solver.hpp"
+#include "forward/solver/newton.hpp"
+
+#include <memory>
+#include <vector>
+
+namespace diffipc {
+
+class PeriodicCell {
+public:
+    /// @param full the step's full-space problem (weights, targets set by the simulator per step)
+    /// @param full_assembler an assembler of the full mesh (scratch for the reduced Hessian)
+    PeriodicCell(const Scene& scene, const Problem& full, SparseAssembler& full_assembler);
+
+    const PeriodicMap& map() const { return m_map; }
+    /// The class whose fluctuation is fixed at zero (rigid translation removed): the class of the
+    /// vertex nearest the box's lower corner.
+    Index pinned_class() const { return m_pinned; }
+    /// Whether G's component (i, j) is prescribed.
+    bool prescribed(int i, int j) const { return m_scene.periodic.gradient[size_t(i * m_scene.dim + j)].has_value(); }
+
+    /// @brief Solves the step ending at time t from the committed positions x and macro gradient
+    /// G (d^2 values, row-major): G's prescribed components move to their values at t, the free
+    /// ones and the fluctuation are solved for. On success x and G are the step's state.
+    NewtonResult solve(VectorXd& x, VectorXd& G, double t, const NewtonSettings& settings, double force_scale,
+        double step_scale);
+
+    /// The cell-average first Piola stress of `potential` (weight 1) at x, d^2 values row-major:
+    /// (1/|Y|) d potential / dG, |Y| the box's volume.
+    VectorXd average_stress(const Potential& potential, const VectorXd& x) const;
+
+private:
+    const Scene& m_scene;
+    PeriodicMap m_map;
+    PeriodicPotential m_potential;
+    Problem m_reduced;
+    SparseAssembler m_assembler;
+    LinearSolver m_linear;
+    std::vector<char> m_constrained;
+    Index m_pinned = 0;
+    double m_volume = 1;
+};
+
+} // namespace diffipc
