@@ -2,9 +2,11 @@
 
 #include "cli/simulate.hpp"
 #include "forward/common/error.hpp"
+#include "forward/contact/collision_mesh.hpp"
 #include "forward/contact/contact_potential.hpp"
 #include "forward/contact/intersection.hpp"
 #include "forward/io/trajectory_reader.hpp"
+#include "forward/periodic/tiling.hpp"
 #include "forward/scene/scene.hpp"
 
 #include <algorithm>
@@ -42,7 +44,17 @@ int check_run(const std::string& run_dir, std::string scene_path, bool quiet)
         const Positions X = unflatten(x, mesh.dim);
         const Index inverted = count_inverted_elements(mesh, X);
         std::string crossing, inside;
-        if (sim->contact()) {
+        if (sim->periodic()) {
+            // The cell and its neighbours (3 x 3 (x 3) welded copies): crossings across the
+            // cell's boundary show only there.
+            const int dd = mesh.dim * mesh.dim;
+            const VectorXd G = k == 0 ? VectorXd::Zero(dd) : tr.step(k).macro_gradient;
+            if (G.size() != dd)
+                throw InputError(path, "state " + std::to_string(k) + " has no macro_gradient (a periodic cell's G)");
+            const Tiling tiling = tile_cell(mesh, sim->scene().periodic.box, sim->scene().periodic.pairing, x, G);
+            const std::vector<char> self(size_t(tiling.mesh.vertex_body.maxCoeff() + 1), 1), fixed(self.size(), 0);
+            crossing = find_intersection(build_collision_mesh(tiling.mesh, self, fixed), tiling.positions, true);
+        } else if (sim->contact()) {
             crossing = find_intersection(sim->contact()->collision_mesh(), X, /*all_pairs=*/true);
             if (crossing.empty())
                 inside = find_containment(sim->contact()->collision_mesh(), X);
@@ -57,7 +69,10 @@ int check_run(const std::string& run_dir, std::string scene_path, bool quiet)
             stored.trajectory.step(k).release_state();
     }
     std::printf("diffipc check: %s: %d of %d states valid (exact inversion%s tests)\n", path.c_str(),
-        tr.committed() + 1 - invalid, tr.committed() + 1, sim->contact() ? ", intersection and containment" : "");
+        tr.committed() + 1 - invalid, tr.committed() + 1,
+        sim->periodic()      ? " and intersection (on the cell's tiling)"
+            : sim->contact() ? ", intersection and containment"
+                             : "");
     return invalid ? 2 : 0;
 }
 

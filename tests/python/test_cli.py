@@ -477,3 +477,14 @@ def test_a_periodic_cell_writes_its_macro_datasets_and_restarts_bit_for_bit(cli,
         assert abs(a["macro_stress"][-1, 1, 1]) < 1e-6 * abs(a["macro_stress"][-1, 0, 0])
         for name in ("positions", "macro_gradient", "macro_stress"):
             assert np.array_equal(a[name][:], b[name][:]), name
+    # `diffipc check` checks each state on the cell's 3 x 3 tiling; an inverted element is named.
+    r = run(cli, "check", "whole", "-q", cwd=tmp_path)
+    assert r.returncode == 0, r.stdout + r.stderr
+    assert "11 of 11 states valid (exact inversion and intersection (on the cell's tiling) tests)" in r.stdout
+    with h5py.File(tmp_path / "whole" / "trajectory.h5", "r+") as f:
+        x = f["positions"][:]
+        a, b, _ = f["mesh/elements"][0]
+        x[4, a], x[4, b] = x[4, b].copy(), x[4, a].copy()
+        f["positions"][...] = x
+    r = run(cli, "check", "whole", "-q", cwd=tmp_path)
+    assert r.returncode == 2 and r.stdout.startswith("state 4 "), r.stdout + r.stderr
