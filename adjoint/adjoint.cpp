@@ -33,8 +33,6 @@ namespace {
         if (sim.steps_done() != sim.scene().time.steps)
             throw AdjointError("no gradient: the forward run committed " + std::to_string(sim.steps_done()) + " of "
                 + std::to_string(sim.scene().time.steps) + " steps");
-        if (sim.periodic())
-            throw AdjointError("no gradient: the adjoint of periodic cells is not built yet (issue 14)");
         if (sim.contact() && sim.scene().contact.adaptive_kappa)
             throw AdjointError("no gradient: the barrier stiffness must be fixed during a differentiated run "
                                "(give contact.kappa a number, or SimulationParameters::kappa)");
@@ -55,6 +53,11 @@ namespace {
     void check_sweep(const Simulator& sim, const ParameterRequest& request)
     {
         check_run(sim);
+        // Periodic cells (docs/math.md, "Periodic cells"): the adjoint sweeps the cell's reduced
+        // unknowns; the derivatives through the map itself (shape) and its prescriptions are not built.
+        if (sim.periodic() && (request.rest_positions || request.prescribed || request.initial_displacement))
+            throw AdjointError("no gradient: shape, prescribed-value and initial-displacement gradients of periodic "
+                               "cells are not built yet (material, density and initial velocity are)");
         if (request.friction && sim.contact() && !sim.friction())
             throw AdjointError("no gradient: every friction coefficient is 0, where a pair's coefficient "
                                "sqrt(mu_a mu_b) is not differentiable");
@@ -101,6 +104,7 @@ struct AdjointStepSystem {
     std::vector<Coupling> couplings;
     int step = -1; ///< the step whose system is factorized (-1: none)
     int substep = 0; ///< and its sub-step (0: the step's own problem)
+    SparseMatrixd reduced; ///< a periodic cell's P^T H P (lower triangle, constraints applied)
 
     explicit AdjointStepSystem(const Simulator& sim)
         : linear(sim.scene().solver.linear_solver)
@@ -211,6 +215,25 @@ void AdjointSweep::Impl::factorize(int k, int j, const VectorXd& x)
     Timer ta;
     const Problem& problem = j == 0 ? sim.step_problem(k) : sim.substep_problem(k, j);
     problem.hessian(x, false, a.assembler);
+    if (const PeriodicCell* cell = sim.periodic()) {
+        // The system in the cell's unknowns: P^T H P, its constrained entries replaced by identity rows.
+        a.reduced = cell->map().reduce_matrix(a.assembler.matrix());
+        const std::vector<char>& fixed = cell->constrained();
+        for (Index col = 0; col < a.reduced.outerSize(); ++col)
+            for (SparseMatrixd::InnerIterator it(a.reduced, col); it; ++it)
+                if (fixed[size_t(it.row())] || fixed[size_t(col)])
+                    it.valueRef() = it.row() == col ? 1.0 : 0.0;
+        a.couplings.clear();
+        ta.add_to(st.assembly_time);
+        Timer tf;
+        if (!a.linear.factorize(a.reduced, true))
+            throw AdjointError("no gradient: the adjoint system of step " + std::to_string(k)
+                + " is singular (true Hessian of the periodic cell at the converged state)");
+        tf.add_to(st.factorization_time);
+        a.step = k;
+        a.substep = j;
+        return;
+    }
     // The couplings of prescribed dofs (lower triangle), before the constraints replace them.
     const SparseMatrixd& A = a.assembler.matrix();
     a.couplings = parallel_collect<Coupling>(size_t(A.cols()), 256, [&](size_t col, std::vector<Coupling>& out) {
@@ -374,7 +397,17 @@ void AdjointSweep::Impl::sweep_state(int k, int j, const VectorXd& x, double tim
     if (!rhs.isZero(0.0)) {
         factorize(k, j, x);
         Timer ts;
-        VectorXd lambda = system->linear.solve(rhs);
+        VectorXd lambda;
+        if (const PeriodicCell* cell = sim.periodic()) {
+            // dJ/dq = P^T dJ/dx on q's free entries; the full-space adjoint is P lambda_q.
+            VectorXd rq = cell->map().reduce(rhs);
+            for (Index i = 0; i < rq.size(); ++i)
+                if (cell->constrained()[size_t(i)])
+                    rq[i] = 0;
+            lambda = cell->map().expand(system->linear.solve(rq));
+        } else {
+            lambda = system->linear.solve(rhs);
+        }
         ts.add_to(st.solve_time);
         if (!lambda.allFinite())
             throw AdjointError("no gradient: non-finite adjoint at step " + std::to_string(k));

@@ -26,6 +26,8 @@ public:
     /// The class whose fluctuation is fixed at zero (rigid translation removed): the class of the
     /// vertex nearest the box's lower corner.
     Index pinned_class() const { return m_pinned; }
+    /// The constrained entries of q: the pinned class's fluctuation and G's prescribed components.
+    const std::vector<char>& constrained() const { return m_constrained; }
     /// Whether G's component (i, j) is prescribed.
     bool prescribed(int i, int j) const { return m_scene.periodic.gradient[size_t(i * m_scene.dim + j)].has_value(); }
 
