@@ -57,7 +57,9 @@ namespace {
         // unknowns; the derivatives through the map itself (shape) and its prescriptions are not built.
         if (sim.periodic() && (request.rest_positions || request.prescribed || request.initial_displacement))
             throw AdjointError("no gradient: shape, prescribed-value and initial-displacement gradients of periodic "
-                               "cells are not built yet (material, density and initial velocity are)");
+                               "cells are not built yet (material, density, initial velocity and macro gradient are)");
+        if (request.macro && !sim.periodic())
+            throw AdjointError("no gradient: only a periodic cell has a macro gradient");
         if (request.friction && sim.contact() && !sim.friction())
             throw AdjointError("no gradient: every friction coefficient is 0, where a pair's coefficient "
                                "sqrt(mu_a mu_b) is not differentiable");
@@ -84,6 +86,8 @@ namespace {
             g.initial_velocity = VectorXd::Zero(n);
         if (request.prescribed)
             g.prescribed = MatrixXd::Zero(sim.scene().time.steps, Index(sim.prescribed_dofs().size()));
+        if (request.macro)
+            g.macro = MatrixXd::Zero(sim.scene().time.steps, sim.mesh().dim * sim.mesh().dim);
         return g;
     }
 
@@ -219,11 +223,14 @@ void AdjointSweep::Impl::factorize(int k, int j, const VectorXd& x)
         // The system in the cell's unknowns: P^T H P, its constrained entries replaced by identity rows.
         a.reduced = cell->map().reduce_matrix(a.assembler.matrix());
         const std::vector<char>& fixed = cell->constrained();
+        // The couplings of q's constrained entries (in q's indices), before the identity rows replace them.
+        a.couplings.clear();
         for (Index col = 0; col < a.reduced.outerSize(); ++col)
             for (SparseMatrixd::InnerIterator it(a.reduced, col); it; ++it)
-                if (fixed[size_t(it.row())] || fixed[size_t(col)])
+                if (fixed[size_t(it.row())] || fixed[size_t(col)]) {
+                    a.couplings.push_back({ it.row(), col, it.value() });
                     it.valueRef() = it.row() == col ? 1.0 : 0.0;
-        a.couplings.clear();
+                }
         ta.add_to(st.assembly_time);
         Timer tf;
         if (!a.linear.factorize(a.reduced, true))
@@ -400,11 +407,27 @@ void AdjointSweep::Impl::sweep_state(int k, int j, const VectorXd& x, double tim
         VectorXd lambda;
         if (const PeriodicCell* cell = sim.periodic()) {
             // dJ/dq = P^T dJ/dx on q's free entries; the full-space adjoint is P lambda_q.
-            VectorXd rq = cell->map().reduce(rhs);
+            const std::vector<char>& fixed = cell->constrained();
+            VectorXd xq = cell->map().reduce(rhs), rq = xq;
             for (Index i = 0; i < rq.size(); ++i)
-                if (cell->constrained()[size_t(i)])
+                if (fixed[size_t(i)])
                     rq[i] = 0;
-            lambda = cell->map().expand(system->linear.solve(rq));
+            const VectorXd lq = system->linear.solve(rq);
+            lambda = cell->map().expand(lq);
+            if (grad.macro.size()) {
+                // G's prescribed components are q's constrained entries L G_ij: dJ/dq_c less the
+                // coupling (P^T H P lambda_q)_c, times L.
+                for (const Coupling& c : system->couplings) {
+                    if (fixed[size_t(c.row)])
+                        xq[c.row] -= c.value * lq[c.col];
+                    if (c.row != c.col && fixed[size_t(c.col)])
+                        xq[c.col] -= c.value * lq[c.row];
+                }
+                for (int i = 0; i < d; ++i)
+                    for (int jj = 0; jj < d; ++jj)
+                        if (cell->prescribed(i, jj))
+                            grad.macro(k - 1, i * d + jj) += cell->map().length() * xq[cell->map().macro_dof(i, jj)];
+            }
         } else {
             lambda = system->linear.solve(rhs);
         }
@@ -417,13 +440,15 @@ void AdjointSweep::Impl::sweep_state(int k, int j, const VectorXd& x, double tim
         ++st.steps;
         Timer tp;
         // Prescribed entries of x enter every free row through H: (H lambda)_i for prescribed i
-        // (lambda vanishes on prescribed dofs, so only their couplings to free dofs count).
-        for (const Coupling& c : system->couplings) {
-            if (constrained[size_t(c.row)])
-                xb[c.row] -= c.value * lambda[c.col];
-            if (c.row != c.col && constrained[size_t(c.col)])
-                xb[c.col] -= c.value * lambda[c.row];
-        }
+        // (lambda vanishes on prescribed dofs, so only their couplings to free dofs count). A
+        // periodic cell's couplings are those of q's entries, used above.
+        if (!sim.periodic())
+            for (const Coupling& c : system->couplings) {
+                if (constrained[size_t(c.row)])
+                    xb[c.row] -= c.value * lambda[c.col];
+                if (c.row != c.col && constrained[size_t(c.col)])
+                    xb[c.col] -= c.value * lambda[c.row];
+            }
         // History: g contains -M x~.
         if (s.inertia) {
             const VectorXd Ml = sim.inertia().apply_mass(lambda);

@@ -30,6 +30,7 @@ void ParameterGradient::add(const ParameterGradient& other, double scale)
     accumulate(initial_displacement, other.initial_displacement, scale);
     accumulate(initial_velocity, other.initial_velocity, scale);
     accumulate(prescribed, other.prescribed, scale);
+    accumulate(macro, other.macro, scale);
 }
 
 void lame_to_young_poisson(const VectorXd& E, const VectorXd& nu, const VectorXd& dmu, const VectorXd& dlambda,

@@ -27,10 +27,12 @@ struct ParameterRequest {
     bool initial_displacement = false;
     bool initial_velocity = false;
     bool prescribed = false;
+    bool macro = false; ///< a periodic cell's prescribed macro gradient per step
 
     bool any() const
     {
-        return rest_positions || lame || density || friction || initial_displacement || initial_velocity || prescribed;
+        return rest_positions || lame || density || friction || initial_displacement || initial_velocity || prescribed
+            || macro;
     }
 };
 
@@ -44,6 +46,8 @@ struct ParameterGradient {
     VectorXd initial_displacement; ///< #V*dim
     VectorXd initial_velocity; ///< #V*dim
     MatrixXd prescribed; ///< T by #prescribed dofs
+    /// Periodic cells: T by d^2, dJ/dG at each step (zero in G's free components).
+    MatrixXd macro;
 
     /// this += scale * other, growing empty blocks as needed.
     void add(const ParameterGradient& other, double scale = 1.0);

@@ -9,6 +9,7 @@
 #include "objectives/kinetic_energy.hpp"
 #include "objectives/marker_file.hpp"
 #include "objectives/markers.hpp"
+#include "objectives/macro_stress.hpp"
 #include "objectives/reaction_force.hpp"
 #include "objectives/stress_norm.hpp"
 #include "objectives/time_aggregation.hpp"
@@ -293,6 +294,22 @@ namespace {
         return first + index;
     }
 
+    /// {"type": "macro_stress", "component": "xx", "time": ...}: a periodic cell's average stress.
+    std::unique_ptr<Objective> parse_macro_stress(const JsonField& j, const Simulator& sim)
+    {
+        j.require_object({ "type", "component", "time", "include_initial" });
+        if (!sim.periodic())
+            j["type"].fail("macro_stress needs a periodic cell (the scene's \"periodic\")");
+        const int d = sim.mesh().dim;
+        const std::string c = j["component"].string();
+        const std::string axes = std::string("xyz").substr(0, size_t(d));
+        const size_t a = c.size() == 2 ? axes.find(c[0]) : std::string::npos;
+        const size_t b = c.size() == 2 ? axes.find(c[1]) : std::string::npos;
+        if (a == std::string::npos || b == std::string::npos)
+            j["component"].fail("expected two of " + axes + " (row, column of the stress), got \"" + c + "\"");
+        return aggregate(std::make_unique<MacroStress>(int(a), int(b), d), j);
+    }
+
     std::unique_ptr<Objective> parse_reaction_force(const JsonField& j, const Simulator& sim)
     {
         j.require_object({ "type", "dirichlet", "obstacle", "axis", "targets", "steps", "weight", "sigma", "time",
@@ -412,6 +429,8 @@ namespace {
             return parse_center_of_mass(j, sim);
         if (type == "reaction_force")
             return parse_reaction_force(j, sim);
+        if (type == "macro_stress")
+            return parse_macro_stress(j, sim);
         if (type == "boundary_smoothness") {
             j.require_object({ "type", "body" });
             return std::make_unique<BoundarySmoothness>(sim.scene(), parse_body(j, sim));
@@ -424,7 +443,7 @@ namespace {
             return parse_constraint(j, sim);
         type_field.fail("unknown objective type \"" + type
             + "\" (expected stress_norm, elastic_energy, compliance, volume, kinetic_energy, markers, "
-              "center_of_mass, reaction_force, boundary_smoothness, sum, power or constraint)");
+              "center_of_mass, reaction_force, macro_stress, boundary_smoothness, sum, power or constraint)");
     }
 } // namespace
 

@@ -38,18 +38,28 @@ PeriodicCell::PeriodicCell(const Scene& scene, const Problem& full, SparseAssemb
         m_volume *= p.box.length(a);
 }
 
-NewtonResult PeriodicCell::solve(
-    VectorXd& x, VectorXd& G, double t, const NewtonSettings& settings, double force_scale, double step_scale)
+VectorXd PeriodicCell::prescribed_values(double t, const MatrixXd* given, int k) const
+{
+    const int d = m_scene.dim;
+    VectorXd values = VectorXd::Zero(d * d);
+    for (int c = 0; c < d * d; ++c)
+        if (m_scene.periodic.gradient[size_t(c)])
+            values[c] = given ? (*given)(k - 1, c) : (*m_scene.periodic.gradient[size_t(c)])(t, 0, 0, 0);
+    return values;
+}
+
+NewtonResult PeriodicCell::solve(VectorXd& x, VectorXd& G, double t, const NewtonSettings& settings,
+    double force_scale, double step_scale, const VectorXd* given)
 {
     const int d = m_scene.dim;
     VectorXd q = m_map.reduced(x, G);
     VectorXd target = q;
+    const VectorXd values = given ? *given : prescribed_values(t);
     for (int i = 0; i < d; ++i) {
         target[m_map.fluctuation_dof(m_pinned, i)] = 0;
         for (int j = 0; j < d; ++j)
             if (prescribed(i, j))
-                target[m_map.macro_dof(i, j)]
-                    = m_map.length() * (*m_scene.periodic.gradient[size_t(i * d + j)])(t, 0, 0, 0);
+                target[m_map.macro_dof(i, j)] = m_map.length() * values[i * d + j];
     }
     if (!target.allFinite())
         throw InputError("periodic.gradient", "not finite at t = " + format_number(t) + " s");

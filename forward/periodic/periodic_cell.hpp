@@ -34,9 +34,16 @@ public:
     /// @brief Solves the step ending at time t from the committed positions x and macro gradient
     /// G (d^2 values, row-major): G's prescribed components move to their values at t, the free
     /// ones and the fluctuation are solved for. On success x and G are the step's state.
+    /// `given`: G's values at t (d^2, SimulationParameters::macro_gradient) for its prescribed
+    /// components instead of the expressions.
     NewtonResult solve(VectorXd& x, VectorXd& G, double t, const NewtonSettings& settings, double force_scale,
-        double step_scale);
+        double step_scale, const VectorXd* given = nullptr);
+    /// G's prescribed components at time t (d^2 values, 0 in the free ones): row k - 1 of
+    /// `given` if not null, else the scene's expressions.
+    VectorXd prescribed_values(double t, const MatrixXd* given = nullptr, int k = 0) const;
 
+    /// |Y|: the box's volume (area in 2D).
+    double volume() const { return m_volume; }
     /// The cell-average first Piola stress of `potential` (weight 1) at x, d^2 values row-major:
     /// (1/|Y|) d potential / dG, |Y| the box's volume.
     VectorXd average_stress(const Potential& potential, const VectorXd& x) const;

@@ -42,6 +42,9 @@ struct SimulationParameters {
     /// that a run built from them repeats its path: the sub-stepped run that the adjoint
     /// differentiates, held fixed when the other parameters are perturbed.
     std::vector<std::vector<double>> substeps;
+    /// Periodic cells: T by d^2, the macro gradient G's values at t_1..t_T (row-major per row);
+    /// replaces the scene's expressions for G's prescribed components (free ones are ignored).
+    MatrixXd macro_gradient;
 };
 
 } // namespace diffipc

@@ -237,6 +237,14 @@ Simulator::Simulator(Scene scene, const SimulationParameters& parameters)
                 + " values (steps by prescribed dofs)");
     if (const std::string bad = check_substep_plan(P.substeps); !bad.empty())
         throw InputError("substeps", bad);
+    if (P.macro_gradient.size()
+        && (!m_periodic || P.macro_gradient.rows() != m_scene.time.steps || P.macro_gradient.cols() != d * d))
+        throw InputError("macro_gradient",
+            m_periodic ? "expected " + std::to_string(m_scene.time.steps) + " by " + std::to_string(d * d)
+                    + " values (steps by G's components, row-major)"
+                       : std::string("only a periodic cell has a macro gradient"));
+    if (m_periodic && !P.substeps.empty())
+        throw InputError("substeps", "a periodic cell's steps cannot be given sub-steps (not built yet)");
     {
         const double dt = m_scene.time.dt * 1e-3;
         VectorXd x1 = x0;
@@ -641,7 +649,11 @@ StepStatus Simulator::step()
         result = solve_dynamic_substeps(index, newton, plan, kappa_before, x, record, substep_note);
     } else if (m_periodic) {
         record.macro_gradient = m_macro;
-        result = m_periodic->solve(x, record.macro_gradient, t_next, settings, w * m_force_scale, step_scale);
+        VectorXd given;
+        if (m_overrides.macro_gradient.rows() >= index)
+            given = m_overrides.macro_gradient.row(index - 1).transpose();
+        result = m_periodic->solve(
+            x, record.macro_gradient, t_next, settings, w * m_force_scale, step_scale, given.size() ? &given : nullptr);
     } else {
         result = newton.solve(x, target, m_constrained, w * m_force_scale, step_scale);
     }
@@ -952,6 +964,13 @@ SimulationParameters Simulator::parameters() const
         }
     if (p.substeps.empty() && !m_overrides.substeps.empty())
         p.substeps = m_overrides.substeps;
+    if (m_periodic) {
+        // G's prescribed values at t_1..t_T (the free components: 0, ignored).
+        p.macro_gradient = MatrixXd::Zero(T, d * d);
+        for (int k = 1; k <= T; ++k)
+            p.macro_gradient.row(k - 1) = m_periodic->prescribed_values(k * m_scene.time.dt,
+                m_overrides.macro_gradient.rows() >= k ? &m_overrides.macro_gradient : nullptr, k).transpose();
+    }
     return p;
 }
 

@@ -128,6 +128,7 @@ inline void check_adjoint(const nlohmann::json& scene_json, const std::vector<Bl
         request.initial_velocity |= b == Block::INITIAL_VELOCITY;
         request.prescribed |= b == Block::PRESCRIBED;
         request.friction |= b == Block::FRICTION;
+        request.macro |= b == Block::MACRO;
     }
     const ParameterGradient grad = adjoint_gradient(sim, objective.seed(sim), request);
     const double J0 = objective.value(sim);
@@ -165,6 +166,15 @@ inline void check_adjoint(const nlohmann::json& scene_json, const std::vector<Bl
             break;
         case Block::FRICTION:
             dir = random_vector(base.friction.size(), ++seed).cwiseProduct(base.friction);
+            break;
+        case Block::MACRO:
+            ASSERT_GT(base.macro_gradient.size(), 0) << "the scene is not a periodic cell";
+            {
+                // Relative to the largest prescribed value (G is dimensionless).
+                const VectorXd r = random_vector(base.macro_gradient.size(), ++seed)
+                    * std::max(1e-3, base.macro_gradient.cwiseAbs().maxCoeff());
+                dir_matrix = Eigen::Map<const MatrixXd>(r.data(), base.macro_gradient.rows(), base.macro_gradient.cols());
+            }
             break;
         case Block::PRESCRIBED:
             ASSERT_GT(base.prescribed.size(), 0) << "the scene has no prescribed dofs";

@@ -12,7 +12,7 @@
 
 namespace diffipc::test {
 
-enum class Block { REST_POSITIONS, MU, LAMBDA, DENSITY, INITIAL_DISPLACEMENT, INITIAL_VELOCITY, PRESCRIBED, FRICTION };
+enum class Block { REST_POSITIONS, MU, LAMBDA, DENSITY, INITIAL_DISPLACEMENT, INITIAL_VELOCITY, PRESCRIBED, FRICTION, MACRO };
 
 inline const char* block_name(Block b)
 {
@@ -33,12 +33,14 @@ inline const char* block_name(Block b)
         return "prescribed";
     case Block::FRICTION:
         return "friction";
+    case Block::MACRO:
+        return "macro";
     }
     return "?";
 }
 
 /// The vector a block lives in, of parameters or of a gradient (both are laid out alike);
-/// PRESCRIBED is a matrix and has none (nullptr).
+/// PRESCRIBED and MACRO are matrices and have none (nullptr).
 template <typename Blocks> auto block_vector(Blocks& p, Block b) -> decltype(&p.mu)
 {
     switch (b) {
@@ -57,16 +59,19 @@ template <typename Blocks> auto block_vector(Blocks& p, Block b) -> decltype(&p.
     case Block::FRICTION:
         return &p.friction;
     case Block::PRESCRIBED:
+    case Block::MACRO:
         break;
     }
     return nullptr;
 }
 
-/// dJ/dp . direction for one block (dir_matrix for PRESCRIBED); 0 for an empty gradient block.
+/// dJ/dp . direction for one block (dir_matrix for PRESCRIBED and MACRO); 0 for an empty gradient block.
 inline double block_dot(const ParameterGradient& g, Block b, const VectorXd& dir, const MatrixXd& dir_matrix)
 {
     if (b == Block::PRESCRIBED)
         return g.prescribed.size() ? (g.prescribed.array() * dir_matrix.array()).sum() : 0.0;
+    if (b == Block::MACRO)
+        return g.macro.size() ? (g.macro.array() * dir_matrix.array()).sum() : 0.0;
     const VectorXd& v = *block_vector(g, b);
     return v.size() ? v.dot(dir) : 0.0;
 }
@@ -78,6 +83,8 @@ inline SimulationParameters perturbed(
     SimulationParameters p = base;
     if (b == Block::PRESCRIBED)
         p.prescribed += h * dir_matrix;
+    else if (b == Block::MACRO)
+        p.macro_gradient += h * dir_matrix;
     else
         *block_vector(p, b) += h * dir;
     return p;

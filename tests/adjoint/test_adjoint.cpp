@@ -529,11 +529,13 @@ TEST(AdjointLoadStepping, GradientsThroughASnapPassedByControlOrRelaxationMatchF
     }
 }
 
-TEST(AdjointPeriodic, MaterialDensityAndVelocityGradientsOfAPeriodicCellMatchFiniteDifferences)
+TEST(AdjointPeriodic, MaterialDensityVelocityAndMacroGradientsOfAPeriodicCellMatchFiniteDifferences)
 {
     // A periodic cell compressed by G_xx = -0.2 t with its lateral component free (scene
     // "periodic"): the adjoint sweeps the cell's reduced unknowns (P^T H P lambda_q = P^T dJ/dx,
-    // lambda = P lambda_q). The random per-element perturbations of the Lame parameters make the
+    // lambda = P lambda_q); the macro block is dJ/dG of G's prescribed components per step
+    // (SimulationParameters::macro_gradient; the direction also moves the free components' entries,
+    // which the forward ignores). The random per-element perturbations of the Lame parameters make the
     // cell heterogeneous, so the fluctuation and the free component respond. Static and implicit
     // Euler, 2D and 3D.
     for (int dim : { 2, 3 })
@@ -547,7 +549,7 @@ TEST(AdjointPeriodic, MaterialDensityAndVelocityGradientsOfAPeriodicCellMatchFin
             s["gravity"] = dim == 2 ? json { 0, -50 } : json { 0, -50, 0 };
             s["time"] = { { "integrator", integrator }, { "dt", 0.05 }, { "steps", 3 } };
             s["solver"] = { { "residual_tolerance", 1e-11 } };
-            std::vector<Block> blocks { Block::MU, Block::LAMBDA, Block::DENSITY };
+            std::vector<Block> blocks { Block::MU, Block::LAMBDA, Block::DENSITY, Block::MACRO };
             if (std::string(integrator) != "static") {
                 s["bodies"][0]["initial_velocity"] = dim == 2 ? json { 0.1, -0.05 } : json { 0.1, -0.05, 0.02 };
                 blocks.push_back(Block::INITIAL_VELOCITY);

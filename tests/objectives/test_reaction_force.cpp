@@ -2,6 +2,7 @@
 
 #include "adjoint/adjoint_check.hpp"
 #include "objective_fd.hpp"
+#include "through_adjoint.hpp"
 #include "objectives/objective_json.hpp"
 #include "objectives/time_aggregation.hpp"
 
@@ -186,50 +187,6 @@ TEST(ReactionForceGradient, MollifiedEdgeEdgeContactsMatchFiniteDifferences)
     test::check_parameter_gradient(J, run, Block::REST_POSITIONS, 23, 1e-5);
 }
 
-/// dJ/dp of a reaction-force objective through the adjoint against central differences of
-/// whole forward runs, one random direction per block.
-void check_through_adjoint(const json& scene_json, const json& objective_json, const std::vector<Block>& blocks,
-    double fd_step, double tolerance)
-{
-    const Scene scene = test::make_scene(scene_json);
-    Simulator sim(scene);
-    sim.run();
-    ASSERT_EQ(sim.trajectory().final_status, StepStatus::CONVERGED);
-    const auto J = parse_objective(objective_json, "objective", sim);
-    StateSeed seed;
-    seed.resize(sim.steps_done());
-    ParameterRequest request;
-    request.rest_positions = request.lame = request.density = request.prescribed = true;
-    J->add_gradient(sim, sim.trajectory(), request, 1.0, seed);
-    const ParameterGradient grad = adjoint_gradient(sim, seed, request);
-    const SimulationParameters base = sim.parameters();
-    unsigned n = 500;
-    for (Block b : blocks) {
-        SCOPED_TRACE(block_name(b));
-        VectorXd dir;
-        MatrixXd dir_matrix;
-        if (b == Block::PRESCRIBED) {
-            const VectorXd r = test::random_vector(base.prescribed.size(), ++n) * 1e-3;
-            dir_matrix = Eigen::Map<const MatrixXd>(r.data(), base.prescribed.rows(), base.prescribed.cols());
-        } else if (b == Block::REST_POSITIONS)
-            dir = test::random_vector(base.rest_positions.size(), ++n) * 1e-3;
-        else
-            dir = test::random_vector(block_vector(base, b)->size(), ++n).cwiseProduct(*block_vector(base, b));
-        const double fd = test::central_difference(
-            [&](double h) {
-                Simulator s(scene, test::perturbed(base, b, dir, dir_matrix, h));
-                s.run();
-                EXPECT_EQ(s.trajectory().final_status, StepStatus::CONVERGED);
-                const auto Jh = parse_objective(objective_json, "objective", s);
-                return Jh->value(s, s.trajectory());
-            },
-            fd_step);
-        const double exact = test::block_dot(grad, b, dir, dir_matrix);
-        EXPECT_TRUE(test::fd_agrees(fd, exact, tolerance));
-        EXPECT_GT(std::abs(fd), 1e-8 * std::abs(J->value(sim, sim.trajectory()))) << "an empty check";
-    }
-}
-
 TEST(ReactionForceAdjoint, StaticCompressionMatchesFiniteDifferences)
 {
     for (int dim : { 2, 3 }) {
@@ -240,7 +197,7 @@ TEST(ReactionForceAdjoint, StaticCompressionMatchesFiniteDifferences)
         s["time"] = { { "integrator", "static" }, { "dt", 0.5 }, { "steps", 2 } };
         const json objective = { { "type", "reaction_force" }, { "dirichlet", 2 }, { "axis", "y" },
             { "targets", { -100.0, -250.0 } }, { "sigma", 10.0 } };
-        check_through_adjoint(s, objective,
+        test::check_through_adjoint(s, objective,
             { Block::REST_POSITIONS, Block::MU, Block::LAMBDA, Block::DENSITY, Block::PRESCRIBED }, 1e-2, 1e-6);
     }
 }
@@ -251,7 +208,7 @@ TEST(ReactionForceAdjoint, PlaneContactMatchesFiniteDifferences)
         SCOPED_TRACE(dim);
         const json objective = { { "type", "reaction_force" }, { "obstacle", "floor" }, { "axis", 1 },
             { "time", "sum" } };
-        check_through_adjoint(clamped_box_on_plane(dim), objective,
+        test::check_through_adjoint(clamped_box_on_plane(dim), objective,
             { Block::REST_POSITIONS, Block::MU, Block::LAMBDA, Block::PRESCRIBED }, 1e-3, 1e-5);
     }
 }

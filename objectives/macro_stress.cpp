@@ -1,0 +1,62 @@
+#include "objectives/macro_stress.hpp"
+
+#include "forward/potentials/elastic_potential.hpp"
+#include "forward/solver/sparse_assembler.hpp"
+#include "objectives/objective.hpp"
+
+#include <stdexcept>
+
+namespace diffipc {
+
+MacroStress::MacroStress(int i, int j, int dim)
+    : m_i(i)
+    , m_j(j)
+    , m_dim(dim)
+{
+}
+
+std::string MacroStress::name() const
+{
+    const char* axes = "xyz";
+    return std::string("macro_stress(") + axes[m_i] + axes[m_j] + ")";
+}
+
+VectorXd MacroStress::lever(const Simulator& sim) const
+{
+    const PeriodicCell* cell = sim.periodic();
+    if (!cell)
+        throw std::logic_error("macro_stress: the scene is not a periodic cell");
+    const PeriodicMap& map = cell->map();
+    // P's column of L G_ij holds (X_v - X_o)_j / L in the rows (v, i).
+    return VectorXd(map.matrix().col(map.macro_dof(m_i, m_j))) * (map.length() / cell->volume());
+}
+
+double MacroStress::value(const Simulator& sim, const StateRef& state) const
+{
+    const VectorXd s = lever(sim);
+    VectorXd g = VectorXd::Zero(s.size());
+    sim.elastic().add_gradient(state.positions, 1.0, g);
+    return s.dot(g);
+}
+
+void MacroStress::add_gradient(const Simulator& sim, const StateRef& state, const ParameterRequest& request,
+    double scale, VectorXd& d_positions, VectorXd&, ParameterGradient& partials) const
+{
+    if (request.rest_positions)
+        throw std::logic_error("macro_stress: shape derivatives of a periodic cell's stress are not built yet");
+    const Mesh& mesh = sim.mesh();
+    const VectorXd s = lever(sim);
+    // df/dx = H s with the true elastic Hessian.
+    SparseAssembler H;
+    H.build(mesh.dim, mesh.num_vertices(), mesh.elements);
+    H.set_zero();
+    sim.elastic().add_hessian(state.positions, 1.0, false, H);
+    H.finalize();
+    const VectorXd Hs = H.matrix().selfadjointView<Eigen::Lower>() * s;
+    gradient_block(d_positions, mesh.num_dofs()) += scale * Hs;
+    if (request.lame)
+        sim.elastic().add_lame_derivative(state.positions, s, scale,
+            gradient_block(partials.mu, mesh.num_elements()), gradient_block(partials.lambda, mesh.num_elements()));
+}
+
+} // namespace diffipc

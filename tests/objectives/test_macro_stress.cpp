@@ -1,0 +1,95 @@
+// A periodic cell's homogenized stress (objectives/macro_stress.hpp) as an objective: its value
+// against the simulator's record, its state and explicit gradients against central differences,
+// and its gradient through the adjoint against whole forward runs (material, density, macro).
+
+#include "objectives/macro_stress.hpp"
+
+#include "objective_fd.hpp"
+#include "objectives/objective_json.hpp"
+#include "objectives/time_aggregation.hpp"
+#include "through_adjoint.hpp"
+
+using namespace diffipc;
+using json = nlohmann::json;
+using test::Block;
+
+namespace {
+
+/// A neo-Hookean periodic cell compressed by G_xx = -0.2 t, its lateral diagonal free, under
+/// gravity, over 3 steps of `integrator`.
+json compressed_cell(int dim, const std::string& integrator)
+{
+    json s = dim == 2 ? test::box_scene(2, { 1, 0.8 }, { 4, 3 }, "neo_hookean", 1e5, 0.3, 1000)
+                      : test::box_scene(3, { 1, 0.8, 1 }, { 2, 2, 2 }, "neo_hookean", 1e5, 0.3, 1000);
+    s["periodic"] = { { "gradient",
+        dim == 2 ? json { { "-0.2*t", 0 }, { 0, nullptr } }
+                 : json { { "-0.2*t", 0, 0 }, { 0, nullptr, 0 }, { 0, 0, nullptr } } } };
+    s["gravity"] = dim == 2 ? json { 0, -50 } : json { 0, -50, 0 };
+    s["time"] = { { "integrator", integrator }, { "dt", 0.05 }, { "steps", 3 } };
+    s["solver"] = { { "residual_tolerance", 1e-11 } };
+    return s;
+}
+
+test::Run run_cell(const json& s)
+{
+    test::Run r;
+    r.scene_json = s;
+    r.sim = std::make_unique<Simulator>(test::make_scene(s));
+    r.trajectory = r.sim->run();
+    EXPECT_EQ(r.trajectory.final_status, StepStatus::CONVERGED) << r.trajectory.failure_message;
+    return r;
+}
+
+} // namespace
+
+TEST(MacroStress, ValueIsTheRecordedAverageStressAndItsGradientsMatchDifferences)
+{
+    for (int dim : { 2, 3 }) {
+        SCOPED_TRACE(dim);
+        const test::Run run = run_cell(compressed_cell(dim, "static"));
+        for (int i = 0; i < dim; ++i)
+            for (int j = 0; j < dim; ++j) {
+                const MacroStress f(i, j, dim);
+                const StepRecord& last = run.trajectory.steps.back();
+                const StateRef state { last.index, last.time, last.positions, last.velocities };
+                EXPECT_NEAR(f.value(*run.sim, state), last.macro_stress[i * dim + j], 1e-9 * last.macro_stress.norm());
+            }
+        const TimeAggregation J(std::make_unique<MacroStress>(0, 0, dim), TimeMode::SUM);
+        ASSERT_LT(J.value(*run.sim, run.trajectory), 0); // compression
+        test::check_state_gradient(J, run, 11, 1e-6);
+        test::check_parameter_gradient(J, run, Block::MU, 23, 1e-6);
+        test::check_parameter_gradient(J, run, Block::LAMBDA, 29, 1e-6);
+    }
+}
+
+TEST(MacroStress, GradientsThroughTheAdjointMatchWholeRuns)
+{
+    // The homogenized stress G_xx summed over the steps: dJ/dp through the forward and the
+    // adjoint of the periodic cell, against central differences of whole runs.
+    for (int dim : { 2, 3 })
+        for (const char* integrator : { "static", "implicit_euler" }) {
+            SCOPED_TRACE(std::to_string(dim) + "D " + integrator);
+            const json objective = { { "type", "macro_stress" }, { "component", "xx" }, { "time", "sum" } };
+            test::check_through_adjoint(compressed_cell(dim, integrator), objective,
+                { Block::MU, Block::LAMBDA, Block::DENSITY, Block::MACRO }, 1e-3, 1e-6);
+        }
+}
+
+TEST(MacroStress, ProblemFileErrorsNameTheField)
+{
+    Simulator periodic(test::make_scene(compressed_cell(2, "static")));
+    const auto message = [](const json& j, const Simulator& sim) {
+        try {
+            parse_objective(j, "objective", sim);
+        } catch (const InputError& e) {
+            return std::string(e.what());
+        }
+        return std::string("no error");
+    };
+    EXPECT_EQ(message({ { "type", "macro_stress" }, { "component", "xy" } }, periodic), "no error");
+    EXPECT_EQ(message({ { "type", "macro_stress" }, { "component", "xz" } }, periodic),
+        "objective.component: expected two of xy (row, column of the stress), got \"xz\"");
+    Simulator plain(test::make_scene(test::box_scene(2, { 1, 1 }, { 2, 2 })));
+    EXPECT_EQ(message({ { "type", "macro_stress" }, { "component", "xx" } }, plain),
+        "objective.type: macro_stress needs a periodic cell (the scene's \"periodic\")");
+}

@@ -1,0 +1,61 @@
+#pragma once
+// dJ/dp of an objective (given as problem-file JSON) through the adjoint against central
+// differences of whole forward runs, one random direction per block. Shared by the objectives'
+// adjoint checks (reaction force, macro stress).
+
+#include "adjoint/adjoint_check.hpp"
+#include "objective_fd.hpp"
+#include "objectives/objective_json.hpp"
+
+namespace diffipc::test {
+
+inline void check_through_adjoint(const nlohmann::json& scene_json, const nlohmann::json& objective_json,
+    const std::vector<Block>& blocks, double fd_step, double tolerance)
+{
+    const Scene scene = make_scene(scene_json);
+    Simulator sim(scene);
+    sim.run();
+    ASSERT_EQ(sim.trajectory().final_status, StepStatus::CONVERGED);
+    const auto J = parse_objective(objective_json, "objective", sim);
+    StateSeed seed;
+    seed.resize(sim.steps_done());
+    ParameterRequest request;
+    for (Block b : blocks) {
+        request.rest_positions |= b == Block::REST_POSITIONS;
+        request.lame |= b == Block::MU || b == Block::LAMBDA;
+        request.density |= b == Block::DENSITY;
+        request.prescribed |= b == Block::PRESCRIBED;
+        request.macro |= b == Block::MACRO;
+    }
+    J->add_gradient(sim, sim.trajectory(), request, 1.0, seed);
+    const ParameterGradient grad = adjoint_gradient(sim, seed, request);
+    const SimulationParameters base = sim.parameters();
+    unsigned n = 500;
+    for (Block b : blocks) {
+        SCOPED_TRACE(block_name(b));
+        VectorXd dir;
+        MatrixXd dir_matrix;
+        if (b == Block::PRESCRIBED || b == Block::MACRO) {
+            const MatrixXd& values = b == Block::PRESCRIBED ? base.prescribed : base.macro_gradient;
+            const VectorXd r = random_vector(values.size(), ++n) * 1e-3;
+            dir_matrix = Eigen::Map<const MatrixXd>(r.data(), values.rows(), values.cols());
+        } else if (b == Block::REST_POSITIONS)
+            dir = random_vector(base.rest_positions.size(), ++n) * 1e-3;
+        else
+            dir = random_vector(block_vector(base, b)->size(), ++n).cwiseProduct(*block_vector(base, b));
+        const double fd = central_difference(
+            [&](double h) {
+                Simulator s(scene, perturbed(base, b, dir, dir_matrix, h));
+                s.run();
+                EXPECT_EQ(s.trajectory().final_status, StepStatus::CONVERGED);
+                const auto Jh = parse_objective(objective_json, "objective", s);
+                return Jh->value(s, s.trajectory());
+            },
+            fd_step);
+        const double exact = block_dot(grad, b, dir, dir_matrix);
+        EXPECT_TRUE(fd_agrees(fd, exact, tolerance));
+        EXPECT_GT(std::abs(fd), 1e-8 * std::abs(J->value(sim, sim.trajectory()))) << "an empty check";
+    }
+}
+
+} // namespace diffipc::test
