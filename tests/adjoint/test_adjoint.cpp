@@ -541,14 +541,7 @@ TEST(AdjointPeriodic, MaterialDensityVelocityAndMacroGradientsOfAPeriodicCellMat
     for (int dim : { 2, 3 })
         for (const char* integrator : { "static", "implicit_euler" }) {
             SCOPED_TRACE(std::to_string(dim) + "D " + integrator);
-            json s = dim == 2 ? box_scene(2, { 1, 0.8 }, { 4, 3 }, "neo_hookean", 1e5, 0.3, 1000)
-                              : box_scene(3, { 1, 0.8, 1 }, { 2, 2, 2 }, "neo_hookean", 1e5, 0.3, 1000);
-            s["periodic"] = { { "gradient",
-                dim == 2 ? json { { "-0.2*t", 0 }, { 0, nullptr } }
-                         : json { { "-0.2*t", 0, 0 }, { 0, nullptr, 0 }, { 0, 0, nullptr } } } };
-            s["gravity"] = dim == 2 ? json { 0, -50 } : json { 0, -50, 0 };
-            s["time"] = { { "integrator", integrator }, { "dt", 0.05 }, { "steps", 3 } };
-            s["solver"] = { { "residual_tolerance", 1e-11 } };
+            json s = compressed_periodic_cell(dim, integrator);
             std::vector<Block> blocks { Block::MU, Block::LAMBDA, Block::DENSITY, Block::MACRO };
             if (std::string(integrator) != "static") {
                 s["bodies"][0]["initial_velocity"] = dim == 2 ? json { 0.1, -0.05 } : json { 0.1, -0.05, 0.02 };

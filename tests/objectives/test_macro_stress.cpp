@@ -15,21 +15,6 @@ using test::Block;
 
 namespace {
 
-/// A neo-Hookean periodic cell compressed by G_xx = -0.2 t, its lateral diagonal free, under
-/// gravity, over 3 steps of `integrator`.
-json compressed_cell(int dim, const std::string& integrator)
-{
-    json s = dim == 2 ? test::box_scene(2, { 1, 0.8 }, { 4, 3 }, "neo_hookean", 1e5, 0.3, 1000)
-                      : test::box_scene(3, { 1, 0.8, 1 }, { 2, 2, 2 }, "neo_hookean", 1e5, 0.3, 1000);
-    s["periodic"] = { { "gradient",
-        dim == 2 ? json { { "-0.2*t", 0 }, { 0, nullptr } }
-                 : json { { "-0.2*t", 0, 0 }, { 0, nullptr, 0 }, { 0, 0, nullptr } } } };
-    s["gravity"] = dim == 2 ? json { 0, -50 } : json { 0, -50, 0 };
-    s["time"] = { { "integrator", integrator }, { "dt", 0.05 }, { "steps", 3 } };
-    s["solver"] = { { "residual_tolerance", 1e-11 } };
-    return s;
-}
-
 test::Run run_cell(const json& s)
 {
     test::Run r;
@@ -46,7 +31,7 @@ TEST(MacroStress, ValueIsTheRecordedAverageStressAndItsGradientsMatchDifferences
 {
     for (int dim : { 2, 3 }) {
         SCOPED_TRACE(dim);
-        const test::Run run = run_cell(compressed_cell(dim, "static"));
+        const test::Run run = run_cell(test::compressed_periodic_cell(dim, "static"));
         for (int i = 0; i < dim; ++i)
             for (int j = 0; j < dim; ++j) {
                 const MacroStress f(i, j, dim);
@@ -70,14 +55,14 @@ TEST(MacroStress, GradientsThroughTheAdjointMatchWholeRuns)
         for (const char* integrator : { "static", "implicit_euler" }) {
             SCOPED_TRACE(std::to_string(dim) + "D " + integrator);
             const json objective = { { "type", "macro_stress" }, { "component", "xx" }, { "time", "sum" } };
-            test::check_through_adjoint(compressed_cell(dim, integrator), objective,
+            test::check_through_adjoint(test::compressed_periodic_cell(dim, integrator), objective,
                 { Block::MU, Block::LAMBDA, Block::DENSITY, Block::MACRO }, 1e-3, 1e-6);
         }
 }
 
 TEST(MacroStress, ProblemFileErrorsNameTheField)
 {
-    Simulator periodic(test::make_scene(compressed_cell(2, "static")));
+    Simulator periodic(test::make_scene(test::compressed_periodic_cell(2, "static")));
     const auto message = [](const json& j, const Simulator& sim) {
         try {
             parse_objective(j, "objective", sim);

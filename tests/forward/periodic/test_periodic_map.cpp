@@ -3,10 +3,10 @@
 // products the solver and adjoint use.
 
 #include "forward/periodic/periodic_map.hpp"
+#include "tests/forward/test_utils.hpp"
 
 #include <gtest/gtest.h>
 
-#include <random>
 
 using namespace diffipc;
 
@@ -27,16 +27,6 @@ PeriodicPairing pairing_of(const Mesh& m)
     return pair_periodic_vertices(m, box, 1e-9, "mesh");
 }
 
-VectorXd random(Index n, unsigned seed)
-{
-    std::mt19937 rng(seed);
-    std::uniform_real_distribution<double> u(-1, 1);
-    VectorXd v(n);
-    for (Index i = 0; i < n; ++i)
-        v[i] = u(rng);
-    return v;
-}
-
 } // namespace
 
 TEST(PeriodicMap, PositionsFollowTheDefinitionAndTile)
@@ -46,11 +36,11 @@ TEST(PeriodicMap, PositionsFollowTheDefinitionAndTile)
         const Mesh m = cell(d);
         const PeriodicPairing p = pairing_of(m);
         // An origin and a length: x = X + G (X - X_o) + w, q's macro entries L G.
-        const VectorXd origin = 0.3 * random(d, 21);
+        const VectorXd origin = 0.3 * test::random_vector(d, 21);
         const double L = 0.7;
         const PeriodicMap map(m, p, origin, L);
         ASSERT_EQ(map.num_reduced(), p.num_classes() * d + d * d);
-        const VectorXd q = 0.1 * random(map.num_reduced(), 3 + unsigned(d));
+        const VectorXd q = 0.1 * test::random_vector(map.num_reduced(), 3 + unsigned(d));
         const VectorXd x = map.positions(q);
         MatrixXd G(d, d);
         for (int i = 0; i < d; ++i)
@@ -81,7 +71,7 @@ TEST(PeriodicMap, ReductionsAreTheTransposedProducts)
         const Mesh m = cell(d);
         const PeriodicMap map(m, pairing_of(m));
         const Index n = m.num_dofs(), k = map.num_reduced();
-        const VectorXd g = random(n, 11), q = random(k, 12);
+        const VectorXd g = test::random_vector(n, 11), q = test::random_vector(k, 12);
         EXPECT_NEAR(map.reduce(g).dot(q), g.dot(map.expand(q)), 1e-12 * g.norm() * q.norm());
         // dE/dG of a gradient: sum_v g_v X_v^T (origin 0).
         MatrixXd expected_dG = MatrixXd::Zero(d, d);
@@ -93,7 +83,7 @@ TEST(PeriodicMap, ReductionsAreTheTransposedProducts)
                 EXPECT_NEAR(dG[i * d + j], expected_dG(i, j), 1e-12 * expected_dG.norm());
         // A symmetric sparse matrix given by its lower triangle, against the dense product.
         MatrixXd A = MatrixXd::Zero(n, n);
-        const VectorXd r = random(n * 3, 13);
+        const VectorXd r = test::random_vector(n * 3, 13);
         for (Index i = 0; i < n; ++i) {
             A(i, i) = 4 + r[i];
             for (Index s = 1; s <= 2; ++s)
