@@ -412,17 +412,19 @@ namespace {
         }
         // Free components (null in "gradient" or listed in "free"): not along a non-periodic axis,
         // and not both of a symmetric pair.
-        const JsonField where = f.has("free") ? f["free"] : f["gradient"];
+        const auto fail_free = [&f](const std::string& message) {
+            (f.has("free") ? f["free"] : f["gradient"]).fail(message); // one of them made it free
+        };
         for (int a = 0; a < d; ++a)
             for (int b = 0; b < d; ++b) {
                 if (p.gradient[size_t(a * d + b)])
                     continue;
                 const std::string c = std::string("G_") + names[a] + names[b];
                 if (!p.box.periodic[size_t(b)])
-                    where.fail(c + " multiplies the non-periodic axis " + std::string(1, names[b])
+                    fail_free(c + " multiplies the non-periodic axis " + std::string(1, names[b])
                         + ": the fluctuation carries it, so it cannot be free");
                 if (b > a && !p.gradient[size_t(b * d + a)])
-                    where.fail(c + " and G_" + names[b] + names[a]
+                    fail_free(c + " and G_" + names[b] + names[a]
                         + " are both free: a rigid rotation of the cell would be free too (prescribe one)");
             }
         // Not built yet for periodic cells: say so, naming the field.

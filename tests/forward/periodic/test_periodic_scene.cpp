@@ -156,6 +156,13 @@ TEST(PeriodicScene, BadInputIsAnErrorNamingTheField)
 {
     const json good = periodic_block(2, gradient(2, "-0.3*t", NONE), 2);
     EXPECT_EQ(message(good), "no error");
+    // Every key is optional: an empty "periodic" holds the cell at its size (G = 0).
+    json empty = good;
+    empty["periodic"] = json::object();
+    EXPECT_EQ(message(empty), "no error");
+    json only_free = good;
+    only_free["periodic"] = { { "free", { "yy" } } };
+    EXPECT_EQ(message(only_free), "no error");
     // A mesh that is not periodic: the block turned by 10 degrees.
     json turned = good;
     turned["bodies"][0]["rotation"] = { 10 };
