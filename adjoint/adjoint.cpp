@@ -24,6 +24,19 @@ namespace {
 
     bool nonzero(const VectorXd& v) { return v.size() > 0 && !v.isZero(0.0); }
 
+    /// The constrained entries of `bar` less their couplings to the free ones times lambda (the
+    /// couplings are the lower-triangle entries of the system with a constrained row or column).
+    void subtract_couplings(const std::vector<Coupling>& couplings, const std::vector<char>& constrained,
+        const VectorXd& lambda, VectorXd& bar)
+    {
+        for (const Coupling& c : couplings) {
+            if (constrained[size_t(c.row)])
+                bar[c.row] -= c.value * lambda[c.col];
+            if (c.row != c.col && constrained[size_t(c.col)])
+                bar[c.col] -= c.value * lambda[c.row];
+        }
+    }
+
     void check_run(const Simulator& sim)
     {
         const Trajectory& tr = sim.trajectory();
@@ -200,8 +213,7 @@ struct AdjointSweep::Impl {
     void step(int k);
     /// @brief Sweeps one state back: state k's own (j = 0), or sub-step j's of a sub-stepped step k
     /// (j = m: the step's own). v and a into x through the scheme s, the adjoint solve, the
-    /// history's and the parameters' terms, and the prescribed dofs, a fraction of whose
-    /// adjoint goes to g_k and X (the rest to x_{k-1}: inside a sub-stepped step with an override).
+    /// history's and the parameters' terms, and the prescribed dofs (through `map`).
     void sweep_state(int k, int j, const VectorXd& x, double time, const StepScheme& s, StateBars cur, StateBars prev,
         StateBars prev2, PrescribedMap map);
     void finish();
@@ -417,12 +429,7 @@ void AdjointSweep::Impl::sweep_state(int k, int j, const VectorXd& x, double tim
             if (grad.macro.size()) {
                 // G's prescribed components are q's constrained entries L G_ij: dJ/dq_c less the
                 // coupling (P^T H P lambda_q)_c, times L.
-                for (const Coupling& c : system->couplings) {
-                    if (fixed[size_t(c.row)])
-                        xq[c.row] -= c.value * lq[c.col];
-                    if (c.row != c.col && fixed[size_t(c.col)])
-                        xq[c.col] -= c.value * lq[c.row];
-                }
+                subtract_couplings(system->couplings, fixed, lq, xq);
                 for (int i = 0; i < d; ++i)
                     for (int jj = 0; jj < d; ++jj)
                         if (cell->prescribed(i, jj))
@@ -443,12 +450,7 @@ void AdjointSweep::Impl::sweep_state(int k, int j, const VectorXd& x, double tim
         // (lambda vanishes on prescribed dofs, so only their couplings to free dofs count). A
         // periodic cell's couplings are those of q's entries, used above.
         if (!sim.periodic())
-            for (const Coupling& c : system->couplings) {
-                if (constrained[size_t(c.row)])
-                    xb[c.row] -= c.value * lambda[c.col];
-                if (c.row != c.col && constrained[size_t(c.col)])
-                    xb[c.col] -= c.value * lambda[c.row];
-            }
+            subtract_couplings(system->couplings, constrained, lambda, xb);
         // History: g contains -M x~.
         if (s.inertia) {
             const VectorXd Ml = sim.inertia().apply_mass(lambda);

@@ -53,12 +53,6 @@ NewtonResult Simulator::solve_dynamic_substeps(int k, const NewtonSolver& newton
     double t = t0, h = a.cut * dt;
     NewtonResult total, last;
     double w_last = 0;
-    const auto with_totals = [&total](NewtonResult r) {
-        r.iterations = total.iterations;
-        r.linear_fallbacks = total.linear_fallbacks;
-        r.times = total.times;
-        return r;
-    };
     record.cuts = plan ? 0 : 1;
     record.substeps = 0;
     record.min_increment = std::numeric_limits<double>::infinity();
@@ -120,14 +114,14 @@ NewtonResult Simulator::solve_dynamic_substeps(int k, const NewtonSolver& newton
             why = "; its sub-step to t = " + format_number(ts) + " s (given by SimulationParameters::substeps) failed ("
                 + to_string(r.status) + ")";
             record.path.clear();
-            return with_totals(r);
+            return r.with_costs_of(total);
         }
         ++record.cuts;
         h *= a.cut;
         if (h < a.min_increment * (1 - 1e-12)) {
             why = substeps_exhausted("automatic step control", record.substeps, t, k, ts, r.status);
             record.path.clear();
-            return with_totals(r);
+            return r.with_costs_of(total);
         }
     }
     if (m_friction) {
@@ -143,7 +137,7 @@ NewtonResult Simulator::solve_dynamic_substeps(int k, const NewtonSolver& newton
     x = std::move(xj);
     record.velocities = std::move(vj);
     record.accelerations = std::move(aj);
-    return with_totals(last);
+    return last.with_costs_of(total);
 }
 
 namespace {

@@ -33,12 +33,6 @@ NewtonResult Simulator::solve_in_substeps(int k, const NewtonSolver& newton, dou
     double t = t0, h = a.cut * dt;
     NewtonResult total, last;
     // A result with the iterations, fallbacks and times of every solve the step took.
-    const auto with_totals = [&total](NewtonResult r) {
-        r.iterations = total.iterations;
-        r.linear_fallbacks = total.linear_fallbacks;
-        r.times = total.times;
-        return r;
-    };
     record.cuts = 1;
     record.substeps = 0;
     record.min_increment = std::numeric_limits<double>::infinity();
@@ -83,16 +77,16 @@ NewtonResult Simulator::solve_in_substeps(int k, const NewtonSolver& newton, dou
                     // Its last solve took the load from t to t_k.
                     record.min_increment = std::min(record.min_increment, t1 - t);
                     x = std::move(committed);
-                    return with_totals(c);
+                    return c.with_costs_of(total);
                 }
                 why += "; " + note;
                 r = c;
             }
-            return with_totals(r);
+            return r.with_costs_of(total);
         }
     }
     x = std::move(committed);
-    return with_totals(last);
+    return last.with_costs_of(total);
 }
 
 std::string Simulator::substeps_exhausted(

@@ -562,14 +562,11 @@ StepStatus Simulator::step()
     const bool recompute = index <= steps_done();
     const double t_next = index * m_scene.time.dt;
     const double w = m_integrator->potential_weight();
-    m_problem.set_weight(m_elastic.get(), w);
-    m_problem.set_weight(m_external.get(), w);
+    set_potential_weights(w); // a sub-stepped step leaves its last sub-step's
     const VectorXd inertial_target = m_integrator->inertial_target();
     m_inertia->set_target(inertial_target);
-    if (m_contact) {
-        m_problem.set_weight(m_contact.get(), w);
+    if (m_contact)
         m_contact->reset_times();
-    }
 
     StepRecord record;
     record.index = index;

@@ -49,6 +49,16 @@ struct NewtonResult {
         linear_fallbacks += r.linear_fallbacks;
         times += r.times;
     }
+    /// This result (status, residual, ...) with the iterations, fallbacks and times of `total`:
+    /// a sequence of solves reported as one.
+    NewtonResult with_costs_of(const NewtonResult& total) const
+    {
+        NewtonResult r = *this;
+        r.iterations = total.iterations;
+        r.linear_fallbacks = total.linear_fallbacks;
+        r.times = total.times;
+        return r;
+    }
 };
 
 /// A linear constraint a^T x = level on the free dofs for displacement control (load_stepping.cpp):
