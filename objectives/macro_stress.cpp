@@ -1,5 +1,6 @@
 #include "objectives/macro_stress.hpp"
 
+#include "forward/contact/contact_potential.hpp"
 #include "forward/potentials/elastic_potential.hpp"
 #include "forward/solver/sparse_assembler.hpp"
 #include "objectives/objective.hpp"
@@ -36,6 +37,8 @@ double MacroStress::value(const Simulator& sim, const StateRef& state) const
     const VectorXd s = lever(sim);
     VectorXd g = VectorXd::Zero(s.size());
     sim.elastic().add_gradient(state.positions, 1.0, g);
+    if (sim.contact())
+        sim.contact()->add_gradient(state.positions, 1.0, g);
     return s.dot(g);
 }
 
@@ -46,11 +49,13 @@ void MacroStress::add_gradient(const Simulator& sim, const StateRef& state, cons
         throw std::logic_error("macro_stress: shape derivatives of a periodic cell's stress are not built yet");
     const Mesh& mesh = sim.mesh();
     const VectorXd s = lever(sim);
-    // df/dx = H s with the true elastic Hessian.
+    // df/dx = H s with the true Hessian of the elastic energy and the barrier.
     SparseAssembler H;
     H.build(mesh.dim, mesh.num_vertices(), mesh.elements);
     H.set_zero();
     sim.elastic().add_hessian(state.positions, 1.0, false, H);
+    if (sim.contact())
+        sim.contact()->add_hessian(state.positions, 1.0, false, H);
     H.finalize();
     const VectorXd Hs = H.matrix().selfadjointView<Eigen::Lower>() * s;
     gradient_block(d_positions, mesh.num_dofs()) += scale * Hs;

@@ -81,10 +81,6 @@ double mean_edge_length(const Positions& x, const MatrixXi& elements);
 Mesh remesh_domain(const Positions& x, const MatrixXi& boundary, int dim, double size, bool remesh_surface = false,
     double seconds = 600);
 
-/// @brief Writes the elements of `mesh` (triangles or tetrahedra) as a gmsh 2.2 ASCII file,
-/// every coordinate exact (%.17g).
-void write_gmsh(const std::string& path, const Mesh& mesh);
-
 /// What one remesh did.
 struct RemeshRecord {
     int iteration = 0; ///< after this accepted iterate

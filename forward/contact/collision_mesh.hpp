@@ -27,6 +27,35 @@ struct CollisionMesh {
     /// Per group: is it kinematic (an obstacle)? Two kinematic groups never collide.
     std::vector<char> group_kinematic;
 
+    /// Periodic images (forward/periodic/contact_images.hpp); all empty otherwise. Then the
+    /// mesh is a cell's surface with copies of it shifted by lattice vectors, and each pair of the
+    /// infinite tiling is counted once: a vertex-edge or vertex-face pair only with a `point`
+    /// vertex (one of the cell per class of translates), an edge-edge pair only as accept_edges says.
+    std::vector<char> point;
+    /// Per edge: the cell's edge it is a translate of (itself for those), and whether the lattice
+    /// shift from that edge to this one is lexicographically positive.
+    std::vector<Index> edge_source;
+    std::vector<char> edge_shift_positive;
+
+    /// May vertex v be the point of a vertex-edge / vertex-face pair?
+    bool is_point(Index v) const { return point.empty() || point[size_t(v)] != 0; }
+    /// @brief With periodic images: is edge pair (a, b) the one pair of its class of translates that
+    /// is counted? One edge must be a cell edge r; the other, a translate by s of the cell edge t,
+    /// counts when r < t, or r == t and s is lexicographically positive. Always true otherwise.
+    bool accept_edges(Index a, Index b) const
+    {
+        if (edge_source.empty())
+            return true;
+        const Index sa = edge_source[size_t(a)], sb = edge_source[size_t(b)];
+        if (sa == a && sb == b)
+            return true;
+        if (sa == a)
+            return a < sb || (a == sb && edge_shift_positive[size_t(b)]);
+        if (sb == b)
+            return b < sa || (b == sa && edge_shift_positive[size_t(a)]);
+        return false;
+    }
+
     /// @brief May a primitive with vertex va touch a primitive with vertex vb
     /// (any vertex of each; all vertices of a primitive share one group)?
     /// Sharing a vertex is excluded separately by the callers.

@@ -16,6 +16,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <stdexcept>
 
 namespace diffipc {
 
@@ -168,7 +169,24 @@ void ContactPotential::build_contacts(const VectorXd& x, ContactSet& out, double
     t.add_to(m_times.barrier);
 }
 
+void ContactPotential::set_images(SparseMatrixd T)
+{
+    if (T.rows() != m_rest.size())
+        throw std::invalid_argument("ContactPotential::set_images: T must have a row per surface dof");
+    m_images = std::move(T);
+    m_image_assembler = std::make_unique<SparseAssembler>();
+    m_image_assembler->build(m_mesh.dim, m_rest.rows(), MatrixXi(0, m_mesh.dim + 1));
+    m_cache_valid = false;
+    m_segment->valid = false;
+}
+
 const ContactSet& ContactPotential::contacts(const VectorXd& x) const
+{
+    VectorXd storage;
+    return surface_contacts(surface(x, storage));
+}
+
+const ContactSet& ContactPotential::surface_contacts(const VectorXd& x) const
 {
     if (!m_cache_valid || m_cache_x.size() != x.size() || m_cache_x != x) {
         m_cache_valid = false; // stays invalid if the broad phase throws (non-finite positions)
@@ -298,9 +316,11 @@ double ContactPotential::local_barrier(
     return m * b;
 }
 
-double ContactPotential::barrier_value(const VectorXd& x) const
+double ContactPotential::barrier_value(const VectorXd& mesh_x) const
 {
-    const ContactSet& set = contacts(x);
+    VectorXd storage;
+    const VectorXd& x = surface(mesh_x, storage);
+    const ContactSet& set = surface_contacts(x);
     Timer t;
     // Fixed reduction tree: the same sum for any thread count; an intersecting pair makes it infinite.
     const double sum
@@ -317,7 +337,7 @@ double ContactPotential::value(const VectorXd& x) const
 
 void ContactPotential::scatter_gradient(const VectorXd& x, double scale, VectorXd& g) const
 {
-    const ContactSet& set = contacts(x);
+    const ContactSet& set = surface_contacts(x);
     Timer t;
     const int dim = m_mesh.dim;
     // Local gradients in parallel, then gathered per vertex in contact order (the serial sum).
@@ -336,25 +356,44 @@ void ContactPotential::scatter_gradient(const VectorXd& x, double scale, VectorX
     t.add_to(m_times.barrier);
 }
 
+void ContactPotential::add_barrier_gradient(const VectorXd& x, double scale, VectorXd& g) const
+{
+    if (!has_images()) {
+        scatter_gradient(x, scale, g);
+        return;
+    }
+    const VectorXd y = m_images * x;
+    VectorXd gs = VectorXd::Zero(y.size());
+    scatter_gradient(y, scale, gs);
+    g += m_images.transpose() * gs;
+}
+
 VectorXd ContactPotential::barrier_gradient(const VectorXd& x) const
 {
     VectorXd g = VectorXd::Zero(x.size());
-    scatter_gradient(x, 1.0, g);
+    add_barrier_gradient(x, 1.0, g);
     return g;
 }
 
 void ContactPotential::add_gradient(const VectorXd& x, double weight, VectorXd& g) const
 {
-    scatter_gradient(x, weight * m_settings.kappa, g);
+    add_barrier_gradient(x, weight * m_settings.kappa, g);
 }
 
-void ContactPotential::add_hessian(const VectorXd& x, double weight, bool project_to_psd, SparseAssembler& H) const
+void ContactPotential::add_hessian(
+    const VectorXd& mesh_x, double weight, bool project_to_psd, SparseAssembler& mesh_H) const
 {
-    const ContactSet& set = contacts(x);
+    VectorXd storage;
+    const VectorXd& x = surface(mesh_x, storage);
+    const ContactSet& set = surface_contacts(x);
     if (set.empty())
         return;
     Timer t;
     const double scale = weight * m_settings.kappa;
+    // With images the locals go into the surface's assembler first, then T^T H_s T into mesh_H.
+    SparseAssembler& H = has_images() ? *m_image_assembler : mesh_H;
+    if (has_images())
+        H.set_zero();
     const size_t first = H.reserve_locals(set.size());
     tbb::parallel_for(tbb::blocked_range<size_t>(0, set.size(), 16), [&](const tbb::blocked_range<size_t>& r) {
         Eigen::MatrixXd local;
@@ -366,12 +405,21 @@ void ContactPotential::add_hessian(const VectorXd& x, double weight, bool projec
             H.set_local(first + k, set[k].vertices.data(), set[k].num_vertices(), local.data());
         }
     });
+    if (has_images()) {
+        H.finalize();
+        const SparseMatrixd full = H.matrix().selfadjointView<Eigen::Lower>();
+        const SparseMatrixd reduced = m_images.transpose() * full * m_images;
+        mesh_H.add_matrix(reduced.triangularView<Eigen::Lower>());
+    }
     t.add_to(m_times.barrier);
 }
 
-double ContactPotential::max_step(const VectorXd& x, const VectorXd& p) const
+double ContactPotential::max_step(const VectorXd& mesh_x, const VectorXd& mesh_p) const
 {
     const int dim = m_mesh.dim;
+    VectorXd x_storage, p_storage;
+    const VectorXd& x = surface(mesh_x, x_storage);
+    const VectorXd& p = surface(mesh_p, p_storage);
     const VectorXd x1 = x + p;
     const Positions X0 = unflatten(x, dim), X1 = unflatten(x1, dim);
     Segment& segment = *m_segment;
@@ -459,8 +507,10 @@ double ContactPotential::max_step(const VectorXd& x, const VectorXd& p) const
     return outcome.toi;
 }
 
-double ContactPotential::min_distance(const VectorXd& x, double radius) const
+double ContactPotential::min_distance(const VectorXd& mesh_x, double radius) const
 {
+    VectorXd storage;
+    const VectorXd& x = surface(mesh_x, storage);
     ContactSet set;
     build_contacts(x, set, std::max(radius, m_settings.min_distance + m_settings.dhat));
     double best = INF;
@@ -473,7 +523,7 @@ bool ContactPotential::end_iteration(const VectorXd& x)
 {
     if (!m_adaptive)
         return false;
-    const ContactSet& set = contacts(x);
+    const ContactSet& set = contacts(x); // m_rule takes the mesh's positions
     if (!m_rule_applied && !set.empty() && m_rule) {
         // Contact appeared during this step: balance the barrier now rather than
         // waiting for the gap to collapse to the doubling threshold.
@@ -511,15 +561,22 @@ Eigen::Matrix<double, 12, 1> ContactPotential::mollifier_threshold_gradient(cons
 }
 
 void ContactPotential::add_shape_derivative(
-    const VectorXd& x, const VectorXd& direction, double weight, VectorXd& d_rest_positions) const
+    const VectorXd& mesh_x, const VectorXd& mesh_direction, double weight, VectorXd& d_mesh_rest) const
 {
     const int dim = m_mesh.dim;
     if (dim != 3)
         return;
+    // With images the surface's rest positions are T X: d/dX = T^T d/dX_s.
+    VectorXd x_storage, direction_storage, d_surface;
+    const VectorXd& x = surface(mesh_x, x_storage);
+    const VectorXd& direction = surface(mesh_direction, direction_storage);
+    if (has_images())
+        d_surface = VectorXd::Zero(x.size());
+    VectorXd& d_rest_positions = has_images() ? d_surface : d_mesh_rest;
     const double dmin2 = m_settings.min_distance * m_settings.min_distance;
     const double shat = barrier_activation(m_settings.dhat, m_settings.min_distance);
     const double scale = weight * m_settings.kappa;
-    const ContactSet& set = contacts(x);
+    const ContactSet& set = surface_contacts(x);
     // Per contact in parallel, gathered per vertex in contact order.
     std::vector<double>& locals = m_gradient_buffer;
     locals.assign(set.size() * 12, 0.0);
@@ -553,6 +610,8 @@ void ContactPotential::add_shape_derivative(
         return set[k].kind == ContactKind::EDGE_EDGE ? set[k].vertices[size_t(a)] : Index(-1);
     });
     m_scatter.add(locals.data(), dim, 1.0, d_rest_positions);
+    if (has_images())
+        d_mesh_rest += m_images.transpose() * d_surface;
 }
 
 } // namespace diffipc

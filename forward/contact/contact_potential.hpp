@@ -98,6 +98,15 @@ public:
         m_rule = std::move(rule);
         m_rule_applied = rule_applied;
     }
+    /// @brief Periodic images (forward/periodic/contact_images.hpp): the collision mesh then indexes
+    /// the image surface x_s = T x (#S dim by #V dim) and every method still takes and returns the
+    /// mesh's positions x, gradients T^T g_s, Hessians T^T H_s T. Contacts (contacts(),
+    /// local_distance(), mollifier_threshold_gradient()) index the surface: the first #V of its
+    /// vertices are the mesh's own.
+    void set_images(SparseMatrixd T);
+    bool has_images() const { return m_images.size() > 0; }
+    /// The positions the collision mesh indexes: x, or T x with images.
+    VectorXd surface_positions(const VectorXd& x) const { return has_images() ? VectorXd(m_images * x) : x; }
     const CollisionMesh& collision_mesh() const { return m_mesh; }
     const std::vector<ContactPlane>& planes() const { return m_planes; }
 
@@ -107,6 +116,18 @@ public:
 
 private:
     void build_contacts(const VectorXd& x, ContactSet& out, double radius) const;
+    /// x, or T x (in `storage`) with images.
+    const VectorXd& surface(const VectorXd& x, VectorXd& storage) const
+    {
+        if (!has_images())
+            return x;
+        storage = m_images * x;
+        return storage;
+    }
+    /// contacts() at surface positions y.
+    const ContactSet& surface_contacts(const VectorXd& y) const;
+    /// Adds scale * grad(sum_k m_k b_k) at mesh positions x into g (#V dim).
+    void add_barrier_gradient(const VectorXd& x, double scale, VectorXd& g) const;
     /// Adds scale * grad(sum_k m_k b_k) into g (no full-size temporary).
     void scatter_gradient(const VectorXd& x, double scale, VectorXd& g) const;
     /// Energy (without kappa), gradient and Hessian of one contact at x; local
@@ -129,6 +150,9 @@ private:
     struct Segment;
     std::unique_ptr<Segment> m_segment;
     bool on_segment(const VectorXd& y) const;
+
+    SparseMatrixd m_images; ///< T, empty without periodic images
+    mutable std::unique_ptr<SparseAssembler> m_image_assembler; ///< the surface's Hessian with images
 
     mutable VectorXd m_cache_x;
     mutable ContactSet m_cache;

@@ -17,7 +17,7 @@ PeriodicCell::PeriodicCell(const Scene& scene, const Problem& full, SparseAssemb
     const int d = scene.dim;
     const PeriodicSpec& p = scene.periodic;
     m_reduced.add(&m_potential, 1.0);
-    m_assembler.build(d, m_map.num_classes() + d, periodic_elements(scene.mesh, p.pairing));
+    m_assembler.build(d, m_map.num_classes() + d, periodic_elements(scene.mesh, p.pairing), false);
     // The class of the vertex nearest the lower corner carries no fluctuation.
     double nearest = std::numeric_limits<double>::infinity();
     for (Index v = 0; v < scene.mesh.num_vertices(); ++v) {

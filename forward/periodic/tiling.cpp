@@ -6,16 +6,10 @@
 
 namespace diffipc {
 
-Tiling tile_cell(const Mesh& mesh, const PeriodicBox& box, const PeriodicPairing& pairing, const VectorXd& x,
-    const VectorXd& G, int copies)
+std::vector<std::array<int, 3>> lattice_shifts(const PeriodicBox& box, int dim, int copies)
 {
-    const int d = mesh.dim;
-    const Index nv = mesh.num_vertices();
-    if (x.size() != nv * d || G.size() != d * d || copies < 0)
-        throw std::invalid_argument("tile_cell: expected #V d positions, d^2 gradient values and copies >= 0");
-    // The lattice vectors s: -n..n along periodic axes, 0 along the others.
     std::vector<std::array<int, 3>> shifts { { 0, 0, 0 } };
-    for (int a = 0; a < d; ++a) {
+    for (int a = 0; a < dim; ++a) {
         if (!box.periodic[size_t(a)])
             continue;
         std::vector<std::array<int, 3>> more;
@@ -27,6 +21,17 @@ Tiling tile_cell(const Mesh& mesh, const PeriodicBox& box, const PeriodicPairing
             }
         shifts = std::move(more);
     }
+    return shifts;
+}
+
+Tiling tile_cell(const Mesh& mesh, const PeriodicBox& box, const PeriodicPairing& pairing, const VectorXd& x,
+    const VectorXd& G, int copies)
+{
+    const int d = mesh.dim;
+    const Index nv = mesh.num_vertices();
+    if (x.size() != nv * d || G.size() != d * d || copies < 0)
+        throw std::invalid_argument("tile_cell: expected #V d positions, d^2 gradient values and copies >= 0");
+    const std::vector<std::array<int, 3>> shifts = lattice_shifts(box, d, copies);
     Eigen::MatrixXd F = Eigen::MatrixXd::Identity(d, d);
     for (int i = 0; i < d; ++i)
         for (int j = 0; j < d; ++j)

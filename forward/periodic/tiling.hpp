@@ -10,12 +10,18 @@
 #include "forward/mesh/mesh.hpp"
 #include "forward/periodic/pairing.hpp"
 
+#include <array>
+#include <vector>
+
 namespace diffipc {
 
 struct Tiling {
     Mesh mesh; ///< rest positions: the tiled rest positions; boundary facets of the union
     Positions positions; ///< the tiled deformed positions
 };
+
+/// The lattice shifts s in {-n .. n}^(periodic axes) (0 along the others), the zero shift among them.
+std::vector<std::array<int, 3>> lattice_shifts(const PeriodicBox& box, int dim, int copies);
 
 /// @param mesh   the cell (rest positions, elements); @param pairing its vertex classes
 /// @param x      #V d deformed positions of the cell; @param G d^2 values (row-major)

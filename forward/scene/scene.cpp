@@ -428,8 +428,11 @@ namespace {
                         + " are both free: a rigid rotation of the cell would be free too (prescribe one)");
             }
         // Not built yet for periodic cells: say so, naming the field.
-        if (scene.contact.enabled)
-            f.fail("contact in a periodic cell (across its boundary) is not built yet: remove \"contact\"");
+        bool friction = scene.friction.coefficient > 0;
+        for (const BodySpec& b : scene.bodies)
+            friction = friction || b.friction_coefficient > 0;
+        if (scene.contact.enabled && friction)
+            f.fail("friction in a periodic cell is not built yet: set the friction coefficients to 0");
         if (!scene.obstacles.empty())
             f.fail("obstacles in a periodic cell are not supported");
         if (!scene.dirichlet.empty())

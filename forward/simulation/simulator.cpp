@@ -6,6 +6,7 @@
 
 #include "forward/contact/barrier.hpp"
 #include "forward/contact/intersection.hpp"
+#include "forward/periodic/contact_images.hpp"
 #include "forward/solver/newton.hpp"
 #include <Eigen/Geometry>
 
@@ -338,9 +339,26 @@ void Simulator::setup_contact()
         settings.kappa = m_kappa_min;
     }
     m_kappa_initial = settings.kappa;
-    m_contact = std::make_unique<ContactPotential>(
-        build_collision_mesh(mesh, self_contact, kinematic), mesh.rest_positions, std::move(planes), settings);
+    if (m_scene.periodic.enabled) {
+        // Contact across the cell's boundary: the surface with its periodic images.
+        ContactImages images = build_contact_images(
+            mesh, m_scene.periodic.box, m_scene.periodic.pairing, self_contact, kinematic);
+        m_contact = std::make_unique<ContactPotential>(std::move(images.mesh), images.rest, std::move(planes), settings);
+        m_contact->set_images(std::move(images.map));
+    } else
+        m_contact = std::make_unique<ContactPotential>(
+            build_collision_mesh(mesh, self_contact, kinematic), mesh.rest_positions, std::move(planes), settings);
     m_problem.add(m_contact.get(), m_integrator->potential_weight());
+}
+
+VectorXd Simulator::macro_stress(const VectorXd& x) const
+{
+    if (!m_periodic)
+        throw std::logic_error("Simulator::macro_stress: the scene is not a periodic cell");
+    VectorXd stress = m_periodic->average_stress(*m_elastic, x);
+    if (m_contact)
+        stress += m_periodic->average_stress(*m_contact, x);
+    return stress;
 }
 
 double Simulator::balancing_kappa(const VectorXd& x) const
@@ -352,8 +370,14 @@ double Simulator::balancing_kappa(const VectorXd& x) const
     grad_energy -= w * m_contact->kappa() * grad_barrier;
     if (m_friction) // IPC's rule balances the barrier against the rest without friction
         m_friction->add_gradient(x, -m_problem.weight(m_friction.get()), grad_energy);
-    for (size_t i = 0; i < m_constrained.size(); ++i)
-        if (m_constrained[i])
+    const std::vector<char>* constrained = &m_constrained;
+    if (m_periodic) { // balanced in the cell's unknowns q
+        grad_energy = m_periodic->map().reduce(grad_energy);
+        grad_barrier = m_periodic->map().reduce(grad_barrier);
+        constrained = &m_periodic->constrained();
+    }
+    for (size_t i = 0; i < constrained->size(); ++i)
+        if ((*constrained)[i])
             grad_energy[Index(i)] = grad_barrier[Index(i)] = 0;
     // The barrier enters with weight w kappa: kappa balances w^-1 grad E against grad B.
     return initial_barrier_stiffness(grad_barrier.dot(grad_energy) / w, grad_barrier.squaredNorm(), m_kappa_min);
@@ -406,7 +430,7 @@ void Simulator::update_kappa_for_step(const VectorXd& x)
 
 std::string Simulator::check_contact_state(const VectorXd& x) const
 {
-    const Positions X = unflatten(x, m_scene.dim);
+    const Positions X = unflatten(m_contact->surface_positions(x), m_scene.dim);
     const std::string hit = find_intersection(m_contact->collision_mesh(), X, false);
     if (!hit.empty())
         return hit;
@@ -733,7 +757,7 @@ StepStatus Simulator::step()
         record.min_volume_ratio = m_space->min_volume_ratio(x);
         if (m_periodic) {
             m_macro = record.macro_gradient;
-            record.macro_stress = m_periodic->average_stress(*m_elastic, x);
+            record.macro_stress = macro_stress(x);
         }
         if (m_contact) {
             record.contacts = m_contact->contacts(x);

@@ -133,6 +133,9 @@ public:
         double t, const VectorXd& direction, VectorXd* d_rest_positions, VectorXd* d_density) const;
     /// The periodic cell's solver and map (scene "periodic"), or null.
     const PeriodicCell* periodic() const { return m_periodic.get(); }
+    /// A periodic cell's homogenized first Piola stress at x (d^2 values, row-major):
+    /// (1/|Y|) d(Psi + kappa B)/dG, the elastic energy's and the barrier's across the boundary.
+    VectorXd macro_stress(const VectorXd& x) const;
     /// False for a static (quasi-static) scene.
     bool dynamic() const { return m_integrator->dynamic(); }
     /// Number of contact groups (bodies, then obstacles).

@@ -4,13 +4,14 @@
 #include <array>
 #include <cstdint>
 #include <iterator>
+#include <map>
 #include <stdexcept>
 
 #include <tbb/parallel_sort.h>
 
 namespace diffipc {
 
-void SparseAssembler::build(int dim, Index num_vertices, const MatrixXi& elements)
+void SparseAssembler::build(int dim, Index num_vertices, const MatrixXi& elements, bool colored)
 {
     m_dim = dim;
     m_extra_blocks.clear();
@@ -69,6 +70,9 @@ void SparseAssembler::build(int dim, Index num_vertices, const MatrixXi& element
     for (Index i = 0; i < n; ++i)
         m_diagonal_slots[size_t(i)] = slot(i, i);
 
+    m_colors.clear();
+    if (!colored)
+        return;
     // Greedy coloring: an element takes the smallest color none of its vertices has seen.
     constexpr int WORDS = 8; // up to 512 colors
     std::vector<std::array<uint64_t, WORDS>> used(static_cast<size_t>(num_vertices));
@@ -279,6 +283,9 @@ void SparseAssembler::add_matrix(const SparseMatrixd& lower)
     if (lower.rows() != m_matrix.rows() || lower.cols() != m_matrix.cols())
         throw std::logic_error("SparseAssembler::add_matrix: a " + std::to_string(lower.rows()) + " by "
             + std::to_string(lower.cols()) + " matrix into a pattern of size " + std::to_string(m_matrix.rows()));
+    // Off-pattern entries, gathered per (column vertex, row vertex): a 2 dim square local each.
+    std::map<uint64_t, Eigen::MatrixXd> extra;
+    const int d = m_dim;
     for (Index col = 0; col < lower.outerSize(); ++col) {
         SparseMatrixd::InnerIterator target(m_matrix, col);
         for (SparseMatrixd::InnerIterator it(lower, col); it; ++it) {
@@ -286,11 +293,22 @@ void SparseAssembler::add_matrix(const SparseMatrixd& lower)
                 continue;
             while (target && target.row() < it.row())
                 ++target;
-            if (!target || target.row() != it.row())
-                throw std::logic_error("SparseAssembler::add_matrix: entry (" + std::to_string(it.row()) + ", "
-                    + std::to_string(col) + ") is outside the element pattern");
-            target.valueRef() += it.value();
+            if (target && target.row() == it.row()) {
+                target.valueRef() += it.value();
+                continue;
+            }
+            // A vertex's own block is always in the pattern: the rows lie in another vertex.
+            Eigen::MatrixXd& K = extra[(uint64_t(col / d) << 32) | uint64_t(it.row() / d)];
+            if (K.size() == 0)
+                K.setZero(2 * d, 2 * d);
+            const Index c = col % d, r = d + it.row() % d;
+            K(r, c) += it.value();
+            K(c, r) += it.value();
         }
+    }
+    for (const auto& [key, K] : extra) {
+        const Index pair[2] = { Index(key >> 32), Index(key & 0xffffffffu) };
+        add_local(pair, 2, K.data());
     }
 }
 

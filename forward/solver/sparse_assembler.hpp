@@ -20,8 +20,11 @@ class SparseAssembler {
 public:
     /// @param dim          spatial dimension (dofs per vertex)
     /// @param num_vertices #V
-    /// @param elements     #E by (dim+1) vertex indices
-    void build(int dim, Index num_vertices, const MatrixXi& elements);
+    /// @param elements     #E by (dim+1) vertex indices (or any number of vertices per row)
+    /// @param colored      false: no coloring (colors() stays empty), for patterns whose elements
+    ///                     all share vertices (a periodic cell's macro pseudo-vertices) and are
+    ///                     not assembled per element
+    void build(int dim, Index num_vertices, const MatrixXi& elements, bool colored = true);
 
     void set_zero();
     /// @brief Adds the element matrix Ke (dim*(dim+1) square, local dofs
@@ -44,9 +47,10 @@ public:
     /// thread count. The extra pattern remembers vertex pairs seen before, so that a contact
     /// set that comes back does not change the pattern (and CHOLMOD's analysis) again.
     void finalize();
-    /// @brief Adds a matrix (lower triangle, this assembler's size) whose pattern lies in the element
-    /// pattern (a periodic cell's reduced Hessian: forward/periodic/periodic_potential.hpp).
-    /// @throws std::logic_error naming an entry outside the pattern.
+    /// @brief Adds a symmetric matrix given by its lower triangle (this assembler's size): a periodic
+    /// cell's reduced Hessian (forward/periodic/periodic_potential.hpp), contact through periodic
+    /// images. Entries outside the element pattern are added as local matrices of their vertex
+    /// pair (add_local: not thread-safe; finalize() must follow).
     void add_matrix(const SparseMatrixd& lower);
     /// @brief Replaces the rows and columns of `constrained` dofs by identity rows.
     void apply_constraints(const std::vector<char>& constrained);

@@ -81,20 +81,21 @@ namespace {
     bool accept_vertex_edge(const CollisionMesh& mesh, Index i, Index e)
     {
         const Index v = mesh.vertices[i], e0 = mesh.edges(e, 0), e1 = mesh.edges(e, 1);
-        return v != e0 && v != e1 && mesh.groups_can_collide(v, e0);
+        return v != e0 && v != e1 && mesh.is_point(v) && mesh.groups_can_collide(v, e0);
     }
 
     bool accept_vertex_face(const CollisionMesh& mesh, Index i, Index f)
     {
         const Index v = mesh.vertices[i];
         const Index f0 = mesh.faces(f, 0), f1 = mesh.faces(f, 1), f2 = mesh.faces(f, 2);
-        return v != f0 && v != f1 && v != f2 && mesh.groups_can_collide(v, f0);
+        return v != f0 && v != f1 && v != f2 && mesh.is_point(v) && mesh.groups_can_collide(v, f0);
     }
 
     bool accept_edge_edge(const CollisionMesh& mesh, Index a, Index b)
     {
         const Index a0 = mesh.edges(a, 0), a1 = mesh.edges(a, 1), b0 = mesh.edges(b, 0), b1 = mesh.edges(b, 1);
-        return a0 != b0 && a0 != b1 && a1 != b0 && a1 != b1 && mesh.groups_can_collide(a0, b0);
+        return a0 != b0 && a0 != b1 && a1 != b0 && a1 != b1 && mesh.groups_can_collide(a0, b0)
+            && mesh.accept_edges(a, b);
     }
 
     /// Replaces the collision-vertex position i of each pair by the full-mesh vertex index.

@@ -51,7 +51,7 @@ struct Cell {
         map = std::make_unique<PeriodicMap>(mesh, pairing);
         periodic = std::make_unique<PeriodicPotential>(full, full_assembler, *map);
         reduced.add(periodic.get(), 1.0);
-        reduced_assembler.build(d, pairing.num_classes() + d, periodic_elements(mesh, pairing));
+        reduced_assembler.build(d, pairing.num_classes() + d, periodic_elements(mesh, pairing), false);
     }
     int dim() const { return mesh.dim; }
     double volume() const { return dim() == 2 ? 0.8 : 1.0; }
