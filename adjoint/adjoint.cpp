@@ -67,10 +67,11 @@ namespace {
     {
         check_run(sim);
         // Periodic cells (docs/math.md, "Periodic cells"): the adjoint sweeps the cell's reduced
-        // unknowns; the derivatives through the map itself (shape) and its prescriptions are not built.
-        if (sim.periodic() && (request.rest_positions || request.prescribed || request.initial_displacement))
-            throw AdjointError("no gradient: shape, prescribed-value and initial-displacement gradients of periodic "
-                               "cells are not built yet (material, density, initial velocity and macro gradient are)");
+        // unknowns. A cell has no prescribed dofs and starts at rest.
+        if (sim.periodic() && (request.prescribed || request.initial_displacement))
+            throw AdjointError("no gradient: a periodic cell has no prescribed-value or initial-displacement "
+                               "gradients (it has no Dirichlet conditions and starts at rest; its macro gradient "
+                               "has its own)");
         if (request.macro && !sim.periodic())
             throw AdjointError("no gradient: only a periodic cell has a macro gradient");
         if (request.friction && sim.contact() && !sim.friction())
@@ -217,6 +218,9 @@ struct AdjointSweep::Impl {
     void sweep_state(int k, int j, const VectorXd& x, double time, const StepScheme& s, StateBars cur, StateBars prev,
         StateBars prev2, PrescribedMap map);
     void finish();
+    /// A periodic cell's shape terms of state (k, j) beyond the potentials' (docs/math.md).
+    void periodic_shape_terms(int k, int j, const VectorXd& x, const VectorXd& xb, const VectorXd& lq,
+        const VectorXd& lambda, VectorXd& d_rest);
     /// Assembles and factorizes the adjoint system of step k (j = 0) or of its sub-step j at x,
     /// unless the shared system holds it.
     void factorize(int k, int j, const VectorXd& x);
@@ -347,8 +351,8 @@ void AdjointSweep::Impl::step(int k)
     };
     const int m = int(record.substep_times.size());
     if (m == 0) {
-        sweep_state(k, 0, record.positions, record.time, sim.step_scheme(k), bars_of(k), bars_of(k - 1),
-            bars_of(k - 2), PrescribedMap {});
+        sweep_state(k, 0, record.positions, record.time, sim.step_scheme(k), bars_of(k), bars_of(k - 1), bars_of(k - 2),
+            PrescribedMap {});
     } else {
         // A dynamic step taken in sub-steps: its states j = m (the step's own) .. 1, each a step of
         // the integrator from state j - 1 (j = 1: from step k - 1), swept back in turn.
@@ -358,7 +362,8 @@ void AdjointSweep::Impl::step(int k)
             const bool own = j == m;
             const StepRecord::SubState* sub = own ? nullptr : &record.path[size_t(j - 1)];
             const StateBars cur = own ? bars_of(k) : StateBars { &lx[size_t(j)], &lv[size_t(j)], &la[size_t(j)] };
-            const StateBars prev = j == 1 ? bars_of(k - 1) : StateBars { &lx[size_t(j - 1)], &lv[size_t(j - 1)], &la[size_t(j - 1)] };
+            const StateBars prev
+                = j == 1 ? bars_of(k - 1) : StateBars { &lx[size_t(j - 1)], &lv[size_t(j - 1)], &la[size_t(j - 1)] };
             const double t = own ? record.time : sub->time;
             // The prescribed positions inside the step, as a run with g overridden takes them
             // (SimulationParameters::prescribed): interpolated from step k - 1's to X + g_k by
@@ -385,8 +390,8 @@ void AdjointSweep::Impl::step(int k)
     release(abar[size_t(k)]);
 }
 
-void AdjointSweep::Impl::sweep_state(int k, int j, const VectorXd& x, double time, const StepScheme& s,
-    StateBars cur, StateBars prev, StateBars prev2, PrescribedMap map)
+void AdjointSweep::Impl::sweep_state(int k, int j, const VectorXd& x, double time, const StepScheme& s, StateBars cur,
+    StateBars prev, StateBars prev2, PrescribedMap map)
 {
     const StateBars history[3] = { {}, prev, prev2 };
     // v and a are linear in x and the history.
@@ -426,6 +431,8 @@ void AdjointSweep::Impl::sweep_state(int k, int j, const VectorXd& x, double tim
                     rq[i] = 0;
             const VectorXd lq = system->linear.solve(rq);
             lambda = cell->map().expand(lq);
+            if (d_rest)
+                periodic_shape_terms(k, j, x, xb, lq, lambda, *d_rest);
             if (grad.macro.size()) {
                 // G's prescribed components are q's constrained entries L G_ij: dJ/dq_c less the
                 // coupling (P^T H P lambda_q)_c, times L.
@@ -505,6 +512,29 @@ void AdjointSweep::Impl::sweep_state(int k, int j, const VectorXd& x, double tim
             part[i] = map.previous * xb[i];
         push(xbar[size_t(k - 1)], 1.0, part);
     }
+}
+
+void AdjointSweep::Impl::periodic_shape_terms(
+    int k, int j, const VectorXd& x, const VectorXd& xb, const VectorXd& lq, const VectorXd& lambda, VectorXd& d_rest)
+{
+    // The state is q and x = X + G (X - X_o) + w depends on X at fixed q (docs/math.md, "Periodic
+    // cells"): beyond -lambda^T dg/dX at fixed x (the potentials' shape derivatives, below in
+    // sweep_state), dJ/dX gains (I + G)^T (xbar - H lambda)_v per vertex, and the residual's map
+    // P(X)^T, whose macro columns hold X_v - X_o, gives -Lambda^T g_v with Lambda_ij = lambda_q(L G_ij) / L.
+    const PeriodicCell& cell = *sim.periodic();
+    const PeriodicMap& map = cell.map();
+    const MatrixXd G = Eigen::Map<const Eigen::Matrix<double, -1, -1, Eigen::RowMajor>>(
+        sim.trajectory().step(k).macro_gradient.data(), d, d);
+    MatrixXd Lambda(d, d);
+    for (int i = 0; i < d; ++i)
+        for (int jj = 0; jj < d; ++jj)
+            Lambda(i, jj) = lq[map.macro_dof(i, jj)] / map.length();
+    const VectorXd r = xb - system->assembler.matrix().selfadjointView<Eigen::Lower>() * lambda;
+    VectorXd g;
+    (j == 0 ? sim.step_problem(k) : sim.substep_problem(k, j)).gradient(x, g);
+    const MatrixXd F = MatrixXd::Identity(d, d) + G;
+    for (Index v = 0; v < n / d; ++v)
+        d_rest.segment(v * d, d) += F.transpose() * r.segment(v * d, d) - Lambda.transpose() * g.segment(v * d, d);
 }
 
 ParameterGradient AdjointSweep::finish()
@@ -593,8 +623,8 @@ ParameterGradient adjoint_gradient(
     return grad;
 }
 
-std::vector<ParameterGradient> adjoint_gradients(Simulator& sim, const std::vector<StateSeed>& seeds,
-    const ParameterRequest& request, AdjointStatistics* stats)
+std::vector<ParameterGradient> adjoint_gradients(
+    Simulator& sim, const std::vector<StateSeed>& seeds, const ParameterRequest& request, AdjointStatistics* stats)
 {
     std::vector<ParameterGradient> out;
     if (seeds.empty())

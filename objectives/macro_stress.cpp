@@ -45,8 +45,6 @@ double MacroStress::value(const Simulator& sim, const StateRef& state) const
 void MacroStress::add_gradient(const Simulator& sim, const StateRef& state, const ParameterRequest& request,
     double scale, VectorXd& d_positions, VectorXd&, ParameterGradient& partials) const
 {
-    if (request.rest_positions)
-        throw std::logic_error("macro_stress: shape derivatives of a periodic cell's stress are not built yet");
     const Mesh& mesh = sim.mesh();
     const VectorXd s = lever(sim);
     // df/dx = H s with the true Hessian of the elastic energy and the barrier.
@@ -59,9 +57,24 @@ void MacroStress::add_gradient(const Simulator& sim, const StateRef& state, cons
     H.finalize();
     const VectorXd Hs = H.matrix().selfadjointView<Eigen::Lower>() * s;
     gradient_block(d_positions, mesh.num_dofs()) += scale * Hs;
+    if (request.rest_positions) {
+        // At fixed x: the lever s_(v,i) = (X_v - X_o)_j / |Y| moves with X, and the potentials'
+        // gradients depend on X (their shape derivatives of s^T grad).
+        VectorXd& dX = gradient_block(partials.rest_positions, mesh.num_dofs());
+        VectorXd g = VectorXd::Zero(s.size());
+        sim.elastic().add_gradient(state.positions, 1.0, g);
+        if (sim.contact())
+            sim.contact()->add_gradient(state.positions, 1.0, g);
+        const double volume = sim.periodic()->volume();
+        for (Index v = 0; v < mesh.num_vertices(); ++v)
+            dX[v * m_dim + m_j] += scale * g[v * m_dim + m_i] / volume;
+        sim.elastic().add_shape_derivative(state.positions, s, scale, dX);
+        if (sim.contact())
+            sim.contact()->add_shape_derivative(state.positions, s, scale, dX);
+    }
     if (request.lame)
-        sim.elastic().add_lame_derivative(state.positions, s, scale,
-            gradient_block(partials.mu, mesh.num_elements()), gradient_block(partials.lambda, mesh.num_elements()));
+        sim.elastic().add_lame_derivative(state.positions, s, scale, gradient_block(partials.mu, mesh.num_elements()),
+            gradient_block(partials.lambda, mesh.num_elements()));
 }
 
 } // namespace diffipc

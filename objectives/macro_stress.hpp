@@ -1,7 +1,8 @@
 #pragma once
 /// @file macro_stress.hpp
 /// A periodic cell's homogenized stress (scene "periodic"; docs/math.md, "Periodic cells"): one
-/// component of the cell-average first Piola stress of the elastic potential, per state.
+/// component of the cell-average first Piola stress of the elastic energy and the barrier across
+/// the cell's boundary, per state.
 
 #include "objectives/state_functional.hpp"
 
@@ -9,12 +10,12 @@
 
 namespace diffipc {
 
-/// @brief f(x_k) = P_ij = (1/|Y|) \sum_v (\nabla \Psi(x_k))_{v,i} (X_v - X_o)_j (Pa): the
-/// derivative of the cell's elastic energy in G_ij over the box's volume, which at a static
-/// equilibrium is the macro reaction of that component (zero in G's free components). Written as
-/// s^T \nabla \Psi with the lever vector s (s_{v,i} = (X_v - X_o)_j / |Y|): df/dx = H_\Psi s, and
-/// the explicit partials d/d(mu, lambda) of s^T \nabla \Psi. The shape partial (s and \Psi both
-/// depend on X) is not built: a request for rest positions is a std::logic_error.
+/// @brief f(x_k) = P_ij = (1/|Y|) \sum_v (\nabla E(x_k))_{v,i} (X_v - X_o)_j (Pa), E = \Psi + \kappa B: the
+/// derivative of the cell's elastic and barrier energy in G_ij over the box's volume, which at a
+/// static equilibrium is the macro reaction of that component (zero in G's free components).
+/// Written as s^T \nabla E with the lever vector s (s_{v,i} = (X_v - X_o)_j / |Y|): df/dx = H_E s,
+/// the explicit partials d/d(mu, lambda) of s^T \nabla \Psi, and d/dX at fixed x (the lever's and
+/// the potentials' shape derivatives).
 class MacroStress : public StateFunctional {
 public:
     MacroStress(int i, int j, int dim);

@@ -57,7 +57,7 @@ struct StepRecord {
 
     // Periodic cells (scene "periodic"): d^2 values each, row-major; kept by release_state().
     VectorXd macro_gradient; ///< the macroscopic displacement gradient G at the step's end
-    VectorXd macro_stress; ///< the cell-average first Piola stress of the elastic potential (Pa)
+    VectorXd macro_stress; ///< the homogenized first Piola stress, elastic and barrier (Simulator::macro_stress; Pa)
 
     // Contact (when the scene enables it).
     /// Minimum distance (m) over primitive pairs within 1e-2 of the bbox diagonal

@@ -99,6 +99,33 @@ struct CheckSettings {
     double taylor_step = 0.1;
 };
 
+/// @brief Taylor test of a directional derivative `exact` of J at h = 0: |J(h) - J(0) - h exact|
+/// = O(h^2), over h = first_step halved six times. The rate is read where it has converged (the
+/// last halvings): at the first ones the cubic term can still compete (density enters as 1/rho
+/// through the inertia). Remainders below the forward solves' resolution (1e-10 |J|, their
+/// residual tolerance is 1e-11) carry no information; at least three must lie above it.
+inline void expect_taylor_rate(
+    const std::function<double(double)>& Jh, double J0, double exact, double first_step, double min_rate)
+{
+    std::vector<double> remainder;
+    std::string table;
+    for (double h = first_step; h > first_step / 64 * 0.99; h /= 2) {
+        remainder.push_back(std::abs(Jh(h) - J0 - h * exact));
+        char line[96];
+        std::snprintf(line, sizeof line, "  h %.5g  remainder %.4e\n", h, remainder.back());
+        table += line;
+    }
+    const double floor = 1e-10 * std::abs(J0);
+    size_t m = 0;
+    while (m < remainder.size() && remainder[m] > floor)
+        ++m;
+    ASSERT_GE(m, 3u) << "the Taylor test cannot resolve this block: start from a larger step\n" << table;
+    const double last_rate = std::log2(remainder[m - 2] / remainder[m - 1]);
+    EXPECT_GE(last_rate, min_rate) << table;
+    for (size_t i = 1; i < m; ++i)
+        EXPECT_LT(remainder[i], remainder[i - 1]) << table;
+}
+
 /// @brief Runs the scene, the adjoint for `blocks`, and checks each block in a
 /// random direction against central differences and by a Taylor test.
 /// @param kappa fixed barrier stiffness for contact scenes (0: none)
@@ -149,6 +176,8 @@ inline void check_adjoint(const nlohmann::json& scene_json, const std::vector<Bl
         const double eps = settings.fd_step;
         switch (b) {
         case Block::REST_POSITIONS:
+            dir = keep_pairing(sim, random_vector(n, ++seed) * 1e-2 * length);
+            break;
         case Block::INITIAL_DISPLACEMENT:
             dir = random_vector(n, ++seed) * 1e-2 * length;
             break;
@@ -173,7 +202,8 @@ inline void check_adjoint(const nlohmann::json& scene_json, const std::vector<Bl
                 // Relative to the largest prescribed value (G is dimensionless).
                 const VectorXd r = random_vector(base.macro_gradient.size(), ++seed)
                     * std::max(1e-3, base.macro_gradient.cwiseAbs().maxCoeff());
-                dir_matrix = Eigen::Map<const MatrixXd>(r.data(), base.macro_gradient.rows(), base.macro_gradient.cols());
+                dir_matrix
+                    = Eigen::Map<const MatrixXd>(r.data(), base.macro_gradient.rows(), base.macro_gradient.cols());
             }
             break;
         case Block::PRESCRIBED:
@@ -195,30 +225,7 @@ inline void check_adjoint(const nlohmann::json& scene_json, const std::vector<Bl
             << std::abs(exact - fd) / std::abs(fd);
         EXPECT_GT(std::abs(fd), 1e-8 * std::abs(J0)) << "the direction does not change J: the check would be empty";
 
-        // Taylor test: |J(p + h dp) - J(p) - h dJ.dp| = O(h^2). The rate is read where
-        // it has converged (the last halvings): at the first ones the cubic term can
-        // still compete (density enters as 1/rho through the inertia).
-        std::vector<double> remainder;
-        std::string table;
-        for (double h = settings.taylor_step; h > settings.taylor_step / 64 * 0.99; h /= 2) {
-            remainder.push_back(std::abs(Jh(h) - J0 - h * exact));
-            {
-                char line[96];
-                std::snprintf(line, sizeof line, "  h %.5g  remainder %.4e\n", h, remainder.back());
-                table += line;
-            }
-        }
-        // Remainders below the forward solves' resolution (1e-10 |J|, their residual
-        // tolerance is 1e-11) carry no information; at least three must lie above it.
-        const double floor = 1e-10 * std::abs(J0);
-        size_t m = 0;
-        while (m < remainder.size() && remainder[m] > floor)
-            ++m;
-        ASSERT_GE(m, 3u) << "the Taylor test cannot resolve this block: start from a larger step\n" << table;
-        const double last_rate = std::log2(remainder[m - 2] / remainder[m - 1]);
-        EXPECT_GE(last_rate, settings.min_rate) << table;
-        for (size_t i = 1; i < m; ++i)
-            EXPECT_LT(remainder[i], remainder[i - 1]) << table;
+        expect_taylor_rate(Jh, J0, exact, settings.taylor_step, settings.min_rate);
     }
 }
 

@@ -7,12 +7,23 @@
 
 #include "adjoint/sensitivity.hpp"
 #include "forward/simulation/parameters.hpp"
+#include "forward/simulation/simulator.hpp"
 
 #include <functional>
 
 namespace diffipc::test {
 
-enum class Block { REST_POSITIONS, MU, LAMBDA, DENSITY, INITIAL_DISPLACEMENT, INITIAL_VELOCITY, PRESCRIBED, FRICTION, MACRO };
+enum class Block {
+    REST_POSITIONS,
+    MU,
+    LAMBDA,
+    DENSITY,
+    INITIAL_DISPLACEMENT,
+    INITIAL_VELOCITY,
+    PRESCRIBED,
+    FRICTION,
+    MACRO
+};
 
 inline const char* block_name(Block b)
 {
@@ -88,6 +99,19 @@ inline SimulationParameters perturbed(
     else
         *block_vector(p, b) += h * dir;
     return p;
+}
+
+/// A rest-position direction (#V dim) that keeps a periodic cell's pairing (issue 14): each
+/// vertex moves as its class representative. Unchanged for other scenes.
+inline VectorXd keep_pairing(const Simulator& sim, VectorXd dir)
+{
+    if (!sim.periodic())
+        return dir;
+    const PeriodicPairing& p = sim.scene().periodic.pairing;
+    const int d = sim.mesh().dim;
+    for (Index v = 0; v < sim.mesh().num_vertices(); ++v)
+        dir.segment(v * d, d) = dir.segment(Index(p.representative[p.vertex_class[v]]) * d, d);
+    return dir;
 }
 
 /// Fourth-order central difference of f at 0 with step h.

@@ -15,8 +15,8 @@
 // 1e-8 or below. Velocities are perturbed by 1e-6 max(1, |v|) (the objectives are at most
 // quadratic in v); Lame parameters and densities by 1e-6 relative, element by element.
 
-#include "forward/test_utils.hpp"
 #include "adjoint/parameter_blocks.hpp"
+#include "forward/test_utils.hpp"
 #include "objectives/objective.hpp"
 
 #include <gtest/gtest.h>
@@ -163,7 +163,7 @@ inline void check_parameter_gradient(
     const SimulationParameters base = sim.parameters();
     const VectorXd& values = *block_vector(base, block);
     // Lengths for rest positions (1e-6 m steps), relative for per-element values.
-    const VectorXd dir = block == Block::REST_POSITIONS ? random_vector(values.size(), seed)
+    const VectorXd dir = block == Block::REST_POSITIONS ? keep_pairing(sim, random_vector(values.size(), seed))
                                                         : random_vector(values.size(), seed).cwiseProduct(values);
     const VectorXd* partial = block_vector(g, block);
     const double h = 1e-6;
