@@ -2,8 +2,9 @@
 // the infinite tiling counted once (the cell against a cell of two periods and a differently cut
 // cell of the same tiling), the barrier's derivatives through the image map against finite
 // differences, a compression whose posts touch across the boundary kept intersection-free on the
-// tiled copies by the independent intersection test (and crossing without contact), and the
-// homogenized stress with the barrier's part against the derivative of the relaxed energy.
+// tiled copies by the independent intersection test (and crossing without contact), the same
+// stress curve for any cut of the periodic medium, and the homogenized stress with the barrier's
+// part against the derivative of the relaxed energy.
 
 #include "forward/contact/intersection.hpp"
 #include "forward/periodic/tiling.hpp"
@@ -170,6 +171,32 @@ TEST(PeriodicContact, PostsTouchingAcrossTheBoundaryStayIntersectionFreeOnTheTil
         const Tiling t
             = tile_cell(free.mesh(), p.box, p.pairing, ft.step(steps).positions, ft.step(steps).macro_gradient, 1);
         EXPECT_NE(find_intersection(tiled_surface(t.mesh), t.positions, true), "");
+    }
+}
+
+TEST(PeriodicContact, TheStressCurveDoesNotDependOnWhereTheCellIsCut)
+{
+    // The same periodic medium cut at y = 0, 0.25 and 0.5 (the grid and the pattern shifted
+    // together, so that the three meshes are one tiling's): the pinned class, the origin of G,
+    // the pairing and the images differ, and at 0.5 the posts meet inside the cell instead of
+    // across its boundary. The homogenized stress of every step is the same.
+    for (int dim : { 2, 3 }) {
+        SCOPED_TRACE("dim " + std::to_string(dim));
+        const int steps = dim == 2 ? 8 : 4;
+        std::vector<MatrixXd> curves;
+        for (double shift : { 0.0, 0.25, 0.5 }) {
+            const auto sim = post_simulator(dim, "cut", -0.16, steps, 1e4, 1, shift);
+            const Trajectory& tr = sim->run();
+            ASSERT_EQ(tr.committed(), steps) << to_string(sim->last_attempt().status);
+            EXPECT_GT(tr.step(steps).active_contacts, 0);
+            MatrixXd curve(steps, dim * dim);
+            for (int k = 1; k <= steps; ++k)
+                curve.row(k - 1) = tr.step(k).macro_stress.transpose();
+            curves.push_back(curve);
+        }
+        const double scale = curves[0].cwiseAbs().maxCoeff();
+        for (size_t c = 1; c < curves.size(); ++c)
+            EXPECT_LE((curves[c] - curves[0]).cwiseAbs().maxCoeff(), 1e-7 * scale) << "cut " << c;
     }
 }
 
