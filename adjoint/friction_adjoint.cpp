@@ -26,13 +26,24 @@ namespace {
 } // namespace
 
 void friction_step_adjoint(
-    const Simulator& sim, int k, const VectorXd& lambda, double weight, const FrictionAdjointTerms& terms)
+    const Simulator& sim, int k, const VectorXd& mesh_lambda, double weight, const FrictionAdjointTerms& mesh_terms)
 {
     const FrictionPotential& D = *sim.friction();
     const ContactPotential& B = *sim.contact();
     const int dim = sim.mesh().dim;
-    const VectorXd& x = sim.trajectory().steps[size_t(k - 1)].positions;
+    // With periodic images the contacts index the image surface x_s = T x: work there (lambda^T
+    // grad D = (T lambda)^T grad D_s) and map the position terms back by T^T.
+    const VectorXd x = B.surface_positions(sim.trajectory().steps[size_t(k - 1)].positions);
+    const VectorXd lambda = B.surface_positions(mesh_lambda);
     const VectorXd& y = D.step_start(); // x_{k-1}: the start of the step and the lagged state
+    VectorXd previous_surface, rest_surface;
+    FrictionAdjointTerms terms = mesh_terms;
+    if (B.has_images()) {
+        if (mesh_terms.previous_positions)
+            terms.previous_positions = &(previous_surface = VectorXd::Zero(x.size()));
+        if (mesh_terms.rest_positions)
+            terms.rest_positions = &(rest_surface = VectorXd::Zero(x.size()));
+    }
     const double eps = D.eps();
     const ContactSettings& cs = B.settings();
     const double dmin2 = cs.min_distance * cs.min_distance;
@@ -43,8 +54,8 @@ void friction_step_adjoint(
         // unbounded at mu_a = 0 wherever the pair presses: no number is right there.
         // Groups never in contact have a zero derivative, which is exact.
         const std::vector<double>& mu = D.group_coefficients();
-        const VectorXi& group = sim.mesh().vertex_body;
-        for (const Contact& c : B.contacts(y)) {
+        const VectorXi& group = D.vertex_groups();
+        for (const Contact& c : B.surface_contacts(y)) {
             const int other = c.kind == ContactKind::EDGE_EDGE ? 2 : 1;
             const int ga = group[c.vertices[0]], gb = group[c.vertices[size_t(other)]];
             if (!(mu[size_t(ga)] > 0) || !(mu[size_t(gb)] > 0))
@@ -150,6 +161,12 @@ void friction_step_adjoint(
                         -= scale * phi * dlam_deps * deps.segment(3 * i, dim);
             }
         }
+    }
+    if (B.has_images()) {
+        if (mesh_terms.previous_positions)
+            *mesh_terms.previous_positions += B.images().transpose() * previous_surface;
+        if (mesh_terms.rest_positions)
+            *mesh_terms.rest_positions += B.images().transpose() * rest_surface;
     }
 }
 

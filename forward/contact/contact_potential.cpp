@@ -173,9 +173,7 @@ void ContactPotential::set_images(SparseMatrixd T)
 {
     if (T.rows() != m_rest.size())
         throw std::invalid_argument("ContactPotential::set_images: T must have a row per surface dof");
-    m_images = std::move(T);
-    m_image_assembler = std::make_unique<SparseAssembler>();
-    m_image_assembler->build(m_mesh.dim, m_rest.rows(), MatrixXi(0, m_mesh.dim + 1));
+    m_images = SurfaceImages(std::move(T), m_mesh.dim);
     m_cache_valid = false;
     m_segment->valid = false;
 }
@@ -362,10 +360,11 @@ void ContactPotential::add_barrier_gradient(const VectorXd& x, double scale, Vec
         scatter_gradient(x, scale, g);
         return;
     }
-    const VectorXd y = m_images * x;
+    VectorXd storage;
+    const VectorXd& y = surface(x, storage);
     VectorXd gs = VectorXd::Zero(y.size());
     scatter_gradient(y, scale, gs);
-    g += m_images.transpose() * gs;
+    m_images.add_back(gs, g);
 }
 
 VectorXd ContactPotential::barrier_gradient(const VectorXd& x) const
@@ -391,9 +390,7 @@ void ContactPotential::add_hessian(
     Timer t;
     const double scale = weight * m_settings.kappa;
     // With images the locals go into the surface's assembler first, then T^T H_s T into mesh_H.
-    SparseAssembler& H = has_images() ? *m_image_assembler : mesh_H;
-    if (has_images())
-        H.set_zero();
+    SparseAssembler& H = m_images.hessian_target(mesh_H);
     const size_t first = H.reserve_locals(set.size());
     tbb::parallel_for(tbb::blocked_range<size_t>(0, set.size(), 16), [&](const tbb::blocked_range<size_t>& r) {
         Eigen::MatrixXd local;
@@ -405,12 +402,7 @@ void ContactPotential::add_hessian(
             H.set_local(first + k, set[k].vertices.data(), set[k].num_vertices(), local.data());
         }
     });
-    if (has_images()) {
-        H.finalize();
-        const SparseMatrixd full = H.matrix().selfadjointView<Eigen::Lower>();
-        const SparseMatrixd reduced = m_images.transpose() * full * m_images;
-        mesh_H.add_matrix(reduced.triangularView<Eigen::Lower>());
-    }
+    m_images.finish_hessian(mesh_H);
     t.add_to(m_times.barrier);
 }
 
@@ -611,7 +603,7 @@ void ContactPotential::add_shape_derivative(
     });
     m_scatter.add(locals.data(), dim, 1.0, d_rest_positions);
     if (has_images())
-        d_mesh_rest += m_images.transpose() * d_surface;
+        m_images.add_back(d_surface, d_mesh_rest);
 }
 
 } // namespace diffipc

@@ -9,6 +9,7 @@
 #include "forward/common/parallel.hpp"
 #include "forward/contact/collision_mesh.hpp"
 #include "forward/contact/contact_set.hpp"
+#include "forward/contact/surface_images.hpp"
 #include "forward/potentials/potential.hpp"
 
 #include <functional>
@@ -60,6 +61,8 @@ public:
 
     /// Active contacts at x (cached for the last x asked about).
     const ContactSet& contacts(const VectorXd& x) const;
+    /// contacts() at surface positions y (surface_positions(x)); the same without images.
+    const ContactSet& surface_contacts(const VectorXd& y) const;
     /// @brief Minimum distance (m) over primitive pairs within `radius` (m) of each
     /// other at x, and over vertex-plane pairs; +inf if there is none.
     double min_distance(const VectorXd& x, double radius) const;
@@ -104,9 +107,15 @@ public:
     /// local_distance(), mollifier_threshold_gradient()) index the surface: the first #V of its
     /// vertices are the mesh's own.
     void set_images(SparseMatrixd T);
-    bool has_images() const { return m_images.size() > 0; }
+    bool has_images() const { return !m_images.empty(); }
+    /// T (empty without images).
+    const SparseMatrixd& images() const { return m_images.matrix(); }
     /// The positions the collision mesh indexes: x, or T x with images.
-    VectorXd surface_positions(const VectorXd& x) const { return has_images() ? VectorXd(m_images * x) : x; }
+    VectorXd surface_positions(const VectorXd& x) const
+    {
+        VectorXd storage;
+        return m_images.surface(x, storage);
+    }
     const CollisionMesh& collision_mesh() const { return m_mesh; }
     const std::vector<ContactPlane>& planes() const { return m_planes; }
 
@@ -117,15 +126,7 @@ public:
 private:
     void build_contacts(const VectorXd& x, ContactSet& out, double radius) const;
     /// x, or T x (in `storage`) with images.
-    const VectorXd& surface(const VectorXd& x, VectorXd& storage) const
-    {
-        if (!has_images())
-            return x;
-        storage = m_images * x;
-        return storage;
-    }
-    /// contacts() at surface positions y.
-    const ContactSet& surface_contacts(const VectorXd& y) const;
+    const VectorXd& surface(const VectorXd& x, VectorXd& storage) const { return m_images.surface(x, storage); }
     /// Adds scale * grad(sum_k m_k b_k) at mesh positions x into g (#V dim).
     void add_barrier_gradient(const VectorXd& x, double scale, VectorXd& g) const;
     /// Adds scale * grad(sum_k m_k b_k) into g (no full-size temporary).
@@ -151,8 +152,7 @@ private:
     std::unique_ptr<Segment> m_segment;
     bool on_segment(const VectorXd& y) const;
 
-    SparseMatrixd m_images; ///< T, empty without periodic images
-    mutable std::unique_ptr<SparseAssembler> m_image_assembler; ///< the surface's Hessian with images
+    SurfaceImages m_images; ///< empty without periodic images
 
     mutable VectorXd m_cache_x;
     mutable ContactSet m_cache;

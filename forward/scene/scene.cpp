@@ -313,8 +313,8 @@ namespace {
         if (f.json().is_boolean()) {
             a.enabled = f.boolean();
         } else {
-            f.require_object({ "min_increment", "cut", "growth", "iteration_target", "displacement_control",
-                "relaxation" });
+            f.require_object(
+                { "min_increment", "cut", "growth", "iteration_target", "displacement_control", "relaxation" });
             a.enabled = true;
             if (f.has("min_increment")) {
                 a.min_increment = f["min_increment"].positive();
@@ -401,8 +401,8 @@ namespace {
                 const char* i = c.size() == 2 ? std::strchr(names, c[0]) : nullptr;
                 const char* j = c.size() == 2 ? std::strchr(names, c[1]) : nullptr;
                 if (!i || !j || i - names >= d || j - names >= d)
-                    free.at(k).fail("expected a component such as \"xx\" or \"yx\" (row, column of G), got \""
-                        + c + "\"");
+                    free.at(k).fail(
+                        "expected a component such as \"xx\" or \"yx\" (row, column of G), got \"" + c + "\"");
                 const int a = int(i - names), b = int(j - names);
                 if (f.has("gradient") && !f["gradient"].at(size_t(a)).at(size_t(b)).json().is_null())
                     free.at(k).fail("G_" + c + " is both prescribed (" + f["gradient"].path() + "[" + std::to_string(a)
@@ -428,11 +428,6 @@ namespace {
                         + " are both free: a rigid rotation of the cell would be free too (prescribe one)");
             }
         // Not built yet for periodic cells: say so, naming the field.
-        bool friction = scene.friction.coefficient > 0;
-        for (const BodySpec& b : scene.bodies)
-            friction = friction || b.friction_coefficient > 0;
-        if (scene.contact.enabled && friction)
-            f.fail("friction in a periodic cell is not built yet: set the friction coefficients to 0");
         if (!scene.obstacles.empty())
             f.fail("obstacles in a periodic cell are not supported");
         if (!scene.dirichlet.empty())

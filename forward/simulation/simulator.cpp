@@ -341,9 +341,10 @@ void Simulator::setup_contact()
     m_kappa_initial = settings.kappa;
     if (m_scene.periodic.enabled) {
         // Contact across the cell's boundary: the surface with its periodic images.
-        ContactImages images = build_contact_images(
-            mesh, m_scene.periodic.box, m_scene.periodic.pairing, self_contact, kinematic);
-        m_contact = std::make_unique<ContactPotential>(std::move(images.mesh), images.rest, std::move(planes), settings);
+        ContactImages images
+            = build_contact_images(mesh, m_scene.periodic.box, m_scene.periodic.pairing, self_contact, kinematic);
+        m_contact
+            = std::make_unique<ContactPotential>(std::move(images.mesh), images.rest, std::move(planes), settings);
         m_contact->set_images(std::move(images.map));
     } else
         m_contact = std::make_unique<ContactPotential>(
@@ -403,6 +404,10 @@ void Simulator::setup_friction()
     if (!any)
         return; // zero coefficients: no friction work at all
     m_friction = std::make_unique<FrictionPotential>(m_scene.dim, mu, m_scene.mesh.vertex_body, spec.eps_v);
+    if (m_contact->has_images()) // a periodic cell: friction across its boundary too
+        m_friction->set_images(m_contact->images(),
+            Eigen::Map<const VectorXi>(m_contact->collision_mesh().vertex_group.data(),
+                Index(m_contact->collision_mesh().vertex_group.size())));
     m_problem.add(m_friction.get(), m_integrator->potential_weight());
 }
 
@@ -850,8 +855,9 @@ void Simulator::resume(const Trajectory& stored, bool stored_contact)
         m_contact->set_kappa(last.kappa);
     if (m_periodic) {
         if (last.macro_gradient.size() != m_scene.dim * m_scene.dim)
-            throw InputError("restart", "the stored trajectory has no macro_gradient (the periodic cell's G at step "
-                    + std::to_string(k) + "): it was not written by this periodic scene");
+            throw InputError("restart",
+                "the stored trajectory has no macro_gradient (the periodic cell's G at step " + std::to_string(k)
+                    + "): it was not written by this periodic scene");
         m_macro = last.macro_gradient;
     }
     m_trajectory.steps.clear();
@@ -989,8 +995,11 @@ SimulationParameters Simulator::parameters() const
         // G's prescribed values at t_1..t_T (the free components: 0, ignored).
         p.macro_gradient = MatrixXd::Zero(T, d * d);
         for (int k = 1; k <= T; ++k)
-            p.macro_gradient.row(k - 1) = m_periodic->prescribed_values(k * m_scene.time.dt,
-                m_overrides.macro_gradient.rows() >= k ? &m_overrides.macro_gradient : nullptr, k).transpose();
+            p.macro_gradient.row(k - 1)
+                = m_periodic
+                      ->prescribed_values(k * m_scene.time.dt,
+                          m_overrides.macro_gradient.rows() >= k ? &m_overrides.macro_gradient : nullptr, k)
+                      .transpose();
     }
     return p;
 }

@@ -588,6 +588,40 @@ TEST(AdjointPeriodic, GradientsWithContactAcrossTheCellBoundaryMatchFiniteDiffer
     }
 }
 
+TEST(AdjointPeriodic, GradientsWithFrictionAcrossTheCellBoundaryMatchFiniteDifferences)
+{
+    // The post cell pressed to G_yy = -0.18 in three steps and sheared by G_xy = 0.002 t, so that
+    // its posts, in contact from the second step on, slide a little on the next cell's under
+    // friction in the third (mu 0.3, lagged once per step at its start, through the periodic
+    // images like the barrier). Every block a periodic cell has, the friction coefficient's included.
+    for (const auto& [dim, integrator] : { std::pair { 2, "static" }, std::pair { 3, "static" } }) {
+        SCOPED_TRACE(std::to_string(dim) + "D " + integrator);
+        const std::string path = "/tmp/diffipc_adjoint_friction_cell_" + std::to_string(::getpid()) + ".msh";
+        json s = post_cell_scene(dim, path, -0.18, 3, 1e7);
+        s["time"]["integrator"] = integrator;
+        s["solver"]["residual_tolerance"] = 1e-11;
+        s["periodic"]["gradient"][0][1] = "0.002*t";
+        s["friction"] = { { "coefficient", 0.3 } };
+        {
+            Simulator sim(make_scene(s));
+            sim.run();
+            ASSERT_EQ(sim.trajectory().final_status, StepStatus::CONVERGED) << sim.trajectory().failure_message;
+            ASSERT_GT(sim.trajectory().step(3).friction.size(), 0u) << "no friction in the last step";
+        }
+        CheckSettings settings;
+        settings.tolerance = 1e-5;
+        settings.fd_step = 2.5e-4;
+        // The macro block's Taylor steps as above (the sliding faces' vertices must not pass each
+        // other); the others from 0.1, where the remainders stand above the lagged forward
+        // solves' noise (about 1e-7 of this J).
+        settings.taylor_step = 0.01;
+        check_adjoint(s, { Block::MACRO }, settings, 1e7);
+        settings.taylor_step = 0.1;
+        check_adjoint(s, { Block::REST_POSITIONS, Block::MU, Block::LAMBDA, Block::FRICTION }, settings, 1e7);
+        std::remove(path.c_str());
+    }
+}
+
 TEST(AdjointPeriodic, PrescribedAndInitialDisplacementGradientsOfPeriodicCellsAreRefusedNamingWhat)
 {
     json s = box_scene(2, { 1, 0.8 }, { 3, 2 }, "neo_hookean", 1e5, 0.3, 1000);

@@ -183,18 +183,31 @@ FrictionPotential::FrictionPotential(
 {
 }
 
+void FrictionPotential::set_images(SparseMatrixd T, VectorXi surface_group)
+{
+    if (T.rows() != surface_group.size() * m_dim)
+        throw std::invalid_argument("FrictionPotential::set_images: T must have a row per surface dof");
+    m_images = SurfaceImages(std::move(T), m_dim);
+    m_vertex_group = std::move(surface_group);
+    m_contacts.clear();
+}
+
 void FrictionPotential::set_step(const VectorXd& x_start, double dt)
 {
-    m_x_start = x_start;
+    VectorXd storage;
+    m_x_start = surface(x_start, storage);
     m_eps = m_eps_v * dt;
 }
 
-void FrictionPotential::lag(const ContactPotential& contact, const VectorXd& x_lagged)
+void FrictionPotential::lag(const ContactPotential& contact, const VectorXd& mesh_x_lagged)
 {
+    if (contact.has_images() != has_images())
+        throw std::logic_error("FrictionPotential::lag: the barrier and the friction differ in periodic images");
+    const VectorXd x_lagged = contact.surface_positions(mesh_x_lagged); // the contacts' indices
     const ContactSettings& s = contact.settings();
     const double shat = barrier_activation(s.dhat, s.min_distance);
     const double dmin2 = s.min_distance * s.min_distance;
-    const ContactSet& set = contact.contacts(x_lagged);
+    const ContactSet& set = contact.contacts(mesh_x_lagged);
     // In contact order, whatever the thread count.
     m_contacts = parallel_collect<FrictionContact>(set.size(), 64, [&](size_t k, std::vector<FrictionContact>& out) {
         const Contact& c = set[k];
@@ -248,16 +261,23 @@ Eigen::Vector2d FrictionPotential::tangential_displacement(const FrictionContact
     return u;
 }
 
-double FrictionPotential::value(const VectorXd& x) const
+double FrictionPotential::value(const VectorXd& mesh_x) const
 {
+    VectorXd storage;
+    const VectorXd& x = surface(mesh_x, storage);
     return parallel_sum(m_contacts.size(), 64, [&](size_t k) {
         const FrictionContact& c = m_contacts[k];
         return c.coefficient * c.normal_force * f0(tangential_displacement(c, x).norm(), m_eps);
     });
 }
 
-void FrictionPotential::add_gradient(const VectorXd& x, double weight, VectorXd& g) const
+void FrictionPotential::add_gradient(const VectorXd& mesh_x, double weight, VectorXd& mesh_g) const
 {
+    VectorXd storage, surface_g;
+    const VectorXd& x = surface(mesh_x, storage);
+    if (has_images())
+        surface_g = VectorXd::Zero(x.size());
+    VectorXd& g = has_images() ? surface_g : mesh_g;
     // Local forces in parallel, gathered per vertex in contact order (the serial sum).
     std::vector<double>& locals = m_gradient_buffer;
     locals.assign(m_contacts.size() * 4 * size_t(m_dim), 0.0);
@@ -278,11 +298,18 @@ void FrictionPotential::add_gradient(const VectorXd& x, double weight, VectorXd&
         return a < m_contacts[k].num_vertices ? m_contacts[k].vertices[size_t(a)] : Index(-1);
     });
     m_scatter.add(locals.data(), m_dim, 1.0, g);
+    if (has_images())
+        m_images.add_back(surface_g, mesh_g);
 }
 
-void FrictionPotential::add_hessian(const VectorXd& x, double weight, bool project_to_psd, SparseAssembler& H) const
+void FrictionPotential::add_hessian(
+    const VectorXd& mesh_x, double weight, bool project_to_psd, SparseAssembler& mesh_H) const
 {
     (void)project_to_psd; // PSD by construction (see the file comment)
+    VectorXd storage;
+    const VectorXd& x = surface(mesh_x, storage);
+    // With images the locals go into the surface's assembler first, then T^T H_s T into mesh_H.
+    SparseAssembler& H = m_images.hessian_target(mesh_H);
     const size_t first = H.reserve_locals(m_contacts.size());
     tbb::parallel_for(tbb::blocked_range<size_t>(0, m_contacts.size(), 64), [&](const tbb::blocked_range<size_t>& r) {
         Eigen::MatrixXd local;
@@ -313,6 +340,7 @@ void FrictionPotential::add_hessian(const VectorXd& x, double weight, bool proje
             H.set_local(first + k, c.vertices.data(), c.num_vertices, local.data());
         }
     });
+    m_images.finish_hessian(mesh_H);
 }
 
 } // namespace diffipc

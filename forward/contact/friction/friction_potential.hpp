@@ -12,6 +12,7 @@
 
 #include "forward/common/parallel.hpp"
 #include "forward/contact/contact_set.hpp"
+#include "forward/contact/surface_images.hpp"
 #include "forward/potentials/potential.hpp"
 
 #include <vector>
@@ -60,10 +61,19 @@ public:
     /// @brief Sets the start-of-step positions x0 and the time step h (eps = eps_v h).
     void set_step(const VectorXd& x_start, double dt);
 
+    /// @brief Periodic images (forward/periodic/contact_images.hpp, as ContactPotential::set_images):
+    /// the lagged contacts index the image surface x_s = T x; every method still takes the mesh's
+    /// positions and returns T^T g_s, T^T H_s T.
+    /// @param surface_group the contact group of each surface vertex (-1 off the surface)
+    void set_images(SparseMatrixd T, VectorXi surface_group);
+    bool has_images() const { return !m_images.empty(); }
+    /// The contact group of each vertex the lagged contacts index (the surface's with images).
+    const VectorXi& vertex_groups() const { return m_vertex_group; }
+
     const std::vector<FrictionContact>& lagged() const { return m_contacts; }
     /// @brief Restores lagged data recorded earlier (StepRecord::friction).
     void set_lagged(std::vector<FrictionContact> contacts) { m_contacts = std::move(contacts); }
-    /// Start-of-step positions x0 (#V*dim).
+    /// Start-of-step positions x0 (#V*dim; with images the surface's, T x0).
     const VectorXd& step_start() const { return m_x_start; }
     /// Friction coefficient per contact group.
     const std::vector<double>& group_coefficients() const { return m_group_coefficient; }
@@ -75,7 +85,9 @@ public:
     static double f1_derivative(double y, double eps);
 
 private:
-    /// u = T^T sum_i gamma_i (x_i - x0_i) (first dim-1 entries used).
+    /// x, or T x (in `storage`) with images.
+    const VectorXd& surface(const VectorXd& x, VectorXd& storage) const { return m_images.surface(x, storage); }
+    /// u = T^T sum_i gamma_i (x_i - x0_i) (first dim-1 entries used; x on the surface).
     Eigen::Vector2d tangential_displacement(const FrictionContact& c, const VectorXd& x) const;
 
     int m_dim;
@@ -84,6 +96,7 @@ private:
     double m_eps_v;
     double m_eps = 0;
     VectorXd m_x_start;
+    SurfaceImages m_images; ///< empty without periodic images
     std::vector<FrictionContact> m_contacts;
     mutable std::vector<double> m_gradient_buffer; ///< per-contact local forces (4 vertices x dim each)
     mutable VertexScatter m_scatter; ///< gathers them per vertex in contact order

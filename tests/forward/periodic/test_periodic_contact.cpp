@@ -1,11 +1,12 @@
 // Contact across a periodic cell's boundary (forward/periodic/contact_images.hpp): each pair of
 // the infinite tiling counted once (the cell against a cell of two periods and a differently cut
-// cell of the same tiling), the barrier's derivatives through the image map against finite
-// differences, a compression whose posts touch across the boundary kept intersection-free on the
+// cell of the same tiling), the barrier's and the friction's derivatives through the image map
+// against finite differences (friction counted once too), a compression whose posts touch across the boundary kept intersection-free on the
 // tiled copies by the independent intersection test (and crossing without contact), the same
 // stress curve for any cut of the periodic medium, and the homogenized stress with the barrier's
 // part against the derivative of the relaxed energy.
 
+#include "forward/contact/friction/friction_potential.hpp"
 #include "forward/contact/intersection.hpp"
 #include "forward/periodic/tiling.hpp"
 #include "forward/solver/sparse_assembler.hpp"
@@ -135,6 +136,63 @@ TEST(PeriodicContact, BarrierDerivativesThroughTheImagesMatchFiniteDifferences)
         B.add_gradient(x - h * dir, 1.0, gm);
         const VectorXd fd_H = (gp - gm) / (2 * h);
         EXPECT_LE((fd_H - Hd).norm(), 1e-6 * Hd.norm());
+        EXPECT_GT(Hd.norm(), 0);
+    }
+}
+
+TEST(PeriodicContact, FrictionThroughTheImagesCountsEachPairOnceAndMatchesFiniteDifferences)
+{
+    // Friction lagged at the near-contact state (posts 0.005 m apart across the boundary), the
+    // step started from a state slid by a periodic field: its value in the cell against a cell of
+    // two periods, and its gradient and Hessian through the image map against central differences.
+    for (int dim : { 2, 3 }) {
+        SCOPED_TRACE("dim " + std::to_string(dim));
+        const auto cell = post_simulator(dim, "friction", -0.2, 1, 1.0);
+        const auto twice = post_simulator(dim, "friction_twice", -0.2, 1, 1.0, 2);
+        const auto friction_of = [&](const Simulator& sim, const VectorXd& x, const VectorXd& start) {
+            const ContactPotential& B = *sim.contact();
+            const std::vector<int>& groups = B.collision_mesh().vertex_group;
+            auto D = std::make_unique<FrictionPotential>(dim, std::vector<double> { 0.3 }, sim.mesh().vertex_body, 0.1);
+            D->set_images(B.images(), Eigen::Map<const VectorXi>(groups.data(), Index(groups.size())));
+            D->lag(B, x);
+            D->set_step(start, 1.0);
+            return D;
+        };
+        // The step's start: each vertex back by a smooth periodic slide (0.002 m at most).
+        const auto slid = [&](const Mesh& mesh, const VectorXd& x) {
+            VectorXd start = x;
+            for (Index v = 0; v < mesh.num_vertices(); ++v) {
+                const double X = mesh.rest_positions(v, 0), Y = mesh.rest_positions(v, 1);
+                start[v * dim] -= 0.002 * std::sin(2 * M_PI * Y);
+                start[v * dim + dim - 1] -= 0.001 * std::cos(2 * M_PI * (X + Y));
+            }
+            return start;
+        };
+        const VectorXd x = near_contact_positions(cell->mesh(), 0), x2 = near_contact_positions(twice->mesh(), 0);
+        const auto D = friction_of(*cell, x, slid(cell->mesh(), x));
+        const auto D2 = friction_of(*twice, x2, slid(twice->mesh(), x2));
+        ASSERT_GT(D->lagged().size(), 0u);
+        const double value = D->value(x);
+        ASSERT_GT(value, 0);
+        EXPECT_NEAR(D2->value(x2), 2 * value, 1e-10 * value);
+        EXPECT_EQ(D2->lagged().size(), 2 * D->lagged().size());
+
+        const Mesh& mesh = cell->mesh();
+        const VectorXd dir = test::random_vector(x.size(), 9);
+        VectorXd g = VectorXd::Zero(x.size());
+        D->add_gradient(x, 1.0, g);
+        SparseAssembler H;
+        H.build(dim, mesh.num_vertices(), mesh.elements);
+        H.set_zero();
+        D->add_hessian(x, 1.0, false, H);
+        H.finalize();
+        const VectorXd Hd = H.matrix().selfadjointView<Eigen::Lower>() * dir;
+        const double h = 1e-7;
+        EXPECT_NEAR((D->value(x + h * dir) - D->value(x - h * dir)) / (2 * h), g.dot(dir), 1e-6 * std::abs(g.dot(dir)));
+        VectorXd gp = VectorXd::Zero(x.size()), gm = VectorXd::Zero(x.size());
+        D->add_gradient(x + h * dir, 1.0, gp);
+        D->add_gradient(x - h * dir, 1.0, gm);
+        EXPECT_LE(((gp - gm) / (2 * h) - Hd).norm(), 1e-6 * Hd.norm());
         EXPECT_GT(Hd.norm(), 0);
     }
 }
