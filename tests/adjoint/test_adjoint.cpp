@@ -553,6 +553,29 @@ TEST(AdjointPeriodic, ShapeMaterialDensityVelocityAndMacroGradientsOfAPeriodicCe
         }
 }
 
+namespace {
+
+/// The post cell (tests/forward/periodic/post_cell.hpp) for the adjoint checks, its mesh written
+/// to a file of this process: fixed kappa 1e7, forward residual 1e-11, `edit` applied; run once
+/// to check that it converges and that `engaged` holds of its trajectory (else the check would
+/// not see the contact). Returns the scene and the mesh file (remove it after the check).
+std::pair<json, std::string> post_cell_for_adjoint(int dim, const char* integrator, double strain, int steps,
+    const std::function<void(json&)>& edit, const std::function<bool(const Trajectory&)>& engaged)
+{
+    const std::string path = "/tmp/diffipc_adjoint_post_cell_" + std::to_string(::getpid()) + ".msh";
+    json s = post_cell_scene(dim, path, strain, steps, 1e7);
+    s["time"]["integrator"] = integrator;
+    s["solver"]["residual_tolerance"] = 1e-11;
+    edit(s);
+    Simulator sim(make_scene(s));
+    sim.run();
+    EXPECT_EQ(sim.trajectory().final_status, StepStatus::CONVERGED) << sim.trajectory().failure_message;
+    EXPECT_TRUE(engaged(sim.trajectory())) << "the posts do not engage";
+    return { s, path };
+}
+
+} // namespace
+
 TEST(AdjointPeriodic, GradientsWithContactAcrossTheCellBoundaryMatchFiniteDifferences)
 {
     // The post cell (tests/forward/periodic/post_cell.hpp) compressed to G_yy = -0.12 in two
@@ -562,16 +585,9 @@ TEST(AdjointPeriodic, GradientsWithContactAcrossTheCellBoundaryMatchFiniteDiffer
     // stress's test, tests/objectives/test_macro_stress.cpp, runs all four).
     for (const auto& [dim, integrator] : { std::pair { 2, "static" }, std::pair { 3, "implicit_euler" } }) {
         SCOPED_TRACE(std::to_string(dim) + "D " + integrator);
-        const std::string path = "/tmp/diffipc_adjoint_post_cell_" + std::to_string(::getpid()) + ".msh";
-        json s = post_cell_scene(dim, path, -0.12, 2, 1e7);
-        s["time"]["integrator"] = integrator;
-        s["solver"]["residual_tolerance"] = 1e-11;
-        {
-            Simulator sim(make_scene(s));
-            sim.run();
-            ASSERT_EQ(sim.trajectory().final_status, StepStatus::CONVERGED) << sim.trajectory().failure_message;
-            ASSERT_GT(sim.trajectory().step(2).active_contacts, 0) << "the posts do not touch";
-        }
+        const auto [s, path] = post_cell_for_adjoint(
+            dim, integrator, -0.12, 2, [](json&) {},
+            [](const Trajectory& tr) { return tr.committed() == 2 && tr.step(2).active_contacts > 0; });
         // Density is left to the test above: with dt = 0.5 s its effect is below what the
         // Taylor test resolves.
         const std::vector<Block> blocks { Block::REST_POSITIONS, Block::MU, Block::LAMBDA, Block::MACRO };
@@ -596,18 +612,13 @@ TEST(AdjointPeriodic, GradientsWithFrictionAcrossTheCellBoundaryMatchFiniteDiffe
     // images like the barrier). Every block a periodic cell has, the friction coefficient's included.
     for (const auto& [dim, integrator] : { std::pair { 2, "static" }, std::pair { 3, "static" } }) {
         SCOPED_TRACE(std::to_string(dim) + "D " + integrator);
-        const std::string path = "/tmp/diffipc_adjoint_friction_cell_" + std::to_string(::getpid()) + ".msh";
-        json s = post_cell_scene(dim, path, -0.18, 3, 1e7);
-        s["time"]["integrator"] = integrator;
-        s["solver"]["residual_tolerance"] = 1e-11;
-        s["periodic"]["gradient"][0][1] = "0.002*t";
-        s["friction"] = { { "coefficient", 0.3 } };
-        {
-            Simulator sim(make_scene(s));
-            sim.run();
-            ASSERT_EQ(sim.trajectory().final_status, StepStatus::CONVERGED) << sim.trajectory().failure_message;
-            ASSERT_GT(sim.trajectory().step(3).friction.size(), 0u) << "no friction in the last step";
-        }
+        const auto [s, path] = post_cell_for_adjoint(
+            dim, integrator, -0.18, 3,
+            [](json& scene) {
+                scene["periodic"]["gradient"][0][1] = "0.002*t";
+                scene["friction"] = { { "coefficient", 0.3 } };
+            },
+            [](const Trajectory& tr) { return tr.committed() == 3 && !tr.step(3).friction.empty(); });
         CheckSettings settings;
         settings.tolerance = 1e-5;
         settings.fd_step = 2.5e-4;

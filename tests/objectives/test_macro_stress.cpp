@@ -82,8 +82,9 @@ TEST(MacroStress, WithContactAcrossTheCellBoundaryItsGradientsMatchWholeRuns)
                 ASSERT_GT(run.trajectory.steps.back().active_contacts, 0);
                 const TimeAggregation J(std::make_unique<MacroStress>(1, 1, dim), TimeMode::SUM);
                 test::check_state_gradient(J, run, 13, 1e-6);
+                // The barrier has no Lame partial (the test above checks the elastic one); its
+                // shape partial (the lever, the mollifier thresholds through the images) is here.
                 test::check_parameter_gradient(J, run, Block::REST_POSITIONS, 17, 1e-6);
-                test::check_parameter_gradient(J, run, Block::MU, 19, 1e-6);
             }
             const json objective = { { "type", "macro_stress" }, { "component", "yy" }, { "time", "sum" } };
             test::check_through_adjoint(s, objective, { Block::REST_POSITIONS, Block::MU, Block::LAMBDA, Block::MACRO },

@@ -168,7 +168,9 @@ def _shape(text, case_dir):
 def _cut_at_nul(msg, case):
     """A message that stops right after a field path or an opening quote, for an input with a NUL in
     a key or a string: the C string of the message ended at the NUL."""
-    if not any(b"\\u0000" in data or b"\x00" in data for data in case.files.values()):
+    # Inputs only: a study folder's figures (PNG) hold NUL bytes that no message reads.
+    inputs = [data for name, data in case.files.items() if not name.endswith(".png")]
+    if not any(b"\\u0000" in data or b"\x00" in data for data in inputs):
         return False
     last = msg.split(": ")[-1].strip()
     quotes = re.sub(r"(?<=\w)'(?=\w)", "", msg).count("'")  # not the apostrophe of Poisson's

@@ -1,16 +1,16 @@
 // Contact across a periodic cell's boundary (forward/periodic/contact_images.hpp): each pair of
 // the infinite tiling counted once (the cell against a cell of two periods and a differently cut
 // cell of the same tiling), the barrier's and the friction's derivatives through the image map
-// against finite differences (friction counted once too), a compression whose posts touch across the boundary kept intersection-free on the
-// tiled copies by the independent intersection test (and crossing without contact), the same
+// against finite differences (friction counted once too), a compression whose posts touch across the boundary kept
+// intersection-free on the tiled copies by the independent intersection test (and crossing without contact), the same
 // stress curve for any cut of the periodic medium, and the homogenized stress with the barrier's
 // part against the derivative of the relaxed energy.
 
 #include "forward/contact/friction/friction_potential.hpp"
 #include "forward/contact/intersection.hpp"
 #include "forward/periodic/tiling.hpp"
-#include "forward/solver/sparse_assembler.hpp"
 #include "tests/forward/periodic/post_cell.hpp"
+#include "tests/forward/potential_fd.hpp"
 
 #include <gtest/gtest.h>
 
@@ -119,24 +119,11 @@ TEST(PeriodicContact, BarrierDerivativesThroughTheImagesMatchFiniteDifferences)
         const Mesh& mesh = sim->mesh();
         const ContactPotential& B = *sim->contact();
         const VectorXd x = near_contact_positions(mesh, 0);
-        const VectorXd dir = test::random_vector(x.size(), 5);
-        VectorXd g = VectorXd::Zero(x.size());
-        B.add_gradient(x, 1.0, g);
-        SparseAssembler H;
-        H.build(dim, mesh.num_vertices(), mesh.elements);
-        H.set_zero();
-        B.add_hessian(x, 1.0, false, H);
-        H.finalize();
-        const VectorXd Hd = H.matrix().selfadjointView<Eigen::Lower>() * dir;
-        const double h = 1e-7;
-        const double fd = (B.value(x + h * dir) - B.value(x - h * dir)) / (2 * h);
-        EXPECT_NEAR(fd, g.dot(dir), 1e-6 * std::abs(g.dot(dir)));
-        VectorXd gp = VectorXd::Zero(x.size()), gm = VectorXd::Zero(x.size());
-        B.add_gradient(x + h * dir, 1.0, gp);
-        B.add_gradient(x - h * dir, 1.0, gm);
-        const VectorXd fd_H = (gp - gm) / (2 * h);
-        EXPECT_LE((fd_H - Hd).norm(), 1e-6 * Hd.norm());
-        EXPECT_GT(Hd.norm(), 0);
+        // Four random directions, central differences with h = 1e-7 m (the pairs are 0.005 m apart).
+        const test::PotentialFD e = test::potential_fd(B, mesh, dim, x, 1e-7, 0, false);
+        EXPECT_GT(e.gradient_norm, 0);
+        EXPECT_LE(e.gradient, 1e-6);
+        EXPECT_LE(e.hessian, 1e-6);
     }
 }
 
@@ -177,23 +164,10 @@ TEST(PeriodicContact, FrictionThroughTheImagesCountsEachPairOnceAndMatchesFinite
         EXPECT_NEAR(D2->value(x2), 2 * value, 1e-10 * value);
         EXPECT_EQ(D2->lagged().size(), 2 * D->lagged().size());
 
-        const Mesh& mesh = cell->mesh();
-        const VectorXd dir = test::random_vector(x.size(), 9);
-        VectorXd g = VectorXd::Zero(x.size());
-        D->add_gradient(x, 1.0, g);
-        SparseAssembler H;
-        H.build(dim, mesh.num_vertices(), mesh.elements);
-        H.set_zero();
-        D->add_hessian(x, 1.0, false, H);
-        H.finalize();
-        const VectorXd Hd = H.matrix().selfadjointView<Eigen::Lower>() * dir;
-        const double h = 1e-7;
-        EXPECT_NEAR((D->value(x + h * dir) - D->value(x - h * dir)) / (2 * h), g.dot(dir), 1e-6 * std::abs(g.dot(dir)));
-        VectorXd gp = VectorXd::Zero(x.size()), gm = VectorXd::Zero(x.size());
-        D->add_gradient(x + h * dir, 1.0, gp);
-        D->add_gradient(x - h * dir, 1.0, gm);
-        EXPECT_LE(((gp - gm) / (2 * h) - Hd).norm(), 1e-6 * Hd.norm());
-        EXPECT_GT(Hd.norm(), 0);
+        const test::PotentialFD e = test::potential_fd(*D, cell->mesh(), dim, x, 1e-7, 0, false);
+        EXPECT_GT(e.gradient_norm, 0);
+        EXPECT_LE(e.gradient, 1e-6);
+        EXPECT_LE(e.hessian, 1e-6);
     }
 }
 
