@@ -68,6 +68,16 @@ VectorXd near_contact_positions(const Mesh& mesh, double shift)
 
 CollisionMesh tiled_surface(const Mesh& m) { return build_collision_mesh(m, { 1 }, { 0 }); }
 
+/// A potential's gradient and Hessian at x against central differences (four random directions,
+/// h = 1e-7 m; the near-contact pairs are 0.005 m apart).
+void expect_derivatives_match(const Potential& P, const Mesh& mesh, const VectorXd& x)
+{
+    const test::PotentialFD e = test::potential_fd(P, mesh, mesh.dim, x, 1e-7, 0, false);
+    EXPECT_GT(e.gradient_norm, 0);
+    EXPECT_LE(e.gradient, 1e-6);
+    EXPECT_LE(e.hessian, 1e-6);
+}
+
 /// The independent check of a state: the 3 x 3 (x 3) tiling of the deformed cell has no crossing
 /// surfaces and no inverted element.
 void expect_tiling_valid(const Simulator& sim, const VectorXd& x, const VectorXd& G, const std::string& what)
@@ -116,14 +126,7 @@ TEST(PeriodicContact, BarrierDerivativesThroughTheImagesMatchFiniteDifferences)
     for (int dim : { 2, 3 }) {
         SCOPED_TRACE("dim " + std::to_string(dim));
         const auto sim = post_simulator(dim, "fd", -0.2, 1, 1.0);
-        const Mesh& mesh = sim->mesh();
-        const ContactPotential& B = *sim->contact();
-        const VectorXd x = near_contact_positions(mesh, 0);
-        // Four random directions, central differences with h = 1e-7 m (the pairs are 0.005 m apart).
-        const test::PotentialFD e = test::potential_fd(B, mesh, dim, x, 1e-7, 0, false);
-        EXPECT_GT(e.gradient_norm, 0);
-        EXPECT_LE(e.gradient, 1e-6);
-        EXPECT_LE(e.hessian, 1e-6);
+        expect_derivatives_match(*sim->contact(), sim->mesh(), near_contact_positions(sim->mesh(), 0));
     }
 }
 
@@ -164,10 +167,7 @@ TEST(PeriodicContact, FrictionThroughTheImagesCountsEachPairOnceAndMatchesFinite
         EXPECT_NEAR(D2->value(x2), 2 * value, 1e-10 * value);
         EXPECT_EQ(D2->lagged().size(), 2 * D->lagged().size());
 
-        const test::PotentialFD e = test::potential_fd(*D, cell->mesh(), dim, x, 1e-7, 0, false);
-        EXPECT_GT(e.gradient_norm, 0);
-        EXPECT_LE(e.gradient, 1e-6);
-        EXPECT_LE(e.hessian, 1e-6);
+        expect_derivatives_match(*D, cell->mesh(), x);
     }
 }
 
