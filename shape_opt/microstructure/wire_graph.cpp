@@ -1,0 +1,95 @@
+#include "shape_opt/microstructure/wire_graph.hpp"
+
+#include "forward/common/error.hpp"
+
+#include <cmath>
+#include <fstream>
+#include <sstream>
+#include <vector>
+
+namespace diffipc {
+
+WireGraph parse_wire_graph(const std::string& text, const std::string& name)
+{
+    std::vector<double> xy;
+    std::vector<std::pair<long, long>> edges;
+    std::vector<int> edge_line;
+    std::vector<long> nodes_before; // per edge: nodes read before its line (for relative indices)
+    std::istringstream in(text);
+    std::string line;
+    int number = 0;
+    auto fail
+        = [&](int at, const std::string& what) { throw InputError(name, "line " + std::to_string(at) + ": " + what); };
+    while (std::getline(in, line)) {
+        ++number;
+        std::istringstream record(line);
+        std::string kind;
+        if (!(record >> kind) || kind[0] == '#')
+            continue;
+        if (kind == "v") {
+            double x = 0, y = 0;
+            if (!(record >> x >> y) || !std::isfinite(x) || !std::isfinite(y))
+                fail(number, "expected \"v x y [z]\" with finite coordinates");
+            if (std::abs(x) > 1 || std::abs(y) > 1)
+                fail(number,
+                    "node (" + format_number(x) + ", " + format_number(y) + ") lies outside the cell [-1, 1]^2");
+            xy.push_back(x);
+            xy.push_back(y);
+        } else if (kind == "l") {
+            std::vector<long> ids;
+            std::string token;
+            while (record >> token) {
+                // "i" or "i/t": the vertex index comes first.
+                long id = 0;
+                try {
+                    size_t used = 0;
+                    id = std::stol(token, &used);
+                    if (used < token.size() && token[used] != '/')
+                        throw std::invalid_argument(token);
+                } catch (const std::exception&) {
+                    fail(number, "expected node indices after \"l\", got \"" + token + "\"");
+                }
+                ids.push_back(id);
+            }
+            if (ids.size() < 2)
+                fail(number, "a line needs at least two node indices");
+            for (size_t k = 0; k + 1 < ids.size(); ++k) {
+                edges.emplace_back(ids[k], ids[k + 1]);
+                edge_line.push_back(number);
+                nodes_before.push_back(long(xy.size() / 2));
+            }
+        }
+    }
+    const long n = long(xy.size() / 2);
+    WireGraph g;
+    g.nodes = Eigen::Map<const Eigen::Matrix<double, -1, 2, Eigen::RowMajor>>(xy.data(), n, 2);
+    g.edges.resize(Index(edges.size()), 2);
+    for (size_t e = 0; e < edges.size(); ++e) {
+        long ends[2] = { edges[e].first, edges[e].second };
+        for (int k = 0; k < 2; ++k) {
+            // OBJ indices are 1-based; negative ones count back from the last node read before.
+            const long i = ends[k] > 0 ? ends[k] - 1 : nodes_before[e] + ends[k];
+            if (ends[k] == 0 || i < 0 || i >= n)
+                fail(edge_line[e],
+                    "node index " + std::to_string(ends[k]) + " out of range (" + std::to_string(n) + " nodes)");
+            g.edges(Index(e), k) = int(i);
+        }
+        if (g.edges(Index(e), 0) == g.edges(Index(e), 1))
+            fail(edge_line[e], "an edge from node " + std::to_string(ends[0]) + " to itself");
+    }
+    if (g.edges.rows() == 0)
+        throw InputError(name, "no edge (\"l\" records): a wire graph needs at least one");
+    return g;
+}
+
+WireGraph read_wire_graph(const std::string& path)
+{
+    std::ifstream file(path);
+    if (!file)
+        throw InputError(path, "cannot open the wire graph file");
+    std::stringstream text;
+    text << file.rdbuf();
+    return parse_wire_graph(text.str(), path);
+}
+
+} // namespace diffipc
