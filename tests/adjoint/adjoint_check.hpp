@@ -146,17 +146,7 @@ inline void check_adjoint(const nlohmann::json& scene_json, const std::vector<Bl
     const int T = sim.steps_done();
     const StateObjective objective(T, n, length, scene.time.dt, settings.seed);
 
-    ParameterRequest request;
-    for (Block b : blocks) {
-        request.rest_positions |= b == Block::REST_POSITIONS;
-        request.lame |= b == Block::MU || b == Block::LAMBDA;
-        request.density |= b == Block::DENSITY;
-        request.initial_displacement |= b == Block::INITIAL_DISPLACEMENT;
-        request.initial_velocity |= b == Block::INITIAL_VELOCITY;
-        request.prescribed |= b == Block::PRESCRIBED;
-        request.friction |= b == Block::FRICTION;
-        request.macro |= b == Block::MACRO;
-    }
+    const ParameterRequest request = request_for(blocks);
     const ParameterGradient grad = adjoint_gradient(sim, objective.seed(sim), request);
     const double J0 = objective.value(sim);
 

@@ -10,6 +10,7 @@
 #include "forward/simulation/simulator.hpp"
 
 #include <functional>
+#include <vector>
 
 namespace diffipc::test {
 
@@ -99,6 +100,23 @@ inline SimulationParameters perturbed(
     else
         *block_vector(p, b) += h * dir;
     return p;
+}
+
+/// The adjoint request that covers `blocks`.
+inline ParameterRequest request_for(const std::vector<Block>& blocks)
+{
+    ParameterRequest request;
+    for (Block b : blocks) {
+        request.rest_positions |= b == Block::REST_POSITIONS;
+        request.lame |= b == Block::MU || b == Block::LAMBDA;
+        request.density |= b == Block::DENSITY;
+        request.initial_displacement |= b == Block::INITIAL_DISPLACEMENT;
+        request.initial_velocity |= b == Block::INITIAL_VELOCITY;
+        request.prescribed |= b == Block::PRESCRIBED;
+        request.friction |= b == Block::FRICTION;
+        request.macro |= b == Block::MACRO;
+    }
+    return request;
 }
 
 /// A rest-position direction (#V dim) that keeps a periodic cell's pairing (issue 14): each

@@ -129,6 +129,18 @@ std::vector<Case> all_cases()
     return cases;
 }
 
+/// The gradient of `objective` checkpointed every `stride` steps (the run's own parameters `p`).
+ParameterGradient stride_gradient(const Scene& scene, const SimulationParameters& p, const StateObjective& objective,
+    const ParameterRequest& request, int stride, CheckpointStatistics& stats)
+{
+    Simulator sim(scene, p);
+    StreamedStateObjective streamed { objective };
+    CheckpointSettings settings;
+    settings.mode = CheckpointSettings::Mode::STRIDE;
+    settings.stride = stride;
+    return checkpointed_gradient(sim, streamed.callbacks(), request, settings, &stats);
+}
+
 ParameterRequest every_block(bool dynamic)
 {
     ParameterRequest request;
@@ -260,13 +272,8 @@ TEST(CheckpointedGradient, FrictionRecordsAreRecomputedToo)
         request.friction = true;
         const ParameterGradient reference = adjoint_gradient(full, objective.seed(full), request);
 
-        Simulator sim(scene);
-        StreamedStateObjective streamed { objective };
-        CheckpointSettings settings;
-        settings.mode = CheckpointSettings::Mode::STRIDE;
-        settings.stride = 4;
         CheckpointStatistics stats;
-        const ParameterGradient grad = checkpointed_gradient(sim, streamed.callbacks(), request, settings, &stats);
+        const ParameterGradient grad = stride_gradient(scene, SimulationParameters {}, objective, request, 4, stats);
         EXPECT_GT(stats.recomputed_steps, 0);
         ASSERT_GT(reference.friction.norm(), 0);
         EXPECT_LT(relative_difference(grad.friction, reference.friction), 1e-10);
@@ -300,13 +307,8 @@ TEST(CheckpointedGradient, SubsteppedDynamicRecordsAreRecomputedWithTheirSubstep
         const ParameterRequest request = every_block(true);
         const ParameterGradient reference = adjoint_gradient(full, objective.seed(full), request);
 
-        Simulator sim(scene, p);
-        StreamedStateObjective streamed { objective };
-        CheckpointSettings settings;
-        settings.mode = CheckpointSettings::Mode::STRIDE;
-        settings.stride = 4;
         CheckpointStatistics stats;
-        const ParameterGradient grad = checkpointed_gradient(sim, streamed.callbacks(), request, settings, &stats);
+        const ParameterGradient grad = stride_gradient(scene, p, objective, request, 4, stats);
         EXPECT_GT(stats.recomputed_steps, 0);
         EXPECT_LT(stats.peak_stored_states, STEPS);
         EXPECT_LT(relative_difference(grad.rest_positions, reference.rest_positions), 1e-10);

@@ -23,14 +23,7 @@ inline void check_through_adjoint(const nlohmann::json& scene_json, const nlohma
     const auto J = parse_objective(objective_json, "objective", sim);
     StateSeed seed;
     seed.resize(sim.steps_done());
-    ParameterRequest request;
-    for (Block b : blocks) {
-        request.rest_positions |= b == Block::REST_POSITIONS;
-        request.lame |= b == Block::MU || b == Block::LAMBDA;
-        request.density |= b == Block::DENSITY;
-        request.prescribed |= b == Block::PRESCRIBED;
-        request.macro |= b == Block::MACRO;
-    }
+    const ParameterRequest request = request_for(blocks);
     J->add_gradient(sim, sim.trajectory(), request, 1.0, seed);
     const ParameterGradient grad = adjoint_gradient(sim, seed, request);
     const SimulationParameters base = sim.parameters();
