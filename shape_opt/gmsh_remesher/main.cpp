@@ -64,6 +64,19 @@ double loop_area(const double* x, const std::vector<int>& loop)
     return area;
 }
 
+/// Whether point p lies inside the closed polygon `loop` (crossing number).
+bool inside(const double* x, const std::vector<int>& loop, const double* p)
+{
+    bool in = false;
+    for (size_t i = 0, j = loop.size() - 1; i < loop.size(); j = i++) {
+        const double* a = x + 2 * loop[i];
+        const double* b = x + 2 * loop[j];
+        if ((a[1] > p[1]) != (b[1] > p[1]) && p[0] < a[0] + (p[1] - a[1]) * (b[0] - a[0]) / (b[1] - a[1]))
+            in = !in;
+    }
+    return in;
+}
+
 void mesh_2d(const double* x, const int* facets, long m, double size)
 {
     const auto loops = boundary_loops(facets, m);
@@ -71,24 +84,37 @@ void mesh_2d(const double* x, const int* facets, long m, double size)
     for (long f = 0; f < 2 * m; ++f)
         if (!point.count(facets[f]))
             point[facets[f]] = gmsh::model::geo::addPoint(x[2 * facets[f]], x[2 * facets[f] + 1], 0, size);
-    // The outer loop (largest area) first, the holes after it.
-    size_t outer = 0;
-    for (size_t k = 1; k < loops.size(); ++k)
-        if (std::abs(loop_area(x, loops[k])) > std::abs(loop_area(x, loops[outer])))
-            outer = k;
-    std::vector<int> curve_loops;
-    for (size_t k = 0; k < loops.size(); ++k) {
+    // Loops by nesting: a loop inside an even number of others bounds a surface (a domain may have
+    // several pieces: a periodic cell cut by its box), one inside an odd number is a hole of the
+    // smallest loop around it.
+    const size_t n = loops.size();
+    std::vector<int> depth(n, 0);
+    std::vector<long> parent(n, -1);
+    for (size_t k = 0; k < n; ++k)
+        for (size_t o = 0; o < n; ++o)
+            if (o != k && inside(x, loops[o], x + 2 * loops[k][0])) {
+                ++depth[k];
+                if (parent[k] < 0
+                    || std::abs(loop_area(x, loops[o])) < std::abs(loop_area(x, loops[size_t(parent[k])])))
+                    parent[k] = long(o);
+            }
+    std::vector<int> tags(n);
+    for (size_t k = 0; k < n; ++k) {
         std::vector<int> lines;
         const auto& loop = loops[k];
         for (size_t i = 0; i < loop.size(); ++i)
             lines.push_back(gmsh::model::geo::addLine(point[loop[i]], point[loop[(i + 1) % loop.size()]]));
-        const int tag = gmsh::model::geo::addCurveLoop(lines);
-        if (k == outer)
-            curve_loops.insert(curve_loops.begin(), tag);
-        else
-            curve_loops.push_back(tag);
+        tags[k] = gmsh::model::geo::addCurveLoop(lines);
     }
-    gmsh::model::geo::addPlaneSurface(curve_loops);
+    for (size_t k = 0; k < n; ++k) {
+        if (depth[k] % 2)
+            continue;
+        std::vector<int> curve_loops { tags[k] };
+        for (size_t h = 0; h < n; ++h)
+            if (depth[h] % 2 && parent[h] == long(k))
+                curve_loops.push_back(tags[h]);
+        gmsh::model::geo::addPlaneSurface(curve_loops);
+    }
     gmsh::model::geo::synchronize();
     gmsh::model::mesh::generate(2);
 }

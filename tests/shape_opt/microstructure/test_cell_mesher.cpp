@@ -1,0 +1,149 @@
+// Meshes of microstructure cells (shape_opt/microstructure/cell_mesher.hpp), checked by code
+// independent of the mesher: positive elements, vertices on opposite sides that match one to
+// one, boundary vertices on the level set, the mesh's area against the solid's area by
+// sampling phi, designs at the family's bounds that mesh, and degenerate designs that are input
+// errors naming what is wrong.
+
+#include "shape_opt/microstructure/cell_mesher.hpp"
+
+#include "forward/common/error.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <set>
+
+using namespace diffipc;
+
+namespace {
+
+const std::string kTopologies = std::string(DIFFIPC_SOURCE_DIR) + "/shape_opt/microstructure/topologies/";
+
+double triangle_area(const Mesh& m, Index e)
+{
+    const Eigen::Vector2d a = m.rest_positions.row(m.elements(e, 0)).transpose();
+    const Eigen::Vector2d b = m.rest_positions.row(m.elements(e, 1)).transpose();
+    const Eigen::Vector2d c = m.rest_positions.row(m.elements(e, 2)).transpose();
+    const Eigen::Vector2d u = b - a, v = c - a;
+    return 0.5 * (u.x() * v.y() - u.y() * v.x());
+}
+
+/// Checks a cell mesh of `sdf` at `width`; returns its area.
+double check_cell_mesh(const Mesh& m, const CellSDF& sdf, double width, const CellMeshSettings& s)
+{
+    double area = 0;
+    for (Index e = 0; e < m.elements.rows(); ++e) {
+        const double a = triangle_area(m, e);
+        EXPECT_GT(a, 0) << "element " << e;
+        area += a;
+    }
+    const Eigen::Vector2d lo = cell_box_min(width, s.height), hi = cell_box_max(width, s.height);
+    const Eigen::Vector2d scale(0.5 * width * s.height, 0.5 * s.height);
+    // Every vertex in the box; boundary vertices inside the box on phi = 0.
+    std::vector<char> on_boundary(size_t(m.rest_positions.rows()), 0);
+    for (Index f = 0; f < m.boundary_facets.rows(); ++f)
+        on_boundary[size_t(m.boundary_facets(f, 0))] = on_boundary[size_t(m.boundary_facets(f, 1))] = 1;
+    int on_contour = 0;
+    for (Index v = 0; v < m.rest_positions.rows(); ++v) {
+        const Eigen::Vector2d X = m.rest_positions.row(v).transpose();
+        EXPECT_TRUE((X.array() >= lo.array() - 1e-12).all() && (X.array() <= hi.array() + 1e-12).all());
+        const bool inside = (X.array() > lo.array() + 1e-12).all() && (X.array() < hi.array() - 1e-12).all();
+        if (on_boundary[size_t(v)] && inside) {
+            EXPECT_NEAR(sdf.value(X.cwiseQuotient(scale)), 0, 1e-10) << "vertex " << v;
+            ++on_contour;
+        }
+    }
+    EXPECT_GT(on_contour, 0);
+    // Opposite sides: the same coordinates along the side, one to one.
+    for (int axis = 0; axis < 2; ++axis) {
+        std::multiset<double> low, high;
+        for (Index v = 0; v < m.rest_positions.rows(); ++v) {
+            if (m.rest_positions(v, axis) == lo[axis])
+                low.insert(m.rest_positions(v, 1 - axis));
+            if (m.rest_positions(v, axis) == hi[axis])
+                high.insert(m.rest_positions(v, 1 - axis));
+        }
+        EXPECT_FALSE(low.empty());
+        EXPECT_EQ(low, high) << "axis " << axis;
+    }
+    // The solid's area by sampling phi at 400,000 points of the R2 low-discrepancy sequence (a
+    // regular grid aliases with beams at 45 degrees).
+    const int n = 400000;
+    int solid = 0;
+    for (int k = 0; k < n; ++k) {
+        const double u = std::fmod(0.5 + 0.7548776662466927 * k, 1.0), w = std::fmod(0.5 + 0.5698402909980532 * k, 1.0);
+        solid += sdf.value(Eigen::Vector2d(2 * u - 1, 2 * w - 1)) < 0;
+    }
+    const double sampled = double(solid) / n * (hi - lo).prod();
+    EXPECT_NEAR(area, sampled, 0.003 * sampled); // seen: at most 0.12%
+    return area;
+}
+
+std::string error_field(const std::function<void()>& f)
+{
+    try {
+        f();
+    } catch (const InputError& e) {
+        return e.field() + ": " + e.what();
+    }
+    return "(no error)";
+}
+
+} // namespace
+
+TEST(CellMesher, EachTopologyMeshesPeriodicallyOnItsLevelSet)
+{
+    CellMeshSettings s;
+    s.size = 0.03;
+    for (const char* name : { "square_grid", "diamond", "reentrant", "curved_beam" }) {
+        SCOPED_TRACE(name);
+        const CellFamily f = read_cell_family(kTopologies + name + ".json");
+        const VectorXd p = f.initial();
+        const Mesh m = mesh_design(f, p, s);
+        EXPECT_GT(m.elements.rows(), 100);
+        check_cell_mesh(m, CellSDF(f.graph(), f.cell_parameters(p)), p[f.width_index()], s);
+    }
+}
+
+TEST(CellMesher, DesignsAtTheBoundsMesh)
+{
+    // Every variable at its lower bound, at its upper bound, and alternating, per topology (the
+    // mesh size below the thinnest beam at the narrowest width).
+    CellMeshSettings s;
+    s.size = 0.025;
+    for (const char* name : { "square_grid", "diamond", "reentrant", "curved_beam" }) {
+        const CellFamily f = read_cell_family(kTopologies + name + ".json");
+        for (int corner = 0; corner < 4; ++corner) {
+            SCOPED_TRACE(std::string(name) + " corner " + std::to_string(corner));
+            VectorXd p = corner == 0 ? f.lower() : f.upper();
+            for (Index v = 0; v < f.size() && corner >= 2; ++v)
+                p[v] = (v + corner) % 2 ? f.lower()[v] : f.upper()[v];
+            const Mesh m = mesh_design(f, p, s);
+            check_cell_mesh(m, CellSDF(f.graph(), f.cell_parameters(p)), p[f.width_index()], s);
+        }
+    }
+}
+
+TEST(CellMesher, DegenerateDesignsAreInputErrors)
+{
+    CellMeshSettings s;
+    s.size = 0.05;
+    // A beam thinner than the mesh size: named by its variable.
+    const CellFamily grid = read_cell_family(kTopologies + "square_grid.json");
+    EXPECT_EQ(error_field([&] { mesh_design(grid, grid.lower(), s); }).substr(0, 20), "design.thickness[0]:");
+    // Beyond the bounds.
+    VectorXd p = grid.upper();
+    p[grid.width_index()] += 0.1;
+    EXPECT_EQ(error_field([&] { mesh_design(grid, p, s); }).substr(0, 13), "design.width:");
+    // A short beam in the middle of the cell: it reaches no side.
+    CellFamily::Settings settings;
+    const CellFamily island(parse_wire_graph("v -0.3 0\nv 0.3 0\nl 1 2\n", "island.obj"), settings, "f");
+    EXPECT_NE(error_field([&] { mesh_design(island, island.initial(), s); }).find("does not reach"), std::string::npos);
+    // A beam across the cell and a loose one beside it: two pieces.
+    const CellFamily loose(
+        parse_wire_graph("v -1 0\nv 1 0\nv 0 -1\nv 0 1\nv 0.4 0.4\nv 0.6 0.6\nl 1 2\nl 3 4\nl 5 6\n", "loose.obj"),
+        settings, "f");
+    EXPECT_NE(
+        error_field([&] { mesh_design(loose, loose.initial(), s); }).find("falls apart into 2"), std::string::npos)
+        << error_field([&] { mesh_design(loose, loose.initial(), s); });
+}
