@@ -7,10 +7,12 @@
 #include "objectives/compliance.hpp"
 #include "objectives/elastic_energy.hpp"
 #include "objectives/kinetic_energy.hpp"
+#include "objectives/macro_gradient.hpp"
+#include "objectives/macro_stress.hpp"
 #include "objectives/marker_file.hpp"
 #include "objectives/markers.hpp"
-#include "objectives/macro_stress.hpp"
 #include "objectives/reaction_force.hpp"
+#include "objectives/state_tracking.hpp"
 #include "objectives/stress_norm.hpp"
 #include "objectives/time_aggregation.hpp"
 #include "objectives/volume.hpp"
@@ -294,20 +296,52 @@ namespace {
         return first + index;
     }
 
-    /// {"type": "macro_stress", "component": "xx", "time": ...}: a periodic cell's average stress.
-    std::unique_ptr<Objective> parse_macro_stress(const JsonField& j, const Simulator& sim)
+    /// With "targets": the functional compared with them at the listed states ("steps", "weight"
+    /// or "sigma"); without: aggregated in time ("time", "include_initial").
+    std::unique_ptr<Objective> aggregate_or_track(
+        std::unique_ptr<StateFunctional> functional, const JsonField& j, const Simulator& sim)
     {
-        j.require_object({ "type", "component", "time", "include_initial" });
+        if (!j.has("targets")) {
+            for (const char* key : { "steps", "weight", "sigma" })
+                if (j.has(key))
+                    j[key].fail("only applies with \"targets\"");
+            return aggregate(std::move(functional), j);
+        }
+        for (const char* key : { "time", "include_initial" })
+            if (j.has(key))
+                j[key].fail("does not apply with \"targets\" (the listed states are compared)");
+        const JsonField t = j["targets"];
+        t.require_array(1);
+        std::vector<double> targets;
+        for (size_t i = 0; i < t.size(); ++i)
+            targets.push_back(t.at(i).number());
+        const std::vector<int> steps = parse_steps(j, sim, targets.size());
+        if (j.has("weight") && j.has("sigma"))
+            j.fail("give at most one of \"weight\" and \"sigma\"");
+        double weight = j.has("weight") ? j["weight"].positive() : 1.0;
+        if (j.has("sigma"))
+            weight = 1.0 / std::pow(j["sigma"].positive(), 2);
+        return std::make_unique<StateTracking>(std::move(functional), steps, std::move(targets), weight);
+    }
+
+    /// {"type": "macro_stress" | "macro_gradient", "component": "xx", "time": ... | "targets": ...}:
+    /// a periodic cell's average stress or macro displacement gradient.
+    std::unique_ptr<Objective> parse_macro(const JsonField& j, const Simulator& sim)
+    {
+        j.require_object({ "type", "component", "time", "include_initial", "targets", "steps", "weight", "sigma" });
+        const std::string type = j["type"].string();
         if (!sim.periodic())
-            j["type"].fail("macro_stress needs a periodic cell (the scene's \"periodic\")");
+            j["type"].fail(type + " needs a periodic cell (the scene's \"periodic\")");
         const int d = sim.mesh().dim;
         const std::string c = j["component"].string();
         const std::string axes = std::string("xyz").substr(0, size_t(d));
         const size_t a = c.size() == 2 ? axes.find(c[0]) : std::string::npos;
         const size_t b = c.size() == 2 ? axes.find(c[1]) : std::string::npos;
         if (a == std::string::npos || b == std::string::npos)
-            j["component"].fail("expected two of " + axes + " (row, column of the stress), got \"" + c + "\"");
-        return aggregate(std::make_unique<MacroStress>(int(a), int(b), d), j);
+            j["component"].fail("expected two of " + axes + " (row, column), got \"" + c + "\"");
+        if (type == "macro_stress")
+            return aggregate_or_track(std::make_unique<MacroStress>(int(a), int(b), d), j, sim);
+        return aggregate_or_track(std::make_unique<MacroGradient>(int(a), int(b), d), j, sim);
     }
 
     std::unique_ptr<Objective> parse_reaction_force(const JsonField& j, const Simulator& sim)
@@ -331,34 +365,15 @@ namespace {
                 a.fail("axis " + std::to_string(axis) + " out of range for a " + std::to_string(d) + "D scene");
         }
         std::vector<Index> dofs = prescribed_dofs_of(sim, condition, axis);
-        const std::string label = j.has("dirichlet") ? "dirichlet[" + std::to_string(condition) + "]"
-                                                     : sim.scene().obstacles[size_t(condition) - sim.scene().dirichlet.size()].name;
+        const std::string label = j.has("dirichlet")
+            ? "dirichlet[" + std::to_string(condition) + "]"
+            : sim.scene().obstacles[size_t(condition) - sim.scene().dirichlet.size()].name;
         if (dofs.empty())
-            j[j.has("dirichlet") ? "dirichlet" : "obstacle"].fail(
-                "prescribes no dof along axis " + std::to_string(axis) + " (no vertex in its region, or that "
-                "component is free or taken by a later condition)");
-        ReactionForce force(std::move(dofs), label + "." + std::string(1, "xyz"[axis]));
-        if (!j.has("targets")) {
-            for (const char* key : { "steps", "weight", "sigma" })
-                if (j.has(key))
-                    j[key].fail("only applies with \"targets\"");
-            return aggregate(std::make_unique<ReactionForce>(std::move(force)), j);
-        }
-        for (const char* key : { "time", "include_initial" })
-            if (j.has(key))
-                j[key].fail("does not apply with \"targets\" (the listed states are compared)");
-        const JsonField t = j["targets"];
-        t.require_array(1);
-        std::vector<double> targets;
-        for (size_t i = 0; i < t.size(); ++i)
-            targets.push_back(t.at(i).number());
-        const std::vector<int> steps = parse_steps(j, sim, targets.size());
-        if (j.has("weight") && j.has("sigma"))
-            j.fail("give at most one of \"weight\" and \"sigma\"");
-        double weight = j.has("weight") ? j["weight"].positive() : 1.0;
-        if (j.has("sigma"))
-            weight = 1.0 / std::pow(j["sigma"].positive(), 2);
-        return std::make_unique<ReactionForceTracking>(std::move(force), steps, std::move(targets), weight);
+            j[j.has("dirichlet") ? "dirichlet" : "obstacle"].fail("prescribes no dof along axis " + std::to_string(axis)
+                + " (no vertex in its region, or that "
+                  "component is free or taken by a later condition)");
+        return aggregate_or_track(
+            std::make_unique<ReactionForce>(std::move(dofs), label + "." + std::string(1, "xyz"[axis])), j, sim);
     }
 
     std::unique_ptr<Objective> parse_sum(const JsonField& j, const Simulator& sim)
@@ -429,8 +444,8 @@ namespace {
             return parse_center_of_mass(j, sim);
         if (type == "reaction_force")
             return parse_reaction_force(j, sim);
-        if (type == "macro_stress")
-            return parse_macro_stress(j, sim);
+        if (type == "macro_stress" || type == "macro_gradient")
+            return parse_macro(j, sim);
         if (type == "boundary_smoothness") {
             j.require_object({ "type", "body" });
             return std::make_unique<BoundarySmoothness>(sim.scene(), parse_body(j, sim));
@@ -443,7 +458,8 @@ namespace {
             return parse_constraint(j, sim);
         type_field.fail("unknown objective type \"" + type
             + "\" (expected stress_norm, elastic_energy, compliance, volume, kinetic_energy, markers, "
-              "center_of_mass, reaction_force, macro_stress, boundary_smoothness, sum, power or constraint)");
+              "center_of_mass, reaction_force, macro_stress, macro_gradient, boundary_smoothness, sum, power or "
+              "constraint)");
     }
 } // namespace
 

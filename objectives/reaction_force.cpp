@@ -70,10 +70,9 @@ double ReactionForce::value(const Simulator& sim, const StateRef& state) const
     const ElasticPotential& elastic = sim.elastic();
     const std::vector<MaterialModel>& models = elastic.models();
     double R = 0;
-    for_each_touching_element(sim, s, state.positions,
-        [&](Index e, const MatrixXd& rest, const MatrixXd& deformed, const VectorXd& local) {
-            R += local.dot(
-                element_gradient(models[size_t(e)], rest, deformed, elastic.mu()[e], elastic.lambda()[e]));
+    for_each_touching_element(
+        sim, s, state.positions, [&](Index e, const MatrixXd& rest, const MatrixXd& deformed, const VectorXd& local) {
+            R += local.dot(element_gradient(models[size_t(e)], rest, deformed, elastic.mu()[e], elastic.lambda()[e]));
         });
     if (sim.contact()) {
         VectorXd g = VectorXd::Zero(s.size());
@@ -98,8 +97,8 @@ void ReactionForce::add_gradient(const Simulator& sim, const StateRef& state, co
     VectorXd& dx = gradient_block(d_positions, n);
     for_each_touching_element(
         sim, s, x, [&](Index e, const MatrixXd& rest, const MatrixXd& deformed, const VectorXd& local) {
-            const VectorXd Hs = element_hessian(models[size_t(e)], rest, deformed, elastic.mu()[e],
-                                    elastic.lambda()[e], false)
+            const VectorXd Hs
+                = element_hessian(models[size_t(e)], rest, deformed, elastic.mu()[e], elastic.lambda()[e], false)
                 * local;
             for (int a = 0; a <= d; ++a)
                 dx.segment(mesh.elements(e, a) * d, d) += scale * Hs.segment(a * d, d);
@@ -128,45 +127,6 @@ void ReactionForce::add_gradient(const Simulator& sim, const StateRef& state, co
     }
     if (dX || drho)
         sim.external_force_derivatives(state.time, -scale * s, dX, drho);
-}
-
-ReactionForceTracking::ReactionForceTracking(
-    ReactionForce force, std::vector<int> steps, std::vector<double> targets, double weight)
-    : m_force(std::move(force))
-    , m_steps(std::move(steps))
-    , m_targets(std::move(targets))
-    , m_weight(weight)
-{
-    if (m_steps.size() != m_targets.size())
-        throw std::invalid_argument("reaction_force: expected one target per listed step");
-}
-
-double ReactionForceTracking::value(const Simulator& sim, const Trajectory& trajectory) const
-{
-    double J = 0;
-    for (size_t i = 0; i < m_steps.size(); ++i) {
-        const int k = m_steps[i];
-        const double r = m_force.value(sim,
-                             { k, state_time(trajectory, k), state_positions(trajectory, k),
-                                 state_velocities(trajectory, k) })
-            - m_targets[i];
-        J += 0.5 * m_weight * r * r;
-    }
-    return J;
-}
-
-void ReactionForceTracking::add_gradient(const Simulator& sim, const Trajectory& trajectory,
-    const ParameterRequest& request, double scale, StateSeed& seed) const
-{
-    for (size_t i = 0; i < m_steps.size(); ++i) {
-        const int k = m_steps[i];
-        const StateRef state { k, state_time(trajectory, k), state_positions(trajectory, k),
-            state_velocities(trajectory, k) };
-        const double r = m_force.value(sim, state) - m_targets[i];
-        VectorXd unused;
-        m_force.add_gradient(
-            sim, state, request, scale * m_weight * r, seed.positions.at(size_t(k)), unused, seed.explicit_partials);
-    }
 }
 
 } // namespace diffipc

@@ -48,27 +48,4 @@ private:
 /// Empty if it prescribes none along that axis.
 std::vector<Index> prescribed_dofs_of(const Simulator& sim, int condition, int axis);
 
-/// @brief J = \tfrac{w}{2} \sum_{s} (R_{k_s} - F_s)^2 (N^2 times w's unit): the reaction force of
-/// ReactionForce at the listed states against measured forces F_s. Gradient: w (R_k - F) dR_k.
-class ReactionForceTracking : public Objective {
-public:
-    /// @param steps   the states k compared (0 = initial state, 1..T the steps)
-    /// @param targets one measured force (N) per listed state
-    /// @param weight  w > 0 (1 / sigma^2 for a force measured with standard deviation sigma)
-    /// @throws std::invalid_argument for inconsistent sizes
-    ReactionForceTracking(ReactionForce force, std::vector<int> steps, std::vector<double> targets, double weight);
-
-    std::string name() const override { return "reaction_force_tracking"; }
-    double value(const Simulator& sim, const Trajectory& trajectory) const override;
-    void add_gradient(const Simulator& sim, const Trajectory& trajectory, const ParameterRequest& request, double scale,
-        StateSeed& seed) const override;
-    std::vector<int> states_read(int) const override { return m_steps; }
-
-private:
-    ReactionForce m_force;
-    std::vector<int> m_steps;
-    std::vector<double> m_targets;
-    double m_weight;
-};
-
 } // namespace diffipc

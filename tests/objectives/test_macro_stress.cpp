@@ -106,7 +106,7 @@ TEST(MacroStress, ProblemFileErrorsNameTheField)
     };
     EXPECT_EQ(message({ { "type", "macro_stress" }, { "component", "xy" } }, periodic), "no error");
     EXPECT_EQ(message({ { "type", "macro_stress" }, { "component", "xz" } }, periodic),
-        "objective.component: expected two of xy (row, column of the stress), got \"xz\"");
+        "objective.component: expected two of xy (row, column), got \"xz\"");
     Simulator plain(test::make_scene(test::box_scene(2, { 1, 1 }, { 2, 2 })));
     EXPECT_EQ(message({ { "type", "macro_stress" }, { "component", "xx" } }, plain),
         "objective.type: macro_stress needs a periodic cell (the scene's \"periodic\")");

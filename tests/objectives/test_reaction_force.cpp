@@ -1,10 +1,11 @@
 #include "objectives/reaction_force.hpp"
+#include "objectives/state_tracking.hpp"
 
 #include "adjoint/adjoint_check.hpp"
 #include "objective_fd.hpp"
-#include "through_adjoint.hpp"
 #include "objectives/objective_json.hpp"
 #include "objectives/time_aggregation.hpp"
+#include "through_adjoint.hpp"
 
 using namespace diffipc;
 using json = nlohmann::json;
@@ -113,8 +114,8 @@ TEST_P(ReactionForceGradient, MatchesFiniteDifferences)
     const test::Run run = test::run_scene(test::cantilever_scene(GetParam()));
     for (int axis = 0; axis < 2; ++axis) {
         SCOPED_TRACE(axis);
-        const TimeAggregation J(std::make_unique<ReactionForce>(prescribed_dofs_of(*run.sim, 0, axis), "clamp"),
-            TimeMode::SUM, 8, true);
+        const TimeAggregation J(
+            std::make_unique<ReactionForce>(prescribed_dofs_of(*run.sim, 0, axis), "clamp"), TimeMode::SUM, 8, true);
         ASSERT_NE(J.value(*run.sim, run.trajectory), 0);
         test::check_state_gradient(J, run);
         test::check_all_parameter_gradients(J, run);
@@ -123,9 +124,10 @@ TEST_P(ReactionForceGradient, MatchesFiniteDifferences)
     // Targets away from the forces (R - F of the size of R), so that J's differences do not cancel.
     const auto R = [&](int k) {
         return Ry.value(*run.sim,
-            { k, state_time(run.trajectory, k), state_positions(run.trajectory, k), state_velocities(run.trajectory, k) });
+            { k, state_time(run.trajectory, k), state_positions(run.trajectory, k),
+                state_velocities(run.trajectory, k) });
     };
-    const ReactionForceTracking tracking(Ry, { 1, 3 }, { 0.5 * R(1), 1.5 * R(3) }, 0.25);
+    const StateTracking tracking(std::make_unique<ReactionForce>(Ry), { 1, 3 }, { 0.5 * R(1), 1.5 * R(3) }, 0.25);
     test::check_state_gradient(tracking, run);
     test::check_all_parameter_gradients(tracking, run);
 }
@@ -206,8 +208,8 @@ TEST(ReactionForceAdjoint, PlaneContactMatchesFiniteDifferences)
 {
     for (int dim : { 2, 3 }) {
         SCOPED_TRACE(dim);
-        const json objective = { { "type", "reaction_force" }, { "obstacle", "floor" }, { "axis", 1 },
-            { "time", "sum" } };
+        const json objective
+            = { { "type", "reaction_force" }, { "obstacle", "floor" }, { "axis", 1 }, { "time", "sum" } };
         test::check_through_adjoint(clamped_box_on_plane(dim), objective,
             { Block::REST_POSITIONS, Block::MU, Block::LAMBDA, Block::PRESCRIBED }, 1e-3, 1e-5);
     }
