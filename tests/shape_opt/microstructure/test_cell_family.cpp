@@ -54,7 +54,7 @@ TEST(CellFamily, TheReentrantCellsVariablesAreTheOnesItsMirrorsLeave)
 
 TEST(CellFamily, DesignsKeepTheSymmetryAndThePeriodicConnections)
 {
-    for (const char* name : { "square_grid", "diamond", "reentrant", "curved_beam" }) {
+    for (const char* name : { "square_grid", "diamond", "diamond_stop", "reentrant", "curved_beam" }) {
         SCOPED_TRACE(name);
         const CellFamily f = read_cell_family(kTopologies + name + ".json");
         const WireGraph& g = f.graph();

@@ -95,7 +95,7 @@ TEST(CellMesher, EachTopologyMeshesPeriodicallyOnItsLevelSet)
 {
     CellMeshSettings s;
     s.size = 0.03;
-    for (const char* name : { "square_grid", "diamond", "reentrant", "curved_beam" }) {
+    for (const char* name : { "square_grid", "diamond", "diamond_stop", "reentrant", "curved_beam" }) {
         SCOPED_TRACE(name);
         const CellFamily f = read_cell_family(kTopologies + name + ".json");
         const VectorXd p = f.initial();
@@ -111,7 +111,7 @@ TEST(CellMesher, DesignsAtTheBoundsMesh)
     // mesh size below the thinnest beam at the narrowest width).
     CellMeshSettings s;
     s.size = 0.025;
-    for (const char* name : { "square_grid", "diamond", "reentrant", "curved_beam" }) {
+    for (const char* name : { "square_grid", "diamond", "diamond_stop", "reentrant", "curved_beam" }) {
         const CellFamily f = read_cell_family(kTopologies + name + ".json");
         for (int corner = 0; corner < 4; ++corner) {
             SCOPED_TRACE(std::string(name) + " corner " + std::to_string(corner));
