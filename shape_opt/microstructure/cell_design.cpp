@@ -103,22 +103,27 @@ nlohmann::json CellDesign::scene(const std::string& mesh_file, double width) con
 CellEvaluation CellDesign::evaluate(const VectorXd& p, bool gradient) const
 {
     const Mesh mesh = mesh_design(m_family, p, m_settings.mesh);
-    return run(mesh, p, gradient);
+    if (!gradient)
+        return run(mesh, p, nullptr);
+    const MatrixXd velocity = CellShapeMap(m_family, p, mesh, m_settings.mesh.height).velocity();
+    return run(mesh, p, &velocity);
 }
 
 CellEvaluation CellDesign::evaluate_moved(
     const Mesh& reference, const VectorXd& p, const VectorXd& q, bool gradient) const
 {
-    if (gradient && q != p)
-        throw std::invalid_argument("CellDesign::evaluate_moved: the gradient is available at q = p only");
     const CellShapeMap map(m_family, p, reference, m_settings.mesh.height);
     Mesh mesh = reference;
     mesh.rest_positions = map.moved(q);
-    return run(mesh, q, gradient);
+    if (!gradient)
+        return run(mesh, q, nullptr);
+    const MatrixXd velocity = map.moved_jacobian(q);
+    return run(mesh, q, &velocity);
 }
 
-CellEvaluation CellDesign::run(const Mesh& mesh, const VectorXd& p, bool gradient) const
+CellEvaluation CellDesign::run(const Mesh& mesh, const VectorXd& p, const MatrixXd* velocity) const
 {
+    const bool gradient = velocity != nullptr;
     const Timer timer;
     const CellDesignSettings& s = m_settings;
     const double width = p[m_family.width_index()];
@@ -182,8 +187,7 @@ CellEvaluation CellDesign::run(const Mesh& mesh, const VectorXd& p, bool gradien
         seed.resize(T);
         J.add_gradient(sim, trajectory, request, 1.0, seed);
         const ParameterGradient g = adjoint_gradient(sim, seed, request);
-        const CellShapeMap map(m_family, p, mesh, s.mesh.height);
-        out.gradient = map.pullback(g.rest_positions);
+        out.gradient = velocity->transpose() * g.rest_positions;
         // The stress divides by |Y| = width height^2, fixed in the scene: d sigma-term / d width
         // = sum_i w (P_i - y_i) (-P_i / |Y|) d|Y|/d width = -sum_i w (P_i - y_i) P_i / width.
         double volume_term = 0;

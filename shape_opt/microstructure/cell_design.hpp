@@ -72,14 +72,14 @@ public:
     /// @throws InputError for a design outside the bounds or one that cannot be meshed
     CellEvaluation evaluate(const VectorXd& p, bool gradient) const;
     /// @brief J at design q on the mesh `reference` of design p moved to q (CellShapeMap::moved),
-    /// and with `gradient` dJ/dq there (the map's velocity at q = p only: at another q the
-    /// gradient is not available, std::invalid_argument).
+    /// and with `gradient` the derivative of that function of q (CellShapeMap::moved_jacobian).
     CellEvaluation evaluate_moved(const Mesh& reference, const VectorXd& p, const VectorXd& q, bool gradient) const;
     /// The periodic scene of a cell mesh file at the given width.
     nlohmann::json scene(const std::string& mesh_file, double width) const;
 
 private:
-    CellEvaluation run(const Mesh& mesh, const VectorXd& p, bool gradient) const;
+    /// J at design p on `mesh`; with `velocity` (dX/dp) its gradient.
+    CellEvaluation run(const Mesh& mesh, const VectorXd& p, const MatrixXd* velocity) const;
 
     CellFamily m_family;
     CellDesignSettings m_settings;

@@ -126,11 +126,13 @@ double CellShapeMap::psi(const CellSDF& sdf, const Eigen::Vector2d& X, Eigen::Ve
     return sdf.value(y);
 }
 
-MatrixXd CellShapeMap::boundary_displacement(const VectorXd& q) const
+MatrixXd CellShapeMap::boundary_displacement(const VectorXd& q, MatrixXd* jacobian) const
 {
     const CellSDF sdf(m_family.graph(), m_family.cell_parameters(q));
     const Index nb = Index(m_boundary.size());
     MatrixXd d = MatrixXd::Zero(nb, 2);
+    if (jacobian)
+        jacobian->setZero(2 * nb, m_family.size());
     for (Index s = 0; s < nb; ++s) {
         const Eigen::Vector2d n = m_direction[size_t(s)];
         if (n.isZero())
@@ -153,9 +155,22 @@ MatrixXd CellShapeMap::boundary_displacement(const VectorXd& q) const
                 "the cell's boundary cannot follow the design from its mesh (vertex "
                     + std::to_string(m_boundary[size_t(s)]) + " finds no level set along its normal): remesh");
         d.row(s) = t * n.transpose();
+        if (jacobian) {
+            Eigen::Vector2d g;
+            const Eigen::Vector2d at = X + t * n;
+            psi(sdf, at, &g);
+            const VectorXd dpsi = m_family.jacobian().transpose() * sdf.parameter_gradient(at.cwiseQuotient(m_scale));
+            for (int a = 0; a < 2; ++a)
+                jacobian->row(2 * s + a) = -n[a] / g.dot(n) * dpsi.transpose();
+        }
     }
-    for (const Between& b : m_between)
+    for (const Between& b : m_between) {
         d.row(b.slot) = (1 - b.weight) * d.row(b.a) + b.weight * d.row(b.b);
+        if (jacobian)
+            for (int a = 0; a < 2; ++a)
+                jacobian->row(2 * b.slot + a)
+                    = (1 - b.weight) * jacobian->row(2 * b.a + a) + b.weight * jacobian->row(2 * b.b + a);
+    }
     return d;
 }
 
@@ -173,6 +188,33 @@ Positions CellShapeMap::moved(const VectorXd& q) const
     for (Index v = 0; v < nv; ++v)
         X.row(v) << stretch * x[2 * v], x[2 * v + 1];
     return X;
+}
+
+MatrixXd CellShapeMap::moved_jacobian(const VectorXd& q) const
+{
+    m_family.check(q, "design");
+    MatrixXd db;
+    const MatrixXd d = boundary_displacement(q, &db);
+    const Index nb = d.rows(), nv = m_mesh.rest_positions.rows(), w = m_family.width_index();
+    const double stretch = q[w] / m_p[w];
+    const VectorXd rest = m_extension->apply(VectorXd::Zero(2 * nb));
+    MatrixXd J(2 * nv, m_family.size());
+    for (Index j = 0; j < m_family.size(); ++j) {
+        if (j == w) { // moved = (stretch x, y) of the extension: d/dq_w = (x / p_w, 0)
+            VectorXd flat(2 * nb);
+            for (Index s = 0; s < nb; ++s)
+                flat.segment<2>(2 * s) = d.row(s).transpose();
+            const VectorXd x = m_extension->apply(flat);
+            J.col(j).setZero();
+            for (Index v = 0; v < nv; ++v)
+                J(2 * v, j) = x[2 * v] / m_p[w];
+            continue;
+        }
+        J.col(j) = m_extension->apply(db.col(j)) - rest;
+        for (Index v = 0; v < nv; ++v)
+            J(2 * v, j) *= stretch;
+    }
+    return J;
 }
 
 } // namespace diffipc

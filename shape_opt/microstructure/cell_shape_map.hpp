@@ -46,6 +46,11 @@ public:
     /// @throws InputError naming "design" if a boundary vertex finds no level set to move to
     Positions moved(const VectorXd& q) const;
 
+    /// d moved(q) / dq (#V*2 by the family's size): at q = p the velocity(); elsewhere the
+    /// boundary vertices' d t / dq = -(d psi_q / dq) / (grad psi_q . n) at their moved positions,
+    /// the same extension, and the stretch.
+    MatrixXd moved_jacobian(const VectorXd& q) const;
+
     /// Per vertex: 0 interior, 1 on the contour inside the box, 2 a side's crossing, 3 a box
     /// corner, 4 on a side between its ends (for tests and plots).
     const std::vector<int>& kind() const { return m_kind; }
@@ -53,8 +58,9 @@ public:
 private:
     /// psi and its X-gradient at physical X for the design's cell parameters c (width a_p).
     double psi(const CellSDF& sdf, const Eigen::Vector2d& X, Eigen::Vector2d* grad) const;
-    /// Boundary vertices' displacement (nb by 2) for design q at the reference width.
-    MatrixXd boundary_displacement(const VectorXd& q) const;
+    /// Boundary vertices' displacement (nb by 2) for design q at the reference width; with
+    /// `jacobian`, also its derivative in q (2 nb by the family's size, the width's column zero).
+    MatrixXd boundary_displacement(const VectorXd& q, MatrixXd* jacobian = nullptr) const;
 
     const CellFamily& m_family;
     VectorXd m_p;

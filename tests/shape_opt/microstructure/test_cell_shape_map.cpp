@@ -1,8 +1,8 @@
 // How a cell's mesh moves with its design (shape_opt/microstructure/cell_shape_map.hpp): the
 // harmonic extension on known fields, the boundary's velocity against the level set's normal
 // velocity by central differences of phi, moved() on the moved level set, the velocity as the
-// derivative of moved(), and the pulled-back gradient of the mesh's area against differences of
-// fresh meshes.
+// derivative of moved() (moved_jacobian() elsewhere), and the pulled-back gradient of the mesh's
+// area against differences of fresh meshes.
 
 #include "shape_opt/microstructure/cell_shape_map.hpp"
 
@@ -163,6 +163,19 @@ TEST(CellShapeMap, BoundaryVelocityIsTheLevelSetsNormalVelocityAndMovedFollowsIt
                 flat.segment<2>(2 * v) = d.row(v).transpose();
             EXPECT_LT((flat - map.velocity().col(j)).norm(), 1e-6 * (map.velocity().col(j).norm() + 1e-3))
                 << f.names()[size_t(j)];
+        }
+        // Away from p: moved_jacobian(q) against central differences of moved() at q.
+        EXPECT_LT((map.moved_jacobian(p) - map.velocity()).norm(), 1e-12 * map.velocity().norm());
+        const MatrixXd Jq = map.moved_jacobian(q);
+        for (Index j = 0; j < f.size(); ++j) {
+            VectorXd qp = q, qm = q;
+            qp[j] += H;
+            qm[j] -= H;
+            const Positions d = (map.moved(qp) - map.moved(qm)) / (2 * H);
+            VectorXd flat(d.size());
+            for (Index v = 0; v < d.rows(); ++v)
+                flat.segment<2>(2 * v) = d.row(v).transpose();
+            EXPECT_LT((flat - Jq.col(j)).norm(), 1e-6 * (Jq.col(j).norm() + 1e-3)) << f.names()[size_t(j)];
         }
     }
 }

@@ -1,0 +1,57 @@
+// Optimizing a cushion cell (shape_opt/microstructure/cell_optimization.hpp) on a coarse mesh:
+// L-BFGS-B and MMA lower J within the family's bounds, accepted iterates on one mesh never raise
+// J, a mesh that degrades is replaced (and the restart's J on the new mesh is recorded), and the
+// reported final design is evaluated on a new mesh of it.
+
+#include "shape_opt/microstructure/cell_optimization.hpp"
+
+#include <gtest/gtest.h>
+
+using namespace diffipc;
+
+TEST(CellOptimization, LbfgsbAndMmaLowerThePlateauObjectiveWithinTheBounds)
+{
+    CellDesignSettings s;
+    s.mesh.size = 0.04;
+    s.max_strain = 0.4;
+    s.steps = 8;
+    s.samples = { 2, 4, 6, 8 };
+    s.target_stress = 500;
+    s.free_shear = false;
+    const CellDesign design(
+        read_cell_family(std::string(DIFFIPC_SOURCE_DIR) + "/shape_opt/microstructure/topologies/reentrant.json"), s);
+    const CellFamily& f = design.family();
+    for (OptimizerAlgorithm algorithm : { OptimizerAlgorithm::LBFGSB, OptimizerAlgorithm::MMA }) {
+        SCOPED_TRACE(to_string(algorithm));
+        CellOptimizationSettings o;
+        o.optimizer.algorithm = algorithm;
+        o.optimizer.max_iterations = 6;
+        o.remesh_quality = 0.3; // a new coarse mesh has 0.34
+        int calls = 0;
+        const CellOptimizationResult r = optimize_cell(design, f.initial(), o, [&](const CellIteration&) { ++calls; });
+        ASSERT_FALSE(r.history.empty());
+        EXPECT_EQ(calls, int(r.history.size()));
+        const double J0 = r.history.front().J;
+        EXPECT_LT(r.history.back().J, 0.5 * J0);
+        for (size_t k = 1; k < r.history.size(); ++k) {
+            if (r.history[k].mesh == r.history[k - 1].mesh) {
+                EXPECT_LE(r.history[k].J, r.history[k - 1].J * (1 + 1e-12));
+                // an iterate whose mesh fell below the threshold is the last on that mesh (a new
+                // mesh is used as it comes)
+                if (k >= 2 && r.history[k - 2].mesh == r.history[k - 1].mesh)
+                    EXPECT_GE(r.history[k - 1].quality, o.remesh_quality);
+            } else { // a restart on a new mesh: the same design, a better mesh
+                EXPECT_EQ(r.history[k].x, r.history[k - 1].x);
+                EXPECT_LT(r.history[k - 1].quality, o.remesh_quality);
+                EXPECT_GT(r.history[k].quality, r.history[k - 1].quality);
+            }
+        }
+        EXPECT_EQ(r.history.back().mesh, r.remeshes);
+        if (algorithm == OptimizerAlgorithm::LBFGSB)
+            EXPECT_GT(r.remeshes, 0); // seen: 1 (MMA's shorter steps: none in 6 iterations)
+        EXPECT_TRUE((r.x.array() >= f.lower().array()).all() && (r.x.array() <= f.upper().array()).all());
+        ASSERT_TRUE(r.final.ok);
+        EXPECT_LT(r.final.J, 0.5 * J0); // on a new mesh of the final design too
+        EXPECT_EQ(r.final.gradient.size(), f.size());
+    }
+}
