@@ -508,4 +508,8 @@ PYBIND11_MODULE(_diffipc, m)
         void bind_minimize(py::module_&);
         bind_minimize(m);
     } // _minimize (minimize_bindings.cpp)
+    {
+        void bind_microstructure(py::module_&);
+        bind_microstructure(m);
+    } // CellFamily, CellDesign (microstructure_bindings.cpp)
 }

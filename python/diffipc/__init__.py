@@ -47,6 +47,7 @@ from ._diffipc import (  # noqa: E402,F401
 from ._diffipc import set_threads as _set_threads  # noqa: E402
 from .reduced import ReducedFunctional, finite_difference_check, taylor_test  # noqa: E402,F401
 from .optimize import OptimizeResult, minimize  # noqa: E402,F401
+from . import microstructure  # noqa: E402,F401
 
 
 def __getattr__(name):

@@ -1,0 +1,181 @@
+// pybind11 bindings of the microstructure cells (shape_opt/microstructure/, issue 15):
+// _diffipc.CellFamily (a family file's variables, its level set and meshes as numpy arrays) and
+// _diffipc.CellDesign (the plateau objective of a cell's compression, its gradient, and the
+// cell's optimization). python/diffipc/microstructure.py documents them for users.
+// Heavy calls release the GIL; the optimization's progress callback takes it back.
+
+#include "forward/common/error.hpp"
+#include "forward/scene/json_field.hpp"
+#include "forward/scene/json_input.hpp"
+#include "shape_opt/microstructure/cell_optimization.hpp"
+
+#include <pybind11/eigen.h>
+#include <pybind11/functional.h>
+#include <pybind11/numpy.h>
+#include <pybind11/pybind11.h>
+#include <pybind11/stl.h>
+
+namespace py = pybind11;
+using namespace diffipc;
+
+namespace {
+
+VectorXd design_vector(
+    const CellFamily& family, const py::array_t<double, py::array::c_style | py::array::forcecast>& p)
+{
+    if (p.ndim() != 1 || p.shape(0) != py::ssize_t(family.size()))
+        throw InputError(
+            "design", "expected a vector of the family's " + std::to_string(family.size()) + " design variables");
+    VectorXd x = Eigen::Map<const VectorXd>(p.data(), family.size());
+    family.check(x, "design");
+    return x;
+}
+
+py::dict evaluation_dict(const CellEvaluation& e)
+{
+    py::dict d;
+    d["ok"] = e.ok;
+    d["message"] = e.message;
+    d["J"] = e.J;
+    d["gradient"] = e.gradient.size() ? py::cast(e.gradient) : py::none();
+    d["strain"] = e.strain;
+    d["stress"] = e.stress;
+    d["shear"] = e.shear;
+    d["lateral"] = e.lateral;
+    d["contacts"] = e.contacts;
+    d["vertices"] = e.vertices;
+    d["elements"] = e.elements;
+    d["newton_iterations"] = e.newton_iterations;
+    d["seconds"] = e.seconds;
+    return d;
+}
+
+CellDesignSettings settings_from(const py::dict& settings)
+{
+    const std::string text = py::module_::import("json").attr("dumps")(settings).cast<std::string>();
+    const nlohmann::json j = parse_json_text(text, "settings");
+    return parse_cell_design_settings(JsonField(j, "settings"));
+}
+
+} // namespace
+
+void bind_microstructure(py::module_& m)
+{
+    py::class_<CellFamily>(m, "CellFamily", "A microstructure cell family (a family file: graph, symmetry, bounds).")
+        .def(py::init([](const std::string& path) { return read_cell_family(path); }), py::arg("path"))
+        .def_property_readonly("names", &CellFamily::names)
+        .def_property_readonly("lower", &CellFamily::lower)
+        .def_property_readonly("upper", &CellFamily::upper)
+        .def_property_readonly("initial", &CellFamily::initial)
+        .def_property_readonly("width_index", &CellFamily::width_index)
+        .def_property_readonly("symmetry", [](const CellFamily& f) { return to_string(f.symmetry()); })
+        .def_property_readonly("nodes", [](const CellFamily& f) { return MatrixXd(f.graph().nodes); })
+        .def_property_readonly("edges", [](const CellFamily& f) { return Eigen::MatrixXi(f.graph().edges); })
+        .def(
+            "sdf",
+            [](const CellFamily& f, const py::array_t<double, py::array::c_style | py::array::forcecast>& p,
+                const Eigen::Ref<const MatrixXd>& points) {
+                if (points.cols() != 2)
+                    throw InputError("points", "expected an (N, 2) array of graph coordinates");
+                const CellSDF sdf(f.graph(), f.cell_parameters(design_vector(f, p)));
+                VectorXd phi(points.rows());
+                for (Index i = 0; i < points.rows(); ++i)
+                    phi[i] = sdf.value(points.row(i).transpose());
+                return phi;
+            },
+            py::arg("p"), py::arg("points"),
+            "The level set phi at (N, 2) points in graph coordinates ([-1, 1]^2 is the cell): solid where < 0.")
+        .def(
+            "mesh",
+            [](const CellFamily& f, const py::array_t<double, py::array::c_style | py::array::forcecast>& p,
+                double size, double height) {
+                const VectorXd x = design_vector(f, p);
+                CellMeshSettings s;
+                s.size = size;
+                s.height = height;
+                Mesh mesh;
+                {
+                    py::gil_scoped_release release;
+                    mesh = mesh_design(f, x, s);
+                }
+                return py::make_tuple(MatrixXd(mesh.rest_positions), Eigen::MatrixXi(mesh.elements));
+            },
+            py::arg("p"), py::arg("size") = 0.025, py::arg("height") = 1.0,
+            "(vertices (V, 2), triangles (E, 3)): the periodic mesh of design p, box [-w h/2, w h/2] x [-h/2, h/2].");
+
+    py::class_<CellDesign>(
+        m, "CellDesign", "A cell's plateau objective over its compression (docs/microstructures.md).")
+        .def(py::init([](const CellFamily& family, const py::dict& settings) {
+            return CellDesign(family, settings_from(settings));
+        }),
+            py::arg("family"), py::arg("settings"))
+        .def_property_readonly("family", &CellDesign::family)
+        .def(
+            "scene",
+            [](const CellDesign& d, const std::string& mesh_file, double width) {
+                return d.scene(mesh_file, width).dump();
+            },
+            py::arg("mesh_file"), py::arg("width"), "The periodic compression scene of a cell mesh file (JSON text).")
+        .def(
+            "evaluate",
+            [](const CellDesign& d, const py::array_t<double, py::array::c_style | py::array::forcecast>& p,
+                bool gradient) {
+                const VectorXd x = design_vector(d.family(), p);
+                CellEvaluation e;
+                {
+                    py::gil_scoped_release release;
+                    e = d.evaluate(x, gradient);
+                }
+                return evaluation_dict(e);
+            },
+            py::arg("p"), py::arg("gradient") = false,
+            "Compress design p's cell (a new mesh): dict of J, gradient, strain, stress, shear, lateral, contacts, ...")
+        .def(
+            "optimize",
+            [](const CellDesign& d, const py::array_t<double, py::array::c_style | py::array::forcecast>& x0,
+                const std::string& algorithm, int max_iterations, double remesh_quality,
+                const std::function<void(py::dict)>& callback) {
+                const VectorXd x = design_vector(d.family(), x0);
+                CellOptimizationSettings o;
+                o.optimizer.algorithm = parse_optimizer_algorithm(algorithm, "algorithm");
+                o.optimizer.max_iterations = max_iterations;
+                o.remesh_quality = remesh_quality;
+                auto record = [](const CellIteration& it) {
+                    py::dict r;
+                    r["iteration"] = it.iteration;
+                    r["mesh"] = it.mesh;
+                    r["J"] = it.J;
+                    r["gradient_norm"] = it.gradient_norm;
+                    r["quality"] = it.quality;
+                    r["seconds"] = it.seconds;
+                    r["x"] = it.x;
+                    return r;
+                };
+                CellOptimizationResult r;
+                {
+                    py::gil_scoped_release release;
+                    r = optimize_cell(d, x, o, [&](const CellIteration& it) {
+                        if (!callback)
+                            return;
+                        py::gil_scoped_acquire acquire;
+                        callback(record(it));
+                    });
+                }
+                py::dict out;
+                out["x"] = r.x;
+                out["final"] = evaluation_dict(r.final);
+                py::list history;
+                for (const CellIteration& it : r.history)
+                    history.append(record(it));
+                out["history"] = history;
+                out["remeshes"] = r.remeshes;
+                out["evaluations"] = r.evaluations;
+                out["rejected"] = r.rejected;
+                out["reason"] = to_string(r.reason);
+                out["message"] = r.message;
+                return out;
+            },
+            py::arg("x0"), py::arg("algorithm") = "lbfgsb", py::arg("max_iterations") = 50,
+            py::arg("remesh_quality") = 0.3, py::arg("callback") = nullptr,
+            "Minimize J from x0 (docs/microstructures.md, \"Optimization\"): dict of x, final, history, ...");
+}
