@@ -117,6 +117,12 @@ void bind_microstructure(py::module_& m)
             },
             py::arg("mesh_file"), py::arg("width"), "The periodic compression scene of a cell mesh file (JSON text).")
         .def(
+            "write_scene",
+            [](const CellDesign& d, const py::array_t<double, py::array::c_style | py::array::forcecast>& p,
+                const std::string& directory) { return d.write_scene(design_vector(d.family(), p), directory); },
+            py::arg("p"), py::arg("directory"),
+            "Write design p's cell (cell.msh) and compression (scene.json) into `directory`; returns the scene's path.")
+        .def(
             "evaluate",
             [](const CellDesign& d, const py::array_t<double, py::array::c_style | py::array::forcecast>& p,
                 bool gradient) {

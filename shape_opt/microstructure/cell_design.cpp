@@ -16,6 +16,7 @@
 #include <atomic>
 #include <cmath>
 #include <filesystem>
+#include <fstream>
 #include <unistd.h>
 
 namespace diffipc {
@@ -98,6 +99,22 @@ nlohmann::json CellDesign::scene(const std::string& mesh_file, double width) con
     scene["time"] = { { "integrator", "static" }, { "dt", 1.0 / s.steps }, { "steps", s.steps } };
     scene["solver"] = s.solver;
     return scene;
+}
+
+std::string CellDesign::write_scene(const VectorXd& p, const std::string& directory) const
+{
+    const Mesh mesh = mesh_design(m_family, p, m_settings.mesh);
+    std::filesystem::create_directories(directory);
+    const std::filesystem::path folder(directory);
+    write_gmsh((folder / "cell.msh").string(), mesh);
+    nlohmann::json j = scene("cell.msh", p[m_family.width_index()]);
+    j["description"] = "A microstructure cell's compression (diffipc.microstructure / CellDesign::write_scene)";
+    const std::string path = (folder / "scene.json").string();
+    std::ofstream out(path);
+    out << j.dump(2) << "\n";
+    if (!out)
+        throw InputError(path, "cannot write the scene file");
+    return path;
 }
 
 CellEvaluation CellDesign::evaluate(const VectorXd& p, bool gradient) const

@@ -76,6 +76,10 @@ public:
     CellEvaluation evaluate_moved(const Mesh& reference, const VectorXd& p, const VectorXd& q, bool gradient) const;
     /// The periodic scene of a cell mesh file at the given width.
     nlohmann::json scene(const std::string& mesh_file, double width) const;
+    /// @brief Writes design p's cell as `directory`/cell.msh (a new mesh) and its compression as
+    /// `directory`/scene.json (the mesh path relative to it), so that `diffipc simulate SCENE -o
+    /// OUT` and `diffipc check OUT` run it; returns the scene file's path.
+    std::string write_scene(const VectorXd& p, const std::string& directory) const;
 
 private:
     /// J at design p on `mesh`; with `velocity` (dX/dp) its gradient.
