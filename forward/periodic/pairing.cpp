@@ -1,12 +1,13 @@
 #include "forward/periodic/pairing.hpp"
 
 #include "forward/common/error.hpp"
+#include "forward/common/union_find.hpp"
 
 #include <algorithm>
 #include <array>
-#include <stdexcept>
 #include <cmath>
 #include <numeric>
+#include <stdexcept>
 #include <unordered_map>
 #include <vector>
 
@@ -23,24 +24,6 @@ namespace {
     }
 
     const char* axis_name(int a) { return a == 0 ? "x" : a == 1 ? "y" : "z"; }
-
-    struct UnionFind {
-        std::vector<Index> parent;
-        explicit UnionFind(Index n)
-            : parent(size_t(n))
-        {
-            std::iota(parent.begin(), parent.end(), Index(0));
-        }
-        Index find(Index v)
-        {
-            while (parent[size_t(v)] != v) {
-                parent[size_t(v)] = parent[size_t(parent[size_t(v)])];
-                v = parent[size_t(v)];
-            }
-            return v;
-        }
-        void join(Index a, Index b) { parent[size_t(find(a))] = find(b); }
-    };
 
     /// The vertices on the lower face of axis a, hashed by their other coordinates on a grid of
     /// cells of twice the tolerance: a partner within the tolerance lies in a neighbouring cell.
@@ -111,7 +94,8 @@ PeriodicPairing pair_periodic_vertices(
     bool any = false;
     for (int a = 0; a < d; ++a) {
         if (!(box.length(a) > 0) || !std::isfinite(box.length(a)))
-            throw InputError("periodic.box", std::string("its ") + axis_name(a) + " extent must be positive and finite");
+            throw InputError(
+                "periodic.box", std::string("its ") + axis_name(a) + " extent must be positive and finite");
         any = any || box.periodic[size_t(a)];
     }
     if (!any)
@@ -124,13 +108,15 @@ PeriodicPairing pair_periodic_vertices(
         if (box.periodic[size_t(a)]) {
             if (std::abs(lo - box.lower[a]) > tolerance || std::abs(hi - box.upper[a]) > tolerance)
                 throw InputError("periodic.box",
-                    std::string("along the periodic axis ") + axis_name(a) + " the box spans [" + format_number(box.lower[a])
-                        + ", " + format_number(box.upper[a]) + "] m but the mesh spans [" + format_number(lo) + ", "
-                        + format_number(hi) + "] m (tolerance " + format_number(tolerance) + " m)");
+                    std::string("along the periodic axis ") + axis_name(a) + " the box spans ["
+                        + format_number(box.lower[a]) + ", " + format_number(box.upper[a]) + "] m but the mesh spans ["
+                        + format_number(lo) + ", " + format_number(hi) + "] m (tolerance " + format_number(tolerance)
+                        + " m)");
         } else if (lo < box.lower[a] - tolerance || hi > box.upper[a] + tolerance) {
             throw InputError("periodic.box",
-                std::string("the mesh spans [") + format_number(lo) + ", " + format_number(hi) + "] m along " + axis_name(a)
-                    + ", outside the box's [" + format_number(box.lower[a]) + ", " + format_number(box.upper[a]) + "] m");
+                std::string("the mesh spans [") + format_number(lo) + ", " + format_number(hi) + "] m along "
+                    + axis_name(a) + ", outside the box's [" + format_number(box.lower[a]) + ", "
+                    + format_number(box.upper[a]) + "] m");
         }
     }
     UnionFind classes(n);

@@ -1,6 +1,7 @@
 #include "shape_opt/microstructure/cell_family.hpp"
 
 #include "forward/common/error.hpp"
+#include "forward/common/union_find.hpp"
 #include "forward/scene/json_field.hpp"
 #include "forward/scene/json_input.hpp"
 
@@ -45,28 +46,6 @@ namespace {
 
     /// d less the nearest whole-period (2) translation.
     Eigen::Vector2d wrap(const Eigen::Vector2d& d) { return d - 2.0 * (d / 2.0).array().round().matrix(); }
-
-    struct UnionFind {
-        std::vector<Index> parent;
-        explicit UnionFind(Index n)
-            : parent(size_t(n))
-        {
-            std::iota(parent.begin(), parent.end(), Index(0));
-        }
-        Index find(Index i)
-        {
-            while (parent[size_t(i)] != i)
-                i = parent[size_t(i)] = parent[size_t(parent[size_t(i)])];
-            return i;
-        }
-        void join(Index a, Index b)
-        {
-            a = find(a);
-            b = find(b);
-            if (a != b)
-                parent[size_t(std::max(a, b))] = std::min(a, b); // the smallest index is the root
-        }
-    };
 
     void check_range(const CellFamily::Range& r, const std::string& field, bool positive)
     {

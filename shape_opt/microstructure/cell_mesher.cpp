@@ -1,6 +1,7 @@
 #include "shape_opt/microstructure/cell_mesher.hpp"
 
 #include "forward/common/error.hpp"
+#include "forward/common/union_find.hpp"
 #include "shape_opt/remesh.hpp"
 
 #include <algorithm>
@@ -339,11 +340,8 @@ Mesh mesh_cell(const CellSDF& sdf, double width, const CellMeshSettings& setting
     const Eigen::Vector2d lo = cell_box_min(width, settings.height), hi = cell_box_max(width, settings.height);
     const double tol = 1e-9 * settings.height;
     const Index nv = mesh.rest_positions.rows();
-    std::vector<Index> parent(static_cast<size_t>(nv));
-    std::iota(parent.begin(), parent.end(), Index(0));
-    std::function<Index(Index)> find
-        = [&](Index v) { return parent[size_t(v)] == v ? v : parent[size_t(v)] = find(parent[size_t(v)]); };
-    auto join = [&](Index a, Index b) { parent[size_t(find(a))] = find(b); };
+    UnionFind pieces_of(nv);
+    auto join = [&](Index a, Index b) { pieces_of.join(a, b); };
     for (Index e = 0; e < mesh.elements.rows(); ++e)
         for (int a = 1; a < 3; ++a)
             join(mesh.elements(e, 0), mesh.elements(e, a));
@@ -369,7 +367,7 @@ Mesh mesh_cell(const CellSDF& sdf, double width, const CellMeshSettings& setting
                 + " sides: the tiling does not hold together along " + (touches[0] ? "y" : "x"));
     Index pieces = 0;
     for (Index v = 0; v < nv; ++v)
-        pieces += find(v) == v;
+        pieces += pieces_of.find(v) == v;
     if (pieces > 1)
         throw InputError("design",
             "the solid falls apart into " + std::to_string(pieces)

@@ -85,6 +85,17 @@ inline Run run_scene(const nlohmann::json& scene_json, unsigned seed = 7)
     return r;
 }
 
+/// A periodic cell's run from its own initial state (a cell starts at rest), expected to converge.
+inline Run run_cell(const nlohmann::json& scene_json)
+{
+    Run r;
+    r.scene_json = scene_json;
+    r.sim = std::make_unique<Simulator>(make_scene(scene_json));
+    r.trajectory = r.sim->run();
+    EXPECT_EQ(r.trajectory.final_status, StepStatus::CONVERGED) << r.trajectory.failure_message;
+    return r;
+}
+
 /// |fd - analytic| <= tol * max(|fd|, |analytic|, floor).
 inline ::testing::AssertionResult fd_agrees(double fd, double analytic, double tol, double floor = 0)
 {

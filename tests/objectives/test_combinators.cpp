@@ -2,13 +2,13 @@
 
 #include "objective_fd.hpp"
 
-#include <Eigen/Geometry>
 #include "objectives/center_of_mass.hpp"
 #include "objectives/compliance.hpp"
 #include "objectives/elastic_energy.hpp"
 #include "objectives/kinetic_energy.hpp"
 #include "objectives/stress_norm.hpp"
 #include "objectives/time_aggregation.hpp"
+#include <Eigen/Geometry>
 
 using namespace diffipc;
 

@@ -19,25 +19,11 @@ using namespace diffipc;
 using json = nlohmann::json;
 using test::Block;
 
-namespace {
-
-test::Run run_cell(const json& s)
-{
-    test::Run r;
-    r.scene_json = s;
-    r.sim = std::make_unique<Simulator>(test::make_scene(s));
-    r.trajectory = r.sim->run();
-    EXPECT_EQ(r.trajectory.final_status, StepStatus::CONVERGED) << r.trajectory.failure_message;
-    return r;
-}
-
-} // namespace
-
 TEST(MacroGradient, ValueIsTheRecordedGradientAndItsGradientsMatchDifferences)
 {
     for (int dim : { 2, 3 }) {
         SCOPED_TRACE(dim);
-        const test::Run run = run_cell(test::compressed_periodic_cell(dim, "static"));
+        const test::Run run = test::run_cell(test::compressed_periodic_cell(dim, "static"));
         const StepRecord& last = run.trajectory.steps.back();
         const StateRef state { last.index, last.time, last.positions, last.velocities };
         for (int i = 0; i < dim; ++i)
@@ -70,7 +56,7 @@ TEST(MacroGradient, WithContactAcrossTheCellBoundaryItsGradientsMatchWholeRuns)
         const std::string path = "/tmp/diffipc_macro_gradient_post_" + std::to_string(::getpid()) + ".msh";
         json s = test::post_cell_scene(dim, path, -0.12, 2, 1e7);
         s["solver"]["residual_tolerance"] = 1e-11;
-        const test::Run run = run_cell(s);
+        const test::Run run = test::run_cell(s);
         ASSERT_GT(run.trajectory.steps.back().active_contacts, 0);
         const json objective = { { "type", "macro_gradient" }, { "component", "xx" }, { "time", "sum" } };
         test::check_through_adjoint(
@@ -84,7 +70,7 @@ TEST(MacroGradient, TrackingAtListedStepsFromAProblemFile)
     // {"targets": [...], "steps": [...], "sigma": s}: J = 1/2 sum ((f_k - y_k) / s)^2, for the
     // stress and the gradient alike; its gradient through the adjoint against whole runs.
     const json scene = test::compressed_periodic_cell(2, "static");
-    const test::Run run = run_cell(scene);
+    const test::Run run = test::run_cell(scene);
     const auto& steps = run.trajectory.steps;
     for (const char* type : { "macro_stress", "macro_gradient" }) {
         SCOPED_TRACE(type);

@@ -16,25 +16,11 @@ using namespace diffipc;
 using json = nlohmann::json;
 using test::Block;
 
-namespace {
-
-test::Run run_cell(const json& s)
-{
-    test::Run r;
-    r.scene_json = s;
-    r.sim = std::make_unique<Simulator>(test::make_scene(s));
-    r.trajectory = r.sim->run();
-    EXPECT_EQ(r.trajectory.final_status, StepStatus::CONVERGED) << r.trajectory.failure_message;
-    return r;
-}
-
-} // namespace
-
 TEST(MacroStress, ValueIsTheRecordedAverageStressAndItsGradientsMatchDifferences)
 {
     for (int dim : { 2, 3 }) {
         SCOPED_TRACE(dim);
-        const test::Run run = run_cell(test::compressed_periodic_cell(dim, "static"));
+        const test::Run run = test::run_cell(test::compressed_periodic_cell(dim, "static"));
         for (int i = 0; i < dim; ++i)
             for (int j = 0; j < dim; ++j) {
                 const MacroStress f(i, j, dim);
@@ -78,7 +64,7 @@ TEST(MacroStress, WithContactAcrossTheCellBoundaryItsGradientsMatchWholeRuns)
             s["time"]["integrator"] = integrator;
             s["solver"]["residual_tolerance"] = 1e-11;
             if (std::string(integrator) == "static") {
-                const test::Run run = run_cell(s);
+                const test::Run run = test::run_cell(s);
                 ASSERT_GT(run.trajectory.steps.back().active_contacts, 0);
                 const TimeAggregation J(std::make_unique<MacroStress>(1, 1, dim), TimeMode::SUM);
                 test::check_state_gradient(J, run, 13, 1e-6);

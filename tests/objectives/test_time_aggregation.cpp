@@ -3,9 +3,9 @@
 #include "forward/common/error.hpp"
 #include "objective_fd.hpp"
 
-#include <Eigen/Geometry>
 #include "objectives/elastic_energy.hpp"
 #include "objectives/kinetic_energy.hpp"
+#include <Eigen/Geometry>
 
 using namespace diffipc;
 

@@ -152,31 +152,25 @@ TEST(CellShapeMap, BoundaryVelocityIsTheLevelSetsNormalVelocityAndMovedFollowsIt
             if (map.kind()[size_t(v)] == 1 || map.kind()[size_t(v)] == 2)
                 EXPECT_NEAR(sdf_q.value(Eigen::Vector2d(Xq(v, 0) / (0.5 * wq * s.height), Xq(v, 1) / (0.5 * s.height))),
                     0, 1e-10);
-        const double H = 1e-5;
-        for (Index j = 0; j < f.size(); ++j) {
-            VectorXd qp = p, qm = p;
-            qp[j] += H;
-            qm[j] -= H;
-            const Positions d = (map.moved(qp) - map.moved(qm)) / (2 * H);
-            VectorXd flat(d.size());
-            for (Index v = 0; v < d.rows(); ++v)
-                flat.segment<2>(2 * v) = d.row(v).transpose();
-            EXPECT_LT((flat - map.velocity().col(j)).norm(), 1e-6 * (map.velocity().col(j).norm() + 1e-3))
-                << f.names()[size_t(j)];
-        }
-        // Away from p: moved_jacobian(q) against central differences of moved() at q.
+        // The central difference of moved() at x against `jacobian`, per variable: at p the
+        // velocity, elsewhere moved_jacobian().
+        const auto check_jacobian = [&](const VectorXd& x, const MatrixXd& jacobian) {
+            const double H = 1e-5;
+            for (Index j = 0; j < f.size(); ++j) {
+                VectorXd xp = x, xm = x;
+                xp[j] += H;
+                xm[j] -= H;
+                const Positions d = (map.moved(xp) - map.moved(xm)) / (2 * H);
+                VectorXd flat(d.size());
+                for (Index v = 0; v < d.rows(); ++v)
+                    flat.segment<2>(2 * v) = d.row(v).transpose();
+                EXPECT_LT((flat - jacobian.col(j)).norm(), 1e-6 * (jacobian.col(j).norm() + 1e-3))
+                    << f.names()[size_t(j)];
+            }
+        };
+        check_jacobian(p, map.velocity());
         EXPECT_LT((map.moved_jacobian(p) - map.velocity()).norm(), 1e-12 * map.velocity().norm());
-        const MatrixXd Jq = map.moved_jacobian(q);
-        for (Index j = 0; j < f.size(); ++j) {
-            VectorXd qp = q, qm = q;
-            qp[j] += H;
-            qm[j] -= H;
-            const Positions d = (map.moved(qp) - map.moved(qm)) / (2 * H);
-            VectorXd flat(d.size());
-            for (Index v = 0; v < d.rows(); ++v)
-                flat.segment<2>(2 * v) = d.row(v).transpose();
-            EXPECT_LT((flat - Jq.col(j)).norm(), 1e-6 * (Jq.col(j).norm() + 1e-3)) << f.names()[size_t(j)];
-        }
+        check_jacobian(q, map.moved_jacobian(q));
     }
 }
 
