@@ -1,6 +1,7 @@
 #include "objectives/objective_json.hpp"
 
 #include "forward/scene/json_field.hpp"
+#include "objectives/body_force.hpp"
 #include "objectives/boundary_smoothness.hpp"
 #include "objectives/center_of_mass.hpp"
 #include "objectives/combinators.hpp"
@@ -86,10 +87,11 @@ namespace {
         return steps;
     }
 
-    std::unique_ptr<Objective> aggregate(std::unique_ptr<StateFunctional> f, const JsonField& j)
+    /// The "time" key: FINAL by default, a mode's name, or {"max_p": p}; p in `p`.
+    TimeMode parse_time(const JsonField& j, double& p)
     {
         TimeMode mode = TimeMode::FINAL;
-        double p = 8;
+        p = 8;
         if (j.has("time")) {
             const JsonField t = j["time"];
             if (t.json().is_object()) {
@@ -105,6 +107,13 @@ namespace {
                 mode = parse_time_mode(name, t.path());
             }
         }
+        return mode;
+    }
+
+    std::unique_ptr<Objective> aggregate(std::unique_ptr<StateFunctional> f, const JsonField& j)
+    {
+        double p = 8;
+        const TimeMode mode = parse_time(j, p);
         const bool include_initial = j.has("include_initial") ? j["include_initial"].boolean() : false;
         if (include_initial && mode != TimeMode::SUM && mode != TimeMode::MAX_P)
             j["include_initial"].fail("only applies to the \"sum\" and max_p time aggregations");
@@ -296,6 +305,25 @@ namespace {
         return first + index;
     }
 
+    /// {"type": "body_force", "body": name | index, "axis": "y", "time": "final" | "sum" | {"max_p": p}}.
+    std::unique_ptr<Objective> parse_body_force(const JsonField& j, const Simulator& sim)
+    {
+        j.require_object({ "type", "body", "axis", "time" });
+        const int body = parse_body(j, sim);
+        if (body < 0)
+            j.fail("body_force needs \"body\"");
+        const int d = sim.mesh().dim;
+        const std::string axis = j["axis"].string();
+        const int a = axis == "x" ? 0 : axis == "y" ? 1 : axis == "z" && d == 3 ? 2 : -1;
+        if (a < 0)
+            j["axis"].fail("expected " + std::string(d == 3 ? "x, y or z" : "x or y") + ", got \"" + axis + "\"");
+        double p = 8;
+        const TimeMode mode = parse_time(j, p);
+        if (mode == TimeMode::TRAPEZOID)
+            j["time"].fail("body_force takes final, sum or {\"max_p\": p}");
+        return std::make_unique<BodyForce>(body, a, mode, p);
+    }
+
     /// With "targets": the functional compared with them at the listed states ("steps", "weight"
     /// or "sigma"); without: aggregated in time ("time", "include_initial").
     std::unique_ptr<Objective> aggregate_or_track(
@@ -446,6 +474,8 @@ namespace {
             return parse_reaction_force(j, sim);
         if (type == "macro_stress" || type == "macro_gradient")
             return parse_macro(j, sim);
+        if (type == "body_force")
+            return parse_body_force(j, sim);
         if (type == "boundary_smoothness") {
             j.require_object({ "type", "body" });
             return std::make_unique<BoundarySmoothness>(sim.scene(), parse_body(j, sim));
