@@ -18,6 +18,7 @@
 #include "adjoint/parameter_blocks.hpp"
 #include "forward/test_utils.hpp"
 #include "objectives/objective.hpp"
+#include "objectives/objective_json.hpp"
 
 #include <gtest/gtest.h>
 
@@ -94,6 +95,17 @@ inline Run run_cell(const nlohmann::json& scene_json)
     r.trajectory = r.sim->run();
     EXPECT_EQ(r.trajectory.final_status, StepStatus::CONVERGED) << r.trajectory.failure_message;
     return r;
+}
+
+/// The message of the InputError that parsing objective `j` (field "objective") raises, or "no error".
+inline std::string objective_error(const nlohmann::json& j, const Simulator& sim)
+{
+    try {
+        parse_objective(j, "objective", sim);
+    } catch (const InputError& e) {
+        return std::string(e.what());
+    }
+    return "no error";
 }
 
 /// |fd - analytic| <= tol * max(|fd|, |analytic|, floor).

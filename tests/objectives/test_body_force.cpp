@@ -94,14 +94,7 @@ TEST(BodyForce, GradientsMatchDifferencesAndWholeRuns)
 TEST(BodyForce, ProblemFileErrorsNameTheField)
 {
     Simulator sim(test::make_scene(drop_scene(1)));
-    const auto message = [&](const json& j) {
-        try {
-            parse_objective(j, "objective", sim);
-        } catch (const InputError& e) {
-            return std::string(e.what());
-        }
-        return std::string("no error");
-    };
+    const auto message = [&](const json& j) { return test::objective_error(j, sim); };
     EXPECT_EQ(message({ { "type", "body_force" }, { "body", "block" }, { "axis", "y" } }), "no error");
     EXPECT_EQ(message({ { "type", "body_force" }, { "axis", "y" } }), "objective: body_force needs \"body\"");
     EXPECT_EQ(message({ { "type", "body_force" }, { "body", "block" }, { "axis", "z" } }),

@@ -89,14 +89,7 @@ TEST(MacroGradient, TrackingAtListedStepsFromAProblemFile)
         test::check_through_adjoint(scene, objective, { Block::REST_POSITIONS, Block::MU, Block::MACRO }, 1e-3, 1e-6);
     }
     // A key that belongs to the other form is named.
-    const auto message = [&](const json& j) {
-        try {
-            parse_objective(j, "objective", *run.sim);
-        } catch (const InputError& e) {
-            return std::string(e.what());
-        }
-        return std::string("no error");
-    };
+    const auto message = [&](const json& j) { return test::objective_error(j, *run.sim); };
     EXPECT_EQ(message({ { "type", "macro_gradient" }, { "component", "yy" }, { "sigma", 1 } }),
         "objective.sigma: only applies with \"targets\"");
     EXPECT_EQ(

@@ -82,14 +82,7 @@ TEST(MacroStress, WithContactAcrossTheCellBoundaryItsGradientsMatchWholeRuns)
 TEST(MacroStress, ProblemFileErrorsNameTheField)
 {
     Simulator periodic(test::make_scene(test::compressed_periodic_cell(2, "static")));
-    const auto message = [](const json& j, const Simulator& sim) {
-        try {
-            parse_objective(j, "objective", sim);
-        } catch (const InputError& e) {
-            return std::string(e.what());
-        }
-        return std::string("no error");
-    };
+    const auto message = [](const json& j, const Simulator& sim) { return test::objective_error(j, sim); };
     EXPECT_EQ(message({ { "type", "macro_stress" }, { "component", "xy" } }, periodic), "no error");
     EXPECT_EQ(message({ { "type", "macro_stress" }, { "component", "xz" } }, periodic),
         "objective.component: expected two of xy (row, column), got \"xz\"");

@@ -218,14 +218,7 @@ TEST(ReactionForceAdjoint, PlaneContactMatchesFiniteDifferences)
 TEST(ReactionForceJson, ErrorsNameTheField)
 {
     Simulator sim(test::make_scene(rollers(2, -0.004)));
-    const auto message = [&](const json& j) {
-        try {
-            parse_objective(j, "objective", sim);
-        } catch (const InputError& e) {
-            return std::string(e.what());
-        }
-        return std::string("no error");
-    };
+    const auto message = [&](const json& j) { return test::objective_error(j, sim); };
     const json base = { { "type", "reaction_force" }, { "dirichlet", 2 }, { "axis", "y" } };
     EXPECT_EQ(message(base), "no error");
     json j = base;
