@@ -121,9 +121,9 @@ CellEvaluation CellDesign::evaluate(const VectorXd& p, bool gradient) const
 {
     const Mesh mesh = mesh_design(m_family, p, m_settings.mesh);
     if (!gradient)
-        return run(mesh, p, nullptr);
+        return evaluate_mesh(mesh, p, nullptr);
     const MatrixXd velocity = CellShapeMap(m_family, p, mesh, m_settings.mesh.height).velocity();
-    return run(mesh, p, &velocity);
+    return evaluate_mesh(mesh, p, &velocity);
 }
 
 CellEvaluation CellDesign::evaluate_moved(
@@ -133,12 +133,12 @@ CellEvaluation CellDesign::evaluate_moved(
     Mesh mesh = reference;
     mesh.rest_positions = map.moved(q);
     if (!gradient)
-        return run(mesh, q, nullptr);
+        return evaluate_mesh(mesh, q, nullptr);
     const MatrixXd velocity = map.moved_jacobian(q);
-    return run(mesh, q, &velocity);
+    return evaluate_mesh(mesh, q, &velocity);
 }
 
-CellEvaluation CellDesign::run(const Mesh& mesh, const VectorXd& p, const MatrixXd* velocity) const
+CellEvaluation CellDesign::evaluate_mesh(const Mesh& mesh, const VectorXd& p, const MatrixXd* velocity) const
 {
     const bool gradient = velocity != nullptr;
     const Timer timer;

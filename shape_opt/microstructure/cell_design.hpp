@@ -81,10 +81,11 @@ public:
     /// OUT` and `diffipc check OUT` run it; returns the scene file's path.
     std::string write_scene(const VectorXd& p, const std::string& directory) const;
 
-private:
-    /// J at design p on `mesh`; with `velocity` (dX/dp) its gradient.
-    CellEvaluation run(const Mesh& mesh, const VectorXd& p, const MatrixXd* velocity) const;
+    /// @brief J at design p on `mesh` (a mesh of p: a new one, or one moved to p); with
+    /// `velocity` (dX/dp, #V*2 by the family's size) its gradient.
+    CellEvaluation evaluate_mesh(const Mesh& mesh, const VectorXd& p, const MatrixXd* velocity) const;
 
+private:
     CellFamily m_family;
     CellDesignSettings m_settings;
 };

@@ -15,13 +15,12 @@ namespace {
     /// needs remeshing.
     class MovedCellProblem : public OptimizationProblem {
     public:
-        MovedCellProblem(const CellDesign& design, Mesh reference, VectorXd p, const CellOptimizationSettings& settings,
-            CellOptimizationResult& result, const Timer& timer, int first_iteration,
-            const std::function<void(const CellIteration&)>& progress)
+        MovedCellProblem(const CellDesign& design, Mesh reference, const VectorXd& p,
+            const CellOptimizationSettings& settings, CellOptimizationResult& result, const Timer& timer,
+            int first_iteration, const std::function<void(const CellIteration&)>& progress)
             : m_design(design)
             , m_reference(std::move(reference))
-            , m_p(std::move(p))
-            , m_map(design.family(), m_p, m_reference, design.settings().mesh.height)
+            , m_map(design.family(), p, m_reference, design.settings().mesh.height)
             , m_settings(settings)
             , m_result(result)
             , m_timer(timer)
@@ -36,12 +35,15 @@ namespace {
         {
             ++m_result.evaluations;
             try {
-                const double quality = min_quality(m_map.moved(x), m_reference.elements);
+                Mesh mesh = m_reference;
+                mesh.rest_positions = m_map.moved(x);
+                const double quality = min_quality(mesh.rest_positions, mesh.elements);
                 if (!(quality > 0)) {
                     ++m_result.rejected;
                     return false;
                 }
-                const CellEvaluation e = m_design.evaluate_moved(m_reference, m_p, x, true);
+                const MatrixXd velocity = m_map.moved_jacobian(x);
+                const CellEvaluation e = m_design.evaluate_mesh(mesh, x, &velocity);
                 if (!e.ok) {
                     ++m_result.rejected;
                     return false;
@@ -88,7 +90,6 @@ namespace {
         };
         const CellDesign& m_design;
         Mesh m_reference;
-        VectorXd m_p;
         CellShapeMap m_map;
         const CellOptimizationSettings& m_settings;
         CellOptimizationResult& m_result;

@@ -99,7 +99,7 @@ CellShapeMap::CellShapeMap(const CellFamily& family, const VectorXd& p, const Me
         normal_slope[size_t(s)] = g.dot(m_direction[size_t(s)]);
         dpsi.row(s) = (sdf.parameter_gradient(X.cwiseQuotient(m_scale)).transpose() * family.jacobian());
     }
-    const VectorXd rest = Eigen::Map<const VectorXd>(m_extension->apply(VectorXd::Zero(2 * nb)).data(), 2 * nv);
+    const VectorXd rest = flatten(mesh.rest_positions);
     for (Index j = 0; j < n; ++j) {
         if (j == family.width_index()) {
             for (Index v = 0; v < nv; ++v)
@@ -197,7 +197,7 @@ MatrixXd CellShapeMap::moved_jacobian(const VectorXd& q) const
     const MatrixXd d = boundary_displacement(q, &db);
     const Index nb = d.rows(), nv = m_mesh.rest_positions.rows(), w = m_family.width_index();
     const double stretch = q[w] / m_p[w];
-    const VectorXd rest = m_extension->apply(VectorXd::Zero(2 * nb));
+    const VectorXd rest = flatten(m_mesh.rest_positions);
     MatrixXd J(2 * nv, m_family.size());
     for (Index j = 0; j < m_family.size(); ++j) {
         if (j == w) { // moved = (stretch x, y) of the extension: d/dq_w = (x / p_w, 0)

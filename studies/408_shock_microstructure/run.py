@@ -62,11 +62,16 @@ def check_scene(design, p, folder, cli):
     return found.group(0) if found else (check.stdout + check.stderr).strip()
 
 
-def plot_cells(family, designs, size, path):
+def pyplot():
+    """matplotlib's pyplot on the file-only Agg backend."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    return plt
 
+
+def plot_cells(family, designs, size, path):
+    plt = pyplot()
     fig, axes = plt.subplots(1, len(designs), figsize=(4 * len(designs), 4.4))
     for ax, (name, p) in zip(axes, designs.items()):
         v, t = family.mesh(p, size=size)
@@ -84,10 +89,7 @@ def plot_cells(family, designs, size, path):
 
 
 def plot_curves(results, path):
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
+    plt = pyplot()
     fig, ax = plt.subplots(figsize=(6.5, 4.5))
     ax.axhspan(TARGET * (1 - BAND), TARGET * (1 + BAND), xmin=0, xmax=1, color="#d8ecd8", label="sigma* +- 10%")
     ax.axvspan(0, RANGE[0] * 100, color="#eeeeee")
@@ -104,10 +106,7 @@ def plot_curves(results, path):
 
 
 def plot_history(runs, path):
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
+    plt = pyplot()
     fig, ax = plt.subplots(figsize=(6.5, 4))
     for name, run in runs.items():
         h = run["history"]
