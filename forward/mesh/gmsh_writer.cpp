@@ -2,7 +2,10 @@
 
 #include "forward/common/error.hpp"
 
+#include <atomic>
 #include <cstdio>
+#include <filesystem>
+#include <unistd.h>
 
 namespace diffipc {
 
@@ -28,5 +31,16 @@ void write_gmsh(const std::string& path, const Mesh& mesh)
     if (std::fclose(out) != 0 || !ok)
         throw InputError(path, "cannot write");
 }
+
+TemporaryGmshFile::TemporaryGmshFile(const Mesh& mesh)
+{
+    static std::atomic<long> count { 0 };
+    m_path = (std::filesystem::temp_directory_path()
+        / ("diffipc_mesh_" + std::to_string(::getpid()) + "_" + std::to_string(count++) + ".msh"))
+                 .string();
+    write_gmsh(m_path, mesh);
+}
+
+TemporaryGmshFile::~TemporaryGmshFile() { std::remove(m_path.c_str()); }
 
 } // namespace diffipc

@@ -10,13 +10,17 @@ union and stretch the cell's width. From a design p:
     design = diffipc.microstructure.CellDesign(family, {"target_stress": 500, "shear": "fixed"})
     result = design.evaluate(p, gradient=True)  # strain, stress (Pa), shear, lateral, J, gradient
     run = design.optimize(p, algorithm="lbfgsb", max_iterations=30)
+    drop = diffipc.microstructure.DropDesign(family, {"cells": [4, 2], "block": {"mass": 1.25},
+                                                      "kappa": 1e4, "target_stress": 500})
+    result = drop.evaluate(p, gradient=True)    # time, stress on the block (Pa), peak, J, gradient
+    run = drop.optimize(p, algorithm="lbfgsb", fixed=["width"], max_iterations=10)
 
 All arrays are numpy arrays; bad input raises ValueError naming the field or variable.
 """
 
 import os
 
-from ._diffipc import CellDesign, CellFamily  # noqa: F401
+from ._diffipc import CellDesign, CellFamily, DropDesign  # noqa: F401
 
 _TOPOLOGIES = os.path.join(os.path.dirname(__file__), "topologies")
 

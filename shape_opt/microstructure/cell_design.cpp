@@ -13,11 +13,9 @@
 #include "objectives/state_tracking.hpp"
 #include "shape_opt/microstructure/cell_shape_map.hpp"
 
-#include <atomic>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
-#include <unistd.h>
 
 namespace diffipc {
 
@@ -147,16 +145,8 @@ CellEvaluation CellDesign::evaluate_mesh(const Mesh& mesh, const VectorXd& p, co
     CellEvaluation out;
     out.vertices = mesh.num_vertices();
     out.elements = mesh.num_elements();
-    static std::atomic<int> calls { 0 };
-    const std::string path = (std::filesystem::temp_directory_path()
-        / ("diffipc_cell_" + std::to_string(::getpid()) + "_" + std::to_string(calls++) + ".msh"))
-                                 .string();
-    write_gmsh(path, mesh);
-    struct Remove {
-        std::string path;
-        ~Remove() { std::remove(path.c_str()); }
-    } remove { path };
-    Simulator sim(parse_scene(scene(path, width), "", "cell design"));
+    const TemporaryGmshFile file(mesh);
+    Simulator sim(parse_scene(scene(file.path(), width), "", "cell design"));
     const Trajectory& trajectory = sim.run();
     out.newton_iterations = trajectory.newton_iterations;
     if (trajectory.final_status != StepStatus::CONVERGED) {
@@ -217,6 +207,11 @@ CellEvaluation CellDesign::evaluate_mesh(const Mesh& mesh, const VectorXd& p, co
     out.ok = true;
     out.seconds = timer.seconds();
     return out;
+}
+
+DesignValue CellDesign::value(const Mesh& cell, const VectorXd& p, const MatrixXd* velocity) const
+{
+    return evaluate_mesh(cell, p, velocity);
 }
 
 } // namespace diffipc

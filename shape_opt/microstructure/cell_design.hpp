@@ -14,8 +14,7 @@
 /// derivative (the homogenized stress divides by the box's volume |Y| = width height^2).
 
 #include "forward/simulation/step_record.hpp"
-#include "shape_opt/microstructure/cell_family.hpp"
-#include "shape_opt/microstructure/cell_mesher.hpp"
+#include "shape_opt/microstructure/cell_objective.hpp"
 
 #include <nlohmann/json.hpp>
 
@@ -48,11 +47,7 @@ struct CellDesignSettings {
 CellDesignSettings parse_cell_design_settings(const JsonField& f);
 
 /// One evaluation of a design.
-struct CellEvaluation {
-    bool ok = false; ///< the run converged (else `message` says why; J and the gradient are not set)
-    std::string message;
-    double J = 0;
-    VectorXd gradient; ///< dJ/dp (when asked)
+struct CellEvaluation : DesignValue {
     VectorXd strain, stress; ///< per step 1..T: compressive strain and stress sigma = -P_yy (Pa)
     VectorXd shear, lateral; ///< per step: G_xy, G_xx
     VectorXi contacts; ///< per step: active contact pairs
@@ -61,11 +56,12 @@ struct CellEvaluation {
     double seconds = 0;
 };
 
-class CellDesign {
+class CellDesign : public CellObjective {
 public:
     CellDesign(CellFamily family, CellDesignSettings settings);
 
-    const CellFamily& family() const { return m_family; }
+    const CellFamily& family() const override { return m_family; }
+    const CellMeshSettings& mesh_settings() const override { return m_settings.mesh; }
     const CellDesignSettings& settings() const { return m_settings; }
 
     /// @brief J (and dJ/dp) at design p on a new mesh of it.
@@ -84,6 +80,8 @@ public:
     /// @brief J at design p on `mesh` (a mesh of p: a new one, or one moved to p); with
     /// `velocity` (dX/dp, #V*2 by the family's size) its gradient.
     CellEvaluation evaluate_mesh(const Mesh& mesh, const VectorXd& p, const MatrixXd* velocity) const;
+    /// evaluate_mesh's J and gradient.
+    DesignValue value(const Mesh& cell, const VectorXd& p, const MatrixXd* velocity) const override;
 
 private:
     CellFamily m_family;

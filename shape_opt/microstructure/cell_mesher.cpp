@@ -375,7 +375,7 @@ Mesh mesh_cell(const CellSDF& sdf, double width, const CellMeshSettings& setting
     return mesh;
 }
 
-Mesh mesh_design(
+void check_meshable(
     const CellFamily& family, const VectorXd& p, const CellMeshSettings& settings, const std::string& field)
 {
     family.check(p, field);
@@ -391,6 +391,13 @@ Mesh mesh_design(
                     + ", thinner than the mesh size " + format_number(settings.size)
                     + " m: raise the thickness's lower bound or refine the mesh");
     }
+}
+
+Mesh mesh_design(
+    const CellFamily& family, const VectorXd& p, const CellMeshSettings& settings, const std::string& field)
+{
+    check_meshable(family, p, settings, field);
+    const double width = p[family.width_index()];
     return mesh_cell(CellSDF(family.graph(), family.cell_parameters(p)), width, settings);
 }
 

@@ -32,9 +32,14 @@ struct CellMeshSettings {
 ///         hold together along x or y (no solid on a side of the box); RemeshError if gmsh fails
 Mesh mesh_cell(const CellSDF& sdf, double width, const CellMeshSettings& settings);
 
-/// @brief mesh_cell of a family's design p, after checking p against its bounds and that no
-/// beam is thinner than the mesh size (its thinnest extent, w height / 2 min(width, 1)).
+/// @brief Checks design p against its family's bounds and that no beam is thinner than the mesh
+/// size (its thinnest extent, w height / 2 min(width, 1)).
 /// @throws InputError naming `field`.<variable> (design.thickness[e], design.width) for either
+void check_meshable(
+    const CellFamily& family, const VectorXd& p, const CellMeshSettings& settings, const std::string& field = "design");
+
+/// @brief mesh_cell of a family's design p, after check_meshable.
+/// @throws InputError as check_meshable
 Mesh mesh_design(
     const CellFamily& family, const VectorXd& p, const CellMeshSettings& settings, const std::string& field = "design");
 

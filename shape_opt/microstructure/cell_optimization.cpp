@@ -12,15 +12,19 @@ namespace diffipc {
 namespace {
 
     /// J on the reference mesh moved to x; stops the optimizer when an accepted iterate's mesh
-    /// needs remeshing.
+    /// needs remeshing. A design with a beam thinner than the mesh size is rejected, so that
+    /// every accepted design can be meshed anew.
     class MovedCellProblem : public OptimizationProblem {
     public:
-        MovedCellProblem(const CellDesign& design, Mesh reference, const VectorXd& p,
+        /// @param free the optimized variables' indices; the others keep their values in p
+        MovedCellProblem(const CellObjective& objective, Mesh reference, const VectorXd& p, std::vector<Index> free,
             const CellOptimizationSettings& settings, CellOptimizationResult& result, const Timer& timer,
             int first_iteration, const std::function<void(const CellIteration&)>& progress)
-            : m_design(design)
+            : m_objective(objective)
             , m_reference(std::move(reference))
-            , m_map(design.family(), p, m_reference, design.settings().mesh.height)
+            , m_map(objective.family(), p, m_reference, objective.mesh_settings().height)
+            , m_p(p)
+            , m_free(std::move(free))
             , m_settings(settings)
             , m_result(result)
             , m_timer(timer)
@@ -29,12 +33,32 @@ namespace {
         {
         }
 
-        Index size() const override { return m_design.family().size(); }
+        Index size() const override { return Index(m_free.size()); }
 
-        bool evaluate(const VectorXd& x, OptimizationValues& out) override
+        /// The design of the optimized variables' values z.
+        VectorXd design(const VectorXd& z) const
+        {
+            VectorXd x = m_p;
+            for (size_t i = 0; i < m_free.size(); ++i)
+                x[m_free[i]] = z[Index(i)];
+            return x;
+        }
+        /// The optimized variables' values of design x.
+        VectorXd reduce(const VectorXd& x) const
+        {
+            VectorXd z(size());
+            for (size_t i = 0; i < m_free.size(); ++i)
+                z[Index(i)] = x[m_free[i]];
+            return z;
+        }
+
+        bool evaluate(const VectorXd& z, OptimizationValues& out) override
         {
             ++m_result.evaluations;
+            const VectorXd x = design(z);
             try {
+                // a design that could not be meshed anew (a beam thinner than the mesh size) is out
+                check_meshable(m_objective.family(), x, m_objective.mesh_settings());
                 Mesh mesh = m_reference;
                 mesh.rest_positions = m_map.moved(x);
                 const double quality = min_quality(mesh.rest_positions, mesh.elements);
@@ -43,13 +67,13 @@ namespace {
                     return false;
                 }
                 const MatrixXd velocity = m_map.moved_jacobian(x);
-                const CellEvaluation e = m_design.evaluate_mesh(mesh, x, &velocity);
+                const DesignValue e = m_objective.value(mesh, x, &velocity);
                 if (!e.ok) {
                     ++m_result.rejected;
                     return false;
                 }
                 out.f = e.J;
-                out.gradient = e.gradient;
+                out.gradient = reduce(e.gradient);
                 m_quality[x] = quality;
                 return true;
             } catch (const InputError&) { // the mesh cannot follow the design there
@@ -65,7 +89,7 @@ namespace {
             it.mesh = m_result.remeshes;
             it.J = info.values->f;
             it.gradient_norm = info.gradient_norm;
-            it.x = *info.x;
+            it.x = design(*info.x);
             const auto q = m_quality.find(it.x);
             it.quality = q != m_quality.end() ? q->second : min_quality(m_map.moved(it.x), m_reference.elements);
             it.seconds = m_timer.seconds();
@@ -88,9 +112,11 @@ namespace {
                 return std::lexicographical_compare(a.data(), a.data() + a.size(), b.data(), b.data() + b.size());
             }
         };
-        const CellDesign& m_design;
+        const CellObjective& m_objective;
         Mesh m_reference;
         CellShapeMap m_map;
+        VectorXd m_p;
+        std::vector<Index> m_free;
         const CellOptimizationSettings& m_settings;
         CellOptimizationResult& m_result;
         const Timer& m_timer;
@@ -103,24 +129,54 @@ namespace {
 
 } // namespace
 
-CellOptimizationResult optimize_cell(const CellDesign& design, const VectorXd& x0,
+DesignValue evaluate_new_mesh(const CellObjective& objective, const VectorXd& p)
+{
+    const Mesh mesh = mesh_design(objective.family(), p, objective.mesh_settings());
+    const MatrixXd velocity = CellShapeMap(objective.family(), p, mesh, objective.mesh_settings().height).velocity();
+    return objective.value(mesh, p, &velocity);
+}
+
+CellOptimizationResult optimize_cell(const CellObjective& objective, const VectorXd& x0,
     const CellOptimizationSettings& settings, const std::function<void(const CellIteration&)>& progress)
 {
-    const CellFamily& family = design.family();
+    const CellFamily& family = objective.family();
     family.check(x0, "design");
+    std::vector<bool> held(size_t(family.size()), false);
+    for (size_t i = 0; i < settings.fixed.size(); ++i) {
+        const auto& names = family.names();
+        const auto found = std::find(names.begin(), names.end(), settings.fixed[i]);
+        if (found == names.end())
+            throw InputError("fixed[" + std::to_string(i) + "]", "no design variable \"" + settings.fixed[i] + "\"");
+        held[size_t(found - names.begin())] = true;
+    }
+    std::vector<Index> free;
+    for (Index j = 0; j < family.size(); ++j)
+        if (!held[size_t(j)])
+            free.push_back(j);
+    if (free.empty())
+        throw InputError("fixed", "every design variable is held: nothing to optimize");
+    // Thickness bounds raised to what the mesh size can resolve at the narrowest width the run
+    // may reach (check_meshable), unless x0 lies below that already.
+    VectorXd lower = family.lower();
+    const CellMeshSettings& mesh = objective.mesh_settings();
+    const Index w = family.width_index();
+    const double narrowest = std::min(held[size_t(w)] ? x0[w] : lower[w], 1.0);
+    for (Index j = 0; j < family.size(); ++j)
+        if (family.names()[size_t(j)].rfind("thickness", 0) == 0)
+            lower[j] = std::min(std::max(lower[j], mesh.size / (0.5 * mesh.height * narrowest)), x0[j]);
     const Timer timer;
     CellOptimizationResult result;
     OptimizerSettings optimizer = settings.optimizer;
-    optimizer.lower = family.lower();
-    optimizer.upper = family.upper();
     VectorXd x = x0;
-    Mesh reference = mesh_design(family, x, design.settings().mesh);
+    Mesh reference = mesh_design(family, x, objective.mesh_settings());
     int done = 0; // iterations so far
     while (true) {
-        MovedCellProblem problem(design, reference, x, settings, result, timer, done, progress);
+        MovedCellProblem problem(objective, reference, x, free, settings, result, timer, done, progress);
+        optimizer.lower = problem.reduce(lower);
+        optimizer.upper = problem.reduce(family.upper());
         optimizer.max_iterations = std::max(0, settings.optimizer.max_iterations - done);
-        const OptimizerResult r = minimize(problem, x, optimizer);
-        x = r.x;
+        const OptimizerResult r = minimize(problem, problem.reduce(x), optimizer);
+        x = problem.design(r.x);
         done += problem.last_iteration();
         result.reason = r.reason;
         result.message = r.message;
@@ -129,11 +185,11 @@ CellOptimizationResult optimize_cell(const CellDesign& design, const VectorXd& x
         if (!problem.needs_remesh() || result.remeshes >= settings.max_remeshes
             || done >= settings.optimizer.max_iterations)
             break;
-        reference = mesh_design(family, x, design.settings().mesh);
+        reference = mesh_design(family, x, objective.mesh_settings());
         ++result.remeshes;
     }
     result.x = x;
-    result.final = design.evaluate(x, true);
+    result.final = evaluate_new_mesh(objective, x);
     return result;
 }
 

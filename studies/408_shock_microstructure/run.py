@@ -28,6 +28,8 @@ import numpy as np
 
 from diffipc import microstructure as ms
 
+from drop import pyplot
+
 TARGET = 500.0
 BAND = 0.10
 RANGE = (0.10, 0.40)
@@ -60,14 +62,6 @@ def check_scene(design, p, folder, cli):
     if sim.returncode != 0:
         return "simulate failed: " + sim.stderr.strip()
     return found.group(0) if found else (check.stdout + check.stderr).strip()
-
-
-def pyplot():
-    """matplotlib's pyplot on the file-only Agg backend."""
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    return plt
 
 
 def plot_cells(family, designs, size, path):
@@ -124,12 +118,17 @@ def plot_history(runs, path):
 
 def main():
     parser = argparse.ArgumentParser()
-    parser.add_argument("--full", action="store_true", help="mesh size 0.0125 m and 100 iterations")
+    parser.add_argument("--full", action="store_true",
+                        help="continue on meshes of size 0.0125 and 0.00625 m (30 and 20 more iterations)")
     parser.add_argument("-o", "--output", default="output/408_shock_microstructure")
     parser.add_argument("--cli", default="build/cli/diffipc")
-    parser.add_argument("--no-drop", action="store_true", help="skip the drop test (drop.py)")
+    parser.add_argument("--no-drop", action="store_true",
+                        help="skip the transient optimization (transient.py) and the drop test (drop.py)")
     args = parser.parse_args()
-    size, iterations = (0.0125, 100) if args.full else (0.025, 40)
+    # mesh continuation: (size, iterations) per level, each level starting from the last one's design
+    levels = [(0.025, 40), (0.0125, 30), (0.00625, 20)] if args.full else [(0.025, 40)]
+    size = levels[-1][0]
+    iterations = sum(n for _, n in levels)
     os.makedirs(args.output, exist_ok=True)
     family = ms.family("reentrant")
     design = ms.CellDesign(family, settings(size))
@@ -139,9 +138,26 @@ def main():
     runs = {}
     for algorithm in ("lbfgsb", "mma"):
         t0 = time.time()
-        runs[algorithm] = design.optimize(x0, algorithm=algorithm, max_iterations=iterations, remesh_quality=0.3,
-                                          callback=lambda e: print(f"{algorithm} {e['iteration']:3d} J {e['J']:.5g}",
-                                                                   flush=True))
+        x, run = x0, None
+        for level, (h, n) in enumerate(levels):
+            r = ms.CellDesign(family, settings(h)).optimize(
+                x, algorithm=algorithm, max_iterations=n, remesh_quality=0.3,
+                callback=lambda e: print(f"{algorithm} size {h} {e['iteration']:3d} J {e['J']:.5g}", flush=True))
+            for e in r["history"]:
+                e["level"] = level
+            if run is None:
+                run = r
+            else:  # one history over the levels; a new level is a new mesh
+                last = run["history"][-1]
+                for e in r["history"]:
+                    e["iteration"] += last["iteration"]
+                    e["mesh"] += last["mesh"] + 1
+                run["history"] += r["history"]
+                for key in ("evaluations", "rejected"):
+                    run[key] += r[key]
+                run["remeshes"] += r["remeshes"] + 1
+            x = run["x"] = r["x"]
+        runs[algorithm] = run
         runs[algorithm]["seconds"] = time.time() - t0
     designs = {"initial": x0, "L-BFGS-B": runs["lbfgsb"]["x"], "MMA": runs["mma"]["x"]}
     results, checks, rows = {}, {}, []
@@ -175,11 +191,28 @@ def main():
         for i, n in enumerate(family.names):
             f.write(f"| {n} | " + " | ".join(f"{designs[k][i]:.4f}" for k in designs) + " |\n")
     if not args.no_drop:
+        here = os.path.dirname(os.path.abspath(__file__))
+        params_path = os.path.join(args.output, "params.json")
+        # the transient objective from the L-BFGS-B optimum, then the drop test of the designs
+        transient = os.path.join(args.output, "transient")
+        subprocess.run(["/usr/bin/python3", os.path.join(here, "transient.py"), "--params", params_path, "-o", transient,
+                        "--iterations", "20" if args.full else "8"], check=True)
+        t = json.load(open(os.path.join(transient, "transient.json")))
+        params = json.load(open(params_path))
+        params["designs"]["transient"] = t["x"]
+        json.dump(params, open(params_path, "w"), indent=2)
         drop = os.path.join(args.output, "drop")
-        subprocess.run(["/usr/bin/python3", os.path.join(os.path.dirname(os.path.abspath(__file__)), "drop.py"),
-                        "--params", os.path.join(args.output, "params.json"), "-o", drop, "--cli", args.cli]
-                       + (["--full"] if args.full else []), check=True)
+        subprocess.run(["/usr/bin/python3", os.path.join(here, "drop.py"), "--params", params_path, "-o", drop,
+                        "--cli", args.cli, "--designs", "L-BFGS-B", "transient"] + (["--full"] if args.full else []),
+                       check=True)
         with open(os.path.join(args.output, "results.md"), "a") as f:
+            f.write(f"\nTransient objective (transient.py; transient/transient_history.png), from {t['start']}, "
+                    f"width held, on the {' x '.join(map(str, t['settings']['cells']))} pad: J {t['J'][0]:.4g} -> "
+                    f"{t['J'][1]:.4g}, peak stress {t['peak'][0]:.0f} -> {t['peak'][1]:.0f} Pa (new meshes), "
+                    f"{len(t['history']) - 1 - t['remeshes']} iterations, {t['evaluations']} evaluations "
+                    f"({t['rejected']} rejected), {t['remeshes']} remeshes, {t['seconds']:.0f} s.\n\n"
+                    "| variable | " + t["start"] + " | transient |\n| --- | --- | --- |\n"
+                    + "".join(f"| {n} | {a:.4f} | {b:.4f} |\n" for n, a, b in zip(t["names"], t["x0"], t["x"])))
             f.write("\nDrop test (drop.py; drop/drop_stress.png):\n\n" + open(os.path.join(drop, "drop.md")).read())
     print(open(os.path.join(args.output, "results.md")).read())
 

@@ -1,9 +1,14 @@
 // Optimizing a cushion cell (shape_opt/microstructure/cell_optimization.hpp) on a coarse mesh:
 // L-BFGS-B and MMA lower J within the family's bounds, accepted iterates on one mesh never raise
 // J, a mesh that degrades is replaced (and the restart's J on the new mesh is recorded), and the
-// reported final design is evaluated on a new mesh of it.
+// reported final design is evaluated on a new mesh of it; variables named as held keep their values
+// (on the drop test's objective), and an unknown name is an input error.
 
 #include "shape_opt/microstructure/cell_optimization.hpp"
+
+#include "forward/common/error.hpp"
+#include "shape_opt/microstructure/cell_design.hpp"
+#include "shape_opt/microstructure/drop_design.hpp"
 
 #include <gtest/gtest.h>
 
@@ -53,5 +58,39 @@ TEST(CellOptimization, LbfgsbAndMmaLowerThePlateauObjectiveWithinTheBounds)
         ASSERT_TRUE(r.final.ok);
         EXPECT_LT(r.final.J, 0.5 * J0); // on a new mesh of the final design too
         EXPECT_EQ(r.final.gradient.size(), f.size());
+    }
+}
+
+TEST(CellOptimization, HeldVariablesKeepTheirValues)
+{
+    DropSettings s; // two cells under a block of 0.625 kg/m at 0.5 m/s, 24 steps (test_drop_design.cpp)
+    s.mesh.size = 0.01 / 20; // coarse: thickness down to 0.1 of the cell's half-height can be meshed
+    s.nx = 2;
+    s.ny = 1;
+    s.mass = 0.625;
+    s.kappa = 1e17;
+    s.steps = 24;
+    s.target_stress = 500;
+    const DropDesign design(
+        read_cell_family(std::string(DIFFIPC_SOURCE_DIR) + "/shape_opt/microstructure/topologies/reentrant.json"), s);
+    const CellFamily& f = design.family();
+    CellOptimizationSettings o;
+    o.optimizer.algorithm = OptimizerAlgorithm::LBFGSB;
+    o.optimizer.max_iterations = 3;
+    o.fixed = { "width", "blend" };
+    const CellOptimizationResult r = optimize_cell(design, f.initial(), o);
+    ASSERT_GE(r.history.size(), 2u);
+    EXPECT_LT(r.history.back().J, r.history.front().J);
+    EXPECT_NE(r.x, f.initial());
+    for (const CellIteration& it : r.history) {
+        EXPECT_EQ(it.x[f.width_index()], f.initial()[f.width_index()]);
+        EXPECT_EQ(it.x[f.width_index() - 1], f.initial()[f.width_index() - 1]); // the blend
+    }
+    o.fixed = { "width", "height" };
+    try {
+        optimize_cell(design, f.initial(), o);
+        FAIL() << "no error";
+    } catch (const InputError& e) {
+        EXPECT_EQ(e.field(), "fixed[1]");
     }
 }

@@ -1,0 +1,35 @@
+#pragma once
+/// @file cell_objective.hpp
+/// What the cell optimization (cell_optimization.hpp) minimizes: a function J(p) of a cell
+/// family's design p, evaluated on a mesh of the cell, with its gradient from the mesh's
+/// velocity dX/dp (cell_shape_map.hpp). Two kinds: the quasi-static plateau of the cell's
+/// compression (cell_design.hpp) and the peak stress on a block dropped on a pad tiled from the
+/// cell (drop_design.hpp).
+
+#include "shape_opt/microstructure/cell_family.hpp"
+#include "shape_opt/microstructure/cell_mesher.hpp"
+
+#include <string>
+
+namespace diffipc {
+
+/// J at one design.
+struct DesignValue {
+    bool ok = false; ///< the simulation converged (else `message` says why; J and the gradient are not set)
+    std::string message;
+    double J = 0;
+    VectorXd gradient; ///< dJ/dp (when asked)
+};
+
+class CellObjective {
+public:
+    virtual ~CellObjective() = default;
+    virtual const CellFamily& family() const = 0;
+    /// How the cell is meshed (its height and target edge length).
+    virtual const CellMeshSettings& mesh_settings() const = 0;
+    /// @brief J at design p on `cell`, a mesh of p's cell (a new one, or one moved to p); with
+    /// `velocity` (d cell.rest_positions / dp, #V*2 by the family's size) its gradient.
+    virtual DesignValue value(const Mesh& cell, const VectorXd& p, const MatrixXd* velocity) const = 0;
+};
+
+} // namespace diffipc
