@@ -309,9 +309,10 @@ void Simulator::setup_contact()
     settings.ccd_max_iterations = spec.ccd_max_iterations;
     settings.ccd_rescaling = spec.ccd_rescaling;
     settings.kappa = spec.kappa;
-    if (spec.adaptive_kappa) {
+    {
         // Per-vertex stiffness reference (docs/math.md): m_avg / (c h^2) in dynamics,
-        // a nodal elastic stiffness E l in static solves.
+        // a nodal elastic stiffness E l in static solves. With a fixed kappa the adaptive
+        // rule's minimum only explains a failed step (barrier_hint).
         double reference;
         if (m_integrator->dynamic()) {
             const VectorXd& masses = m_inertia->lumped_masses();
@@ -331,12 +332,13 @@ void Simulator::setup_contact()
             reference = m_force_scale / std::pow(length, d - 2);
         }
         m_kappa_min = barrier_stiffness_min(m_bbox_diagonal, reference, spec.dhat, spec.min_distance);
-        if (!(m_kappa_min > 0) || !std::isfinite(m_kappa_min))
+        if (spec.adaptive_kappa && (!(m_kappa_min > 0) || !std::isfinite(m_kappa_min)))
             throw InputError("contact.dhat",
                 "too small for the adaptive barrier stiffness (it must exceed 1e-8 of the bodies' bounding-box "
                 "diagonal, "
                     + format_number(1e-8 * m_bbox_diagonal) + " m); give a fixed \"kappa\" or a larger dhat");
-        settings.kappa = m_kappa_min;
+        if (spec.adaptive_kappa)
+            settings.kappa = m_kappa_min;
     }
     m_kappa_initial = settings.kappa;
     if (m_scene.periodic.enabled) {
@@ -781,6 +783,12 @@ StepStatus Simulator::step()
         m_trajectory.failure_message = "step " + std::to_string(index) + " (t = " + format_number(t_next)
             + " s) failed: " + to_string(result.status) + " after " + std::to_string(result.iterations)
             + " Newton iterations, residual " + format_number(result.residual) + substep_note;
+        if (result.status == StepStatus::NEWTON_EXHAUSTED && m_contact && !m_scene.contact.adaptive_kappa
+            && m_scene.contact.kappa < 1e-3 * m_kappa_min)
+            m_trajectory.failure_message += "; the fixed contact.kappa " + format_number(m_scene.contact.kappa)
+                + " is far below the adaptive rule's minimum " + format_number(m_kappa_min)
+                + " for this scene (docs/math.md): a barrier too soft for the contact stalls Newton; try a larger "
+                  "kappa or \"adaptive\"";
         if (result.status == StepStatus::INVALID_INITIAL_STATE) {
             const std::string problem = state_problem();
             m_trajectory.failure_message += ": the incremental potential is not finite at the step's start"

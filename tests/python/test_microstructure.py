@@ -68,3 +68,25 @@ def test_errors_name_the_variable():
         ms.CellDesign(f, {"target_stress": 1, "shear": "sideways"})
     with pytest.raises(ValueError, match=r"settings\.target_stress"):
         ms.CellDesign(f, {})
+
+
+def test_drop_design_from_python():
+    """A block dropped on a pad of 2 x 1 cells: the stress history, J above the peak, a gradient per
+    variable, a held width in a short optimization, and errors naming the field."""
+    f = ms.family("reentrant")
+    settings = {"size": 0.01 / 20, "cells": [2, 1], "block": {"mass": 0.625}, "kappa": 1e17, "steps": 16,
+                "target_stress": 500}
+    d = ms.DropDesign(f, settings)
+    r = d.evaluate(f.initial, gradient=True)
+    assert r["ok"], r["message"]
+    assert r["stress"].shape == r["time"].shape == (16,)
+    assert np.all(np.abs(r["stress"][:8]) < 1e-6)  # in free fall until step 10
+    assert r["peak"] > 100 and r["J"] * 500 >= r["peak"]
+    assert r["gradient"].shape == (len(f.names),)
+    run = d.optimize(f.initial, max_iterations=1, fixed=["width"])
+    assert all(e["x"][f.width_index] == f.initial[f.width_index] for e in run["history"])
+    assert run["final"]["ok"]
+    with pytest.raises(ValueError, match="settings.block.mass"):
+        ms.DropDesign(f, {"block": {}, "kappa": 1e17, "target_stress": 500})
+    with pytest.raises(ValueError, match="fixed"):
+        d.optimize(f.initial, max_iterations=1, fixed=["depth"])

@@ -121,3 +121,43 @@ TEST(Transactional, UnsupportedStaticBodyIsLinearBreakdown)
 }
 
 } // namespace
+
+namespace {
+
+// A block sliding (0.2 m/s) and falling (0.5 m/s) onto a soft pad with friction: with a fixed
+// barrier stiffness far below the adaptive rule's minimum (2.4e9 here) Newton stalls at the
+// first contact, and the failure names the stiffness as the likely cause; a stiff enough fixed
+// barrier (1e8) runs.
+TEST(Transactional, ATooSoftFixedBarrierStallsAndTheMessageSaysSo)
+{
+    json s;
+    s["dimension"] = 2;
+    s["bodies"] = { test::box_body("pad", { 0, 0 }, { 0.6, 0.1 }, { 12, 2 }),
+        test::box_body("block", { 0.2, 0.105 }, { 0.4, 0.155 }, { 4, 1 }) };
+    s["bodies"][0]["material"]["density"] = 500;
+    s["bodies"][1]["material"]["E"] = 1e6;
+    s["bodies"][1]["material"]["density"] = 2000;
+    s["bodies"][1]["initial_velocity"] = { 0.2, -0.5 };
+    s["dirichlet"]
+        = { { { "body", 0 }, { "region", test::region({ -1, -1 }, { 2, 1e-6 }) }, { "displacement", { 0, 0 } } } };
+    s["gravity"] = { 0, -9.81 };
+    s["friction"] = { { "coefficient", 0.3 }, { "eps_v", 0.01 } };
+    s["time"] = { { "integrator", "implicit_euler" }, { "dt", 0.005 }, { "steps", 4 } };
+    s["solver"] = { { "max_iterations", 100 } };
+    for (double kappa : { 1e5, 1e8 }) {
+        s["contact"] = { { "dhat", 2e-3 }, { "kappa", kappa } };
+        Simulator sim(test::make_scene(s));
+        sim.run();
+        const Trajectory& t = sim.trajectory();
+        if (kappa == 1e5) {
+            EXPECT_EQ(t.final_status, StepStatus::NEWTON_EXHAUSTED);
+            EXPECT_NE(t.failure_message.find("fixed contact.kappa 100000 is far below the adaptive rule's minimum"),
+                std::string::npos)
+                << t.failure_message;
+        } else {
+            EXPECT_EQ(t.final_status, StepStatus::CONVERGED) << t.failure_message;
+        }
+    }
+}
+
+} // namespace
