@@ -784,9 +784,9 @@ StepStatus Simulator::step()
             + " s) failed: " + to_string(result.status) + " after " + std::to_string(result.iterations)
             + " Newton iterations, residual " + format_number(result.residual) + substep_note;
         if (result.status == StepStatus::NEWTON_EXHAUSTED && m_contact && !m_scene.contact.adaptive_kappa
-            && m_scene.contact.kappa < 1e-3 * m_kappa_min)
+            && m_scene.contact.kappa < 1e-2 * m_kappa_min)
             m_trajectory.failure_message += "; the fixed contact.kappa " + format_number(m_scene.contact.kappa)
-                + " is far below the adaptive rule's minimum " + format_number(m_kappa_min)
+                + " is below 1/100 of the adaptive rule's minimum " + format_number(m_kappa_min)
                 + " for this scene (docs/math.md): a barrier too soft for the contact stalls Newton; try a larger "
                   "kappa or \"adaptive\"";
         if (result.status == StepStatus::INVALID_INITIAL_STATE) {

@@ -93,7 +93,7 @@ nlohmann::json CellDesign::scene(const std::string& mesh_file, double width) con
     const json shear = s.free_shear ? json(nullptr) : json(0);
     scene["periodic"] = { { "gradient", { { nullptr, shear }, { 0, format_number(-s.max_strain) + "*t" } } },
         { "box", { { "min", { lo.x(), lo.y() } }, { "max", { hi.x(), hi.y() } } } } };
-    scene["contact"] = { { "dhat", s.dhat > 0 ? s.dhat : h / 1000 }, { "kappa", s.kappa > 0 ? s.kappa : 100 * E } };
+    scene["contact"] = { { "dhat", s.dhat > 0 ? s.dhat : h / 1000 }, { "kappa", s.kappa > 0 ? s.kappa : 1e4 * E / (h * h) } };
     scene["time"] = { { "integrator", "static" }, { "dt", 1.0 / s.steps }, { "steps", s.steps } };
     scene["solver"] = s.solver;
     return scene;

@@ -31,7 +31,10 @@ struct CellDesignSettings {
     nlohmann::json material
         = { { "model", "neo_hookean" }, { "E", 1e6 }, { "nu", 0.3 }, { "density", 1000 }, { "plane", "stress" } };
     double dhat = 0; ///< contact distance (m); 0: height / 1000
-    double kappa = 0; ///< fixed barrier stiffness; 0: 100 E... (see cell_scene)
+    /// Fixed barrier stiffness; 0: 1e4 E / h^2 (the barrier's energy scales as kappa dhat^4, the
+    /// cell's as E h^2; the adaptive rule picks 1.7e10-4.6e10 for the re-entrant cell of h = 1 m,
+    /// E = 1 MPa, dhat = h / 1000; 100 times softer stalls Newton where beams touch).
+    double kappa = 0;
     double max_strain = 0.4; ///< compressive strain at the last step
     int steps = 16; ///< static load steps
     std::vector<int> samples { 4, 8, 12, 16 }; ///< the steps the objective compares
