@@ -11,7 +11,7 @@ union and stretch the cell's width. From a design p:
     result = design.evaluate(p, gradient=True)  # strain, stress (Pa), shear, lateral, J, gradient
     run = design.optimize(p, algorithm="lbfgsb", max_iterations=30)
     drop = diffipc.microstructure.DropDesign(family, {"cells": [4, 2], "block": {"mass": 1.25},
-                                                      "kappa": 1e4, "target_stress": 500})
+                                                      "kappa": 1e17, "target_stress": 500})
     result = drop.evaluate(p, gradient=True)    # time, stress on the block (Pa), peak, J, gradient
     run = drop.optimize(p, algorithm="lbfgsb", fixed=["width"], max_iterations=10)
 

@@ -14,8 +14,6 @@
 #include "shape_opt/microstructure/cell_shape_map.hpp"
 
 #include <cmath>
-#include <filesystem>
-#include <fstream>
 
 namespace diffipc {
 
@@ -93,7 +91,8 @@ nlohmann::json CellDesign::scene(const std::string& mesh_file, double width) con
     const json shear = s.free_shear ? json(nullptr) : json(0);
     scene["periodic"] = { { "gradient", { { nullptr, shear }, { 0, format_number(-s.max_strain) + "*t" } } },
         { "box", { { "min", { lo.x(), lo.y() } }, { "max", { hi.x(), hi.y() } } } } };
-    scene["contact"] = { { "dhat", s.dhat > 0 ? s.dhat : h / 1000 }, { "kappa", s.kappa > 0 ? s.kappa : 1e4 * E / (h * h) } };
+    scene["contact"]
+        = { { "dhat", s.dhat > 0 ? s.dhat : h / 1000 }, { "kappa", s.kappa > 0 ? s.kappa : 1e4 * E / (h * h) } };
     scene["time"] = { { "integrator", "static" }, { "dt", 1.0 / s.steps }, { "steps", s.steps } };
     scene["solver"] = s.solver;
     return scene;
@@ -101,27 +100,15 @@ nlohmann::json CellDesign::scene(const std::string& mesh_file, double width) con
 
 std::string CellDesign::write_scene(const VectorXd& p, const std::string& directory) const
 {
-    const Mesh mesh = mesh_design(m_family, p, m_settings.mesh);
-    std::filesystem::create_directories(directory);
-    const std::filesystem::path folder(directory);
-    write_gmsh((folder / "cell.msh").string(), mesh);
     nlohmann::json j = scene("cell.msh", p[m_family.width_index()]);
     j["description"] = "A microstructure cell's compression (diffipc.microstructure / CellDesign::write_scene)";
-    const std::string path = (folder / "scene.json").string();
-    std::ofstream out(path);
-    out << j.dump(2) << "\n";
-    if (!out)
-        throw InputError(path, "cannot write the scene file");
-    return path;
+    return write_mesh_and_scene(directory, "cell.msh", mesh_design(m_family, p, m_settings.mesh), j);
 }
 
 CellEvaluation CellDesign::evaluate(const VectorXd& p, bool gradient) const
 {
-    const Mesh mesh = mesh_design(m_family, p, m_settings.mesh);
-    if (!gradient)
-        return evaluate_mesh(mesh, p, nullptr);
-    const MatrixXd velocity = CellShapeMap(m_family, p, mesh, m_settings.mesh.height).velocity();
-    return evaluate_mesh(mesh, p, &velocity);
+    const DesignMesh m = mesh_with_velocity(*this, p, gradient);
+    return evaluate_mesh(m.mesh, p, m.velocity_or_null());
 }
 
 CellEvaluation CellDesign::evaluate_moved(

@@ -129,13 +129,6 @@ namespace {
 
 } // namespace
 
-DesignValue evaluate_new_mesh(const CellObjective& objective, const VectorXd& p)
-{
-    const Mesh mesh = mesh_design(objective.family(), p, objective.mesh_settings());
-    const MatrixXd velocity = CellShapeMap(objective.family(), p, mesh, objective.mesh_settings().height).velocity();
-    return objective.value(mesh, p, &velocity);
-}
-
 CellOptimizationResult optimize_cell(const CellObjective& objective, const VectorXd& x0,
     const CellOptimizationSettings& settings, const std::function<void(const CellIteration&)>& progress)
 {

@@ -50,10 +50,6 @@ struct CellOptimizationResult {
     std::string message;
 };
 
-/// @brief J and its gradient at design p on a new mesh of it.
-/// @throws InputError for a design outside the bounds or one that cannot be meshed
-DesignValue evaluate_new_mesh(const CellObjective& objective, const VectorXd& p);
-
 /// @brief Minimizes the design's J from x0.
 /// @param progress called after every accepted iterate
 /// @throws InputError for x0 outside the bounds or an x0 that cannot be meshed or simulated, or

@@ -8,11 +8,7 @@
 #include "forward/scene/scene.hpp"
 #include "forward/simulation/simulator.hpp"
 #include "objectives/body_force.hpp"
-#include "shape_opt/microstructure/cell_shape_map.hpp"
 #include "shape_opt/microstructure/cell_tiling.hpp"
-
-#include <filesystem>
-#include <fstream>
 
 namespace diffipc {
 
@@ -114,29 +110,18 @@ nlohmann::json DropDesign::scene(const std::string& pad_file, double width) cons
 
 std::string DropDesign::write_scene(const VectorXd& p, const std::string& directory) const
 {
-    const Mesh cell = mesh_design(m_family, p, m_settings.mesh);
     const double width = p[m_family.width_index()];
-    const CellTiling pad(cell, width, m_settings.mesh.height, m_settings.nx, m_settings.ny);
-    std::filesystem::create_directories(directory);
-    const std::filesystem::path folder(directory);
-    write_gmsh((folder / "pad.msh").string(), pad.mesh());
+    const CellTiling pad(
+        mesh_design(m_family, p, m_settings.mesh), width, m_settings.mesh.height, m_settings.nx, m_settings.ny);
     nlohmann::json j = scene("pad.msh", width);
     j["description"] = "A block dropped on a pad of microstructure cells (diffipc.microstructure / DropDesign)";
-    const std::string path = (folder / "scene.json").string();
-    std::ofstream out(path);
-    out << j.dump(2) << "\n";
-    if (!out)
-        throw InputError(path, "cannot write the scene file");
-    return path;
+    return write_mesh_and_scene(directory, "pad.msh", pad.mesh(), j);
 }
 
 DropEvaluation DropDesign::evaluate(const VectorXd& p, bool gradient) const
 {
-    const Mesh cell = mesh_design(m_family, p, m_settings.mesh);
-    if (!gradient)
-        return evaluate_mesh(cell, p, nullptr);
-    const MatrixXd velocity = CellShapeMap(m_family, p, cell, m_settings.mesh.height).velocity();
-    return evaluate_mesh(cell, p, &velocity);
+    const DesignMesh m = mesh_with_velocity(*this, p, gradient);
+    return evaluate_mesh(m.mesh, p, m.velocity_or_null());
 }
 
 DesignValue DropDesign::value(const Mesh& cell, const VectorXd& p, const MatrixXd* velocity) const

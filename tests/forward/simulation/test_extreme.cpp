@@ -151,7 +151,8 @@ TEST(Transactional, ATooSoftFixedBarrierStallsAndTheMessageSaysSo)
         const Trajectory& t = sim.trajectory();
         if (kappa == 1e5) {
             EXPECT_EQ(t.final_status, StepStatus::NEWTON_EXHAUSTED);
-            EXPECT_NE(t.failure_message.find("fixed contact.kappa 100000 is below 1/100 of the adaptive rule's minimum"),
+            EXPECT_NE(
+                t.failure_message.find("fixed contact.kappa 100000 is below 1/100 of the adaptive rule's minimum"),
                 std::string::npos)
                 << t.failure_message;
         } else {
