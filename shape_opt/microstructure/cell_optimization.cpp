@@ -62,25 +62,23 @@ namespace {
                 Mesh mesh = m_reference;
                 mesh.rest_positions = m_map.moved(x);
                 const double quality = min_quality(mesh.rest_positions, mesh.elements);
-                if (!(quality > 0)) {
-                    ++m_result.rejected;
-                    return false;
-                }
+                if (!(quality > 0))
+                    return reject("the mesh moved to the design inverts an element");
                 const MatrixXd velocity = m_map.moved_jacobian(x);
                 const DesignValue e = m_objective.value(mesh, x, &velocity);
-                if (!e.ok) {
-                    ++m_result.rejected;
-                    return false;
-                }
+                if (!e.ok)
+                    return reject(e.message);
                 out.f = e.J;
                 out.gradient = reduce(e.gradient);
                 m_quality[x] = quality;
                 return true;
-            } catch (const InputError&) { // the mesh cannot follow the design there
-                ++m_result.rejected;
-                return false;
+            } catch (const InputError& e) { // the mesh cannot follow the design there
+                return reject(e.what());
             }
         }
+
+        /// Why the last rejected design was rejected.
+        const std::string& last_rejection() const { return m_last_rejection; }
 
         bool iteration(const IterationInfo& info) override
         {
@@ -106,6 +104,14 @@ namespace {
         int last_iteration() const { return m_last_iteration; }
 
     private:
+        /// Counts a rejected design and keeps why; false.
+        bool reject(const std::string& why)
+        {
+            ++m_result.rejected;
+            m_last_rejection = why;
+            return false;
+        }
+
         struct Less {
             bool operator()(const VectorXd& a, const VectorXd& b) const
             {
@@ -124,6 +130,7 @@ namespace {
         const std::function<void(const CellIteration&)>& m_progress;
         std::map<VectorXd, double, Less> m_quality;
         bool m_remesh = false;
+        std::string m_last_rejection;
         int m_last_iteration = 0;
     };
 
@@ -174,7 +181,7 @@ CellOptimizationResult optimize_cell(const CellObjective& objective, const Vecto
         result.reason = r.reason;
         result.message = r.message;
         if (r.reason == StopReason::INVALID_START)
-            throw InputError("design", "the initial design cannot be simulated: " + r.message);
+            throw InputError("design", "the initial design cannot be simulated: " + problem.last_rejection());
         if (!problem.needs_remesh() || result.remeshes >= settings.max_remeshes
             || done >= settings.optimizer.max_iterations)
             break;
