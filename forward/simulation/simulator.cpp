@@ -783,8 +783,10 @@ StepStatus Simulator::step()
         m_trajectory.failure_message = "step " + std::to_string(index) + " (t = " + format_number(t_next)
             + " s) failed: " + to_string(result.status) + " after " + std::to_string(result.iterations)
             + " Newton iterations, residual " + format_number(result.residual) + substep_note;
+        // x: the solve's last iterate; the hint only where it is in contact
         if (result.status == StepStatus::NEWTON_EXHAUSTED && m_contact && !m_scene.contact.adaptive_kappa
-            && m_scene.contact.kappa < 1e-2 * m_kappa_min)
+            && m_scene.contact.kappa < 1e-2 * m_kappa_min && x.allFinite()
+            && m_contact->min_distance(x, m_scene.contact.dhat) < m_scene.contact.dhat)
             m_trajectory.failure_message += "; the fixed contact.kappa " + format_number(m_scene.contact.kappa)
                 + " is below 1/100 of the adaptive rule's minimum " + format_number(m_kappa_min)
                 + " for this scene (docs/math.md): a barrier too soft for the contact stalls Newton; try a larger "

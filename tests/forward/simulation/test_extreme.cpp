@@ -126,8 +126,8 @@ namespace {
 
 // A block sliding (0.2 m/s) and falling (0.5 m/s) onto a soft pad with friction: with a fixed
 // barrier stiffness far below the adaptive rule's minimum (2.4e9 here) Newton stalls at the
-// first contact, and the failure names the stiffness as the likely cause; a stiff enough fixed
-// barrier (1e8) runs.
+// first contact, and the failure names the stiffness as the likely cause (not before contact); a
+// stiff enough fixed barrier (1e8) runs.
 TEST(Transactional, ATooSoftFixedBarrierStallsAndTheMessageSaysSo)
 {
     json s;
@@ -159,6 +159,13 @@ TEST(Transactional, ATooSoftFixedBarrierStallsAndTheMessageSaysSo)
             EXPECT_EQ(t.final_status, StepStatus::CONVERGED) << t.failure_message;
         }
     }
+    // A step that stalls before the bodies touch (the block still 5 mm up) does not blame the barrier.
+    s["contact"] = { { "dhat", 2e-3 }, { "kappa", 1e5 } };
+    s["solver"] = { { "max_iterations", 1 }, { "residual_tolerance", 1e-14 } };
+    Simulator sim(test::make_scene(s));
+    sim.run();
+    EXPECT_EQ(sim.trajectory().final_status, StepStatus::NEWTON_EXHAUSTED);
+    EXPECT_EQ(sim.trajectory().failure_message.find("kappa"), std::string::npos) << sim.trajectory().failure_message;
 }
 
 } // namespace
