@@ -2,7 +2,8 @@
 """Study 408, the drop test: a block falls on a pad of cells; the stress it feels.
 
     PYTHONPATH=build/python /usr/bin/python3 studies/408_shock_microstructure/drop.py
-        --params output/408_shock_microstructure/params.json [--full] [-o DIR] [--cli build/cli/diffipc]
+        --params output/408_shock_microstructure/params.json [--transient .../transient.json] [--full]
+        [-o DIR] [--cli build/cli/diffipc]
 
 A pad of nx x ny cells (default 8 x 3; cell height 1 cm, mesh size 0.025 of the cell's height)
 is bonded to the ground (its bottom vertices fixed); a stiff block (E = 100 MPa, the pad's width,
@@ -12,7 +13,7 @@ fixed barrier stiffness of the drop objective, drop_settings()) and friction mu 
 block and the pad: the scene of diffipc.microstructure.DropDesign (shape_opt/microstructure/
 drop_design.hpp), the one the transient optimization (run.py) differentiates. The same drop on
 the pads of the designs of params.json (without --full: the initial one and those named in
---designs) and on a solid pad of the quasi-static optimum's mass (the same material, the same
+--designs), of transient.py's design (--transient), and on a solid pad of the quasi-static optimum's mass (the same material, the same
 width, as tall as its area requires).
 
 The stress on the block's bottom face, per step (plane stress, per metre of depth), computed here
@@ -133,8 +134,12 @@ def main():
     parser.add_argument("--ny", type=int, default=3)
     parser.add_argument("--size", type=float, default=0.025, help="mesh size relative to the cell's height")
     parser.add_argument("--steps", type=int, default=400)
+    parser.add_argument("--transient", help="transient.json of transient.py: its design is dropped too, as 'transient'")
     args = parser.parse_args()
     params = json.load(open(args.params))
+    if args.transient:
+        params["designs"]["transient"] = json.load(open(args.transient))["x"]
+        args.designs = list(args.designs) + ["transient"]
     family = ms.family("reentrant")
     settings = drop_settings(args.nx, args.ny, args.size, args.steps, params["target_stress"])
     design = ms.DropDesign(family, settings)
