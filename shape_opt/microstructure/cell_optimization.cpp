@@ -1,5 +1,6 @@
 #include "shape_opt/microstructure/cell_optimization.hpp"
 
+#include "adjoint/adjoint.hpp"
 #include "forward/common/error.hpp"
 #include "forward/common/timer.hpp"
 #include "shape_opt/microstructure/cell_shape_map.hpp"
@@ -73,6 +74,8 @@ namespace {
                 m_quality[x] = quality;
                 return true;
             } catch (const InputError& e) { // the mesh cannot follow the design there
+                return reject(e.what());
+            } catch (const AdjointError& e) { // a run the adjoint cannot differentiate
                 return reject(e.what());
             }
         }

@@ -10,8 +10,8 @@
 /// Between remeshes the optimizer sees J(x) on the reference mesh moved to x
 /// (CellShapeMap::moved), a smooth function with its exact gradient; a design the mesh cannot
 /// follow (a boundary vertex finds no level set, an element inverts), one that could not be
-/// meshed anew (a beam thinner than the mesh size, check_meshable) or whose simulation fails is
-/// rejected (the optimizer backtracks). When an accepted design's moved mesh falls below the
+/// meshed anew (a beam thinner than the mesh size, check_meshable), or whose simulation fails or
+/// cannot be differentiated (AdjointError) is rejected (the optimizer backtracks). When an accepted design's moved mesh falls below the
 /// quality threshold, the cell is meshed anew there and the optimizer restarts from it without
 /// its history (J changes by the remeshing's discretization noise).
 
