@@ -764,7 +764,7 @@ Scene parse_scene(const nlohmann::json& document, const std::string& base_direct
     if (root.has("solver")) {
         const JsonField s = root["solver"];
         s.require_object({ "residual_tolerance", "step_tolerance", "max_iterations", "linear_solver",
-            "line_search_max_halvings", "armijo", "hessian_projection", "threads" });
+            "line_search_max_halvings", "armijo", "hessian_projection", "step_extension", "threads" });
         if (s.has("threads"))
             scene.solver.threads = s["threads"].integer(1);
         if (s.has("hessian_projection")) {
@@ -773,6 +773,8 @@ Scene parse_scene(const nlohmann::json& document, const std::string& base_direct
                 s["hessian_projection"].fail("expected \"adaptive\" or \"always\"");
             scene.solver.adaptive_projection = h == "adaptive";
         }
+        if (s.has("step_extension"))
+            scene.solver.step_extension = s["step_extension"].boolean();
         if (s.has("residual_tolerance"))
             scene.solver.residual_tolerance = s["residual_tolerance"].positive();
         if (s.has("step_tolerance")) {

@@ -625,6 +625,7 @@ StepStatus Simulator::step()
     settings.line_search_max_halvings = m_scene.solver.line_search_max_halvings;
     settings.armijo = m_scene.solver.armijo;
     settings.adaptive_projection = m_scene.solver.adaptive_projection;
+    settings.step_extension = m_scene.solver.step_extension;
     if (m_contact) {
         // A free dof's Newton step longer than the bodies' size plus the inertial drift
         // |x~ - x_n| is not a step a converging solve takes (docs/math.md, "Newton").

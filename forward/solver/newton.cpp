@@ -10,7 +10,41 @@ namespace diffipc {
 namespace {
     constexpr double ROUNDOFF_STEP = 128 * std::numeric_limits<double>::epsilon();
     constexpr double ENERGY_RESOLUTION = 1e-10;
+    /// A full step whose energy decrease is above this fraction of the linear prediction -g^T p
+    /// (0.5 when the search matrix is the exact curvature along p) is extended.
+    constexpr double EXTENSION_RATIO = 0.9;
+    constexpr int MAX_EXTENSIONS = 12; ///< doublings: steps up to 4096 p
 } // namespace
+
+double NewtonSolver::extend(const VectorXd& x, const VectorXd& p, double slope, double length, double energy,
+    double& new_energy, VectorXd& trial, NewtonResult& result) const
+{
+    // The full step took nearly the whole decrease the gradient predicts: along p the energy is
+    // far less curved than the search matrix says (a projected Hessian where the true one is
+    // indefinite or nearly singular: a structure at a bifurcation creeping along its buckling
+    // mode, one short step per iteration). Doubling the step while the energy keeps falling
+    // (Armijo against the start) and CCD and the inversion bound admit the longer step walks
+    // that mode in a few trials instead of hundreds of iterations.
+    double alpha = 1.0;
+    VectorXd longer(x.size());
+    for (int k = 0; k < MAX_EXTENSIONS; ++k) {
+        const double a = 2 * alpha;
+        if (m_settings.max_displacement > 0 && a * length > m_settings.max_displacement)
+            break;
+        longer = a * p;
+        if (m_problem.max_step(x, longer) < 1.0)
+            break;
+        longer += x;
+        const double e = m_problem.energy(longer);
+        if (!(e < new_energy) || e > energy + m_settings.armijo * a * slope)
+            break;
+        alpha = a;
+        new_energy = e;
+        trial.swap(longer);
+    }
+    result.extended_steps += alpha > 1.0;
+    return alpha;
+}
 
 NewtonResult NewtonSolver::solve(VectorXd& x, const VectorXd& target, const std::vector<char>& constrained,
     double force_scale, double step_scale, LoadControl* control) const
@@ -26,8 +60,8 @@ NewtonResult NewtonSolver::solve(VectorXd& x, const VectorXd& target, const std:
         double largest = 0;
         for (Index i = 0; i < n; ++i)
             if (!constrained[size_t(i)])
-                largest = std::max(largest,
-                    std::abs(control ? gradient[i] - carried * control->direction[i] : gradient[i]));
+                largest = std::max(
+                    largest, std::abs(control ? gradient[i] - carried * control->direction[i] : gradient[i]));
         return largest;
     };
     bool full_step_taken = false;
@@ -280,6 +314,9 @@ NewtonResult NewtonSolver::solve(VectorXd& x, const VectorXd& target, const std:
                 }
             }
         }
+        if (m_settings.step_extension && accepted && alpha == 1.0 && !lifting && !control && !result.roundoff_limited
+            && energy - new_energy > EXTENSION_RATIO * -slope)
+            alpha = extend(x, p, slope, length, energy, new_energy, trial, result);
         ls.add_to(result.times.line_search);
         if (!accepted) {
             result.status = StepStatus::LINE_SEARCH_EXHAUSTED;

@@ -21,6 +21,9 @@ struct NewtonSettings {
     /// Use the true Hessian once a full step was accepted, as long as it is
     /// positive definite (docs/math.md "Newton"); false: always project.
     bool adaptive_projection = true;
+    /// Lengthen a full step along which the energy fell almost linearly (NewtonSolver::extend;
+    /// docs/math.md "Newton"); false: never.
+    bool step_extension = true;
     /// Largest displacement (m, max norm over the free dofs) one line search tries; a longer
     /// Newton step is shortened to it before CCD sweeps it (prescribed dofs do not count:
     /// lifting moves them as far as the prescription says). 0: unbounded. The simulator sets
@@ -38,6 +41,8 @@ struct NewtonResult {
     int linear_fallbacks = 0; ///< factorizations that needed LDL^T
     int gradient_steps = 0; ///< iterations that fell back to the negative gradient
     int true_hessian_steps = 0; ///< iterations that used the unprojected (positive definite) Hessian
+    /// Full steps lengthened because the energy fell almost linearly along them (NewtonSolver::extend).
+    int extended_steps = 0;
     /// Converged because the full Newton step fell below the round-off of x
     /// while the residual was still above its tolerance.
     bool roundoff_limited = false;
@@ -106,6 +111,13 @@ public:
     }
 
 private:
+    /// @brief After an accepted full step x + p that decreased the energy by more than 0.9 of
+    /// -slope (= -g^T p): tries 2p, 4p, ... while each lowers the energy further, satisfies
+    /// Armijo and is admitted by max_step (and max_displacement). Returns the step length taken
+    /// (1 if none was better); `trial` and `new_energy` are then that step's.
+    double extend(const VectorXd& x, const VectorXd& p, double slope, double length, double energy, double& new_energy,
+        VectorXd& trial, NewtonResult& result) const;
+
     const Problem& m_problem;
     SparseAssembler& m_assembler;
     LinearSolver& m_linear;

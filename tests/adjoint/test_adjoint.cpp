@@ -515,7 +515,11 @@ TEST(AdjointLoadStepping, GradientsThroughASnapPassedByControlOrRelaxationMatchF
     for (bool control : { true, false }) {
         SCOPED_TRACE(control ? "displacement control" : "relaxation");
         json s = shallow_arch(3, 8, { { "displacement_control", control } });
-        s["solver"]["residual_tolerance"] = 1e-11;
+        // Near the snap the arch has a soft mode: a state converged to a residual r is off along
+        // it by r / its stiffness, and the differences see that. At 1e-11 it showed as 1.3-2e-6
+        // relative error (how much depends on each perturbed run's Newton path: 4e-7 without the
+        // step extension); at 3e-12 the error is 2e-7 either way, the differences' truncation.
+        s["solver"]["residual_tolerance"] = 3e-12;
         Simulator sim(make_scene(s));
         sim.run();
         ASSERT_EQ(sim.trajectory().final_status, StepStatus::CONVERGED) << sim.trajectory().failure_message;

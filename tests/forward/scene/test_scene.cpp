@@ -142,6 +142,8 @@ std::vector<Malformed> malformed_cases()
             "solver.residual_tolerance" },
         { "solver_unknown_linear_solver", [](json& s) { s["solver"]["linear_solver"] = "pardiso"; },
             "solver.linear_solver" },
+        { "solver_step_extension_not_a_bool", [](json& s) { s["solver"]["step_extension"] = "yes"; },
+            "solver.step_extension" },
         { "output_negative_vtu_every", [](json& s) { s["output"]["vtu_every"] = -1; }, "output.vtu_every" },
         { "output_zero_flush_interval", [](json& s) { s["output"]["flush_interval"] = 0; }, "output.flush_interval" },
         { "time_step_tiny", [](json& s) { s["time"]["dt"] = 1e-300; }, "time.dt" },
