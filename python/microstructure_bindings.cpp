@@ -66,7 +66,9 @@ nlohmann::json json_of(const py::dict& settings)
 }
 
 const char* const optimize_doc = "Minimize J from x0 (docs/microstructures.md, \"Optimization\"), the variables named "
-                                 "in `fixed` held: dict of x, final (J, gradient on a new mesh), history, ...";
+                                 "in `fixed` held: dict of x, final (J, gradient on a new mesh), history, remeshes, "
+                                 "evaluations, rejected, rejections (x and reason of each rejected design), reason, "
+                                 "message";
 
 py::dict optimize_dict(const CellObjective& d, const py::array_t<double, py::array::c_style | py::array::forcecast>& x0,
     const std::string& algorithm, int max_iterations, double remesh_quality, const std::vector<std::string>& fixed,
@@ -109,6 +111,14 @@ py::dict optimize_dict(const CellObjective& d, const py::array_t<double, py::arr
     out["remeshes"] = r.remeshes;
     out["evaluations"] = r.evaluations;
     out["rejected"] = r.rejected;
+    py::list rejections;
+    for (const CellRejection& j : r.rejections) {
+        py::dict d;
+        d["x"] = j.x;
+        d["reason"] = j.reason;
+        rejections.append(d);
+    }
+    out["rejections"] = rejections;
     out["reason"] = to_string(r.reason);
     out["message"] = r.message;
     return out;

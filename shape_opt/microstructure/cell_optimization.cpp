@@ -64,19 +64,19 @@ namespace {
                 mesh.rest_positions = m_map.moved(x);
                 const double quality = min_quality(mesh.rest_positions, mesh.elements);
                 if (!(quality > 0))
-                    return reject("the mesh moved to the design inverts an element");
+                    return reject(x, "the mesh moved to the design inverts an element");
                 const MatrixXd velocity = m_map.moved_jacobian(x);
                 const DesignValue e = m_objective.value(mesh, x, &velocity);
                 if (!e.ok)
-                    return reject(e.message);
+                    return reject(x, e.message);
                 out.f = e.J;
                 out.gradient = reduce(e.gradient);
                 m_quality[x] = quality;
                 return true;
             } catch (const InputError& e) { // the mesh cannot follow the design there
-                return reject(e.what());
+                return reject(x, e.what());
             } catch (const AdjointError& e) { // a run the adjoint cannot differentiate
-                return reject(e.what());
+                return reject(x, e.what());
             }
         }
 
@@ -107,10 +107,11 @@ namespace {
         int last_iteration() const { return m_last_iteration; }
 
     private:
-        /// Counts a rejected design and keeps why; false.
-        bool reject(const std::string& why)
+        /// Counts a rejected design and records why; false.
+        bool reject(const VectorXd& x, const std::string& why)
         {
             ++m_result.rejected;
+            m_result.rejections.push_back({ x, why });
             m_last_rejection = why;
             return false;
         }

@@ -11,9 +11,9 @@
 /// (CellShapeMap::moved), a smooth function with its exact gradient; a design the mesh cannot
 /// follow (a boundary vertex finds no level set, an element inverts), one that could not be
 /// meshed anew (a beam thinner than the mesh size, check_meshable), or whose simulation fails or
-/// cannot be differentiated (AdjointError) is rejected (the optimizer backtracks). When an accepted design's moved mesh falls below the
-/// quality threshold, the cell is meshed anew there and the optimizer restarts from it without
-/// its history (J changes by the remeshing's discretization noise).
+/// cannot be differentiated (AdjointError) is rejected (the optimizer backtracks). When an accepted design's moved mesh
+/// falls below the quality threshold, the cell is meshed anew there and the optimizer restarts from it without its
+/// history (J changes by the remeshing's discretization noise).
 
 #include "shape_opt/microstructure/cell_objective.hpp"
 #include "shape_opt/optimizer/optimizer.hpp"
@@ -40,12 +40,19 @@ struct CellIteration {
     VectorXd x;
 };
 
+/// A trial design the run could not use, and why (the optimizer backtracked from it).
+struct CellRejection {
+    VectorXd x;
+    std::string reason; ///< the meshing, simulation or adjoint error
+};
+
 struct CellOptimizationResult {
     VectorXd x; ///< the last accepted design
     DesignValue final; ///< at x, on a new mesh of x (with the gradient)
     std::vector<CellIteration> history;
     int remeshes = 0;
     int evaluations = 0, rejected = 0;
+    std::vector<CellRejection> rejections; ///< every rejected design, in order (rejected of them)
     StopReason reason = StopReason::FAILED;
     std::string message;
 };

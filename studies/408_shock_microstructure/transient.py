@@ -25,6 +25,7 @@ curves before and after).
 import argparse
 import json
 import os
+import re
 import time
 
 import numpy as np
@@ -35,6 +36,16 @@ import drop
 import run as plateau
 
 NX, NY, SIZE, STEPS = 4, 3, 0.03, 300
+
+
+def rejection_kinds(rejections):
+    """How many trial designs were rejected for each reason, numbers in the reasons replaced by N
+    (a vertex, a step, a residual), most frequent first."""
+    kinds = {}
+    for r in rejections:
+        kind = re.sub(r"-?\d+(\.\d+)?(e[-+]?\d+)?", "N", r["reason"])
+        kinds[kind] = kinds.get(kind, 0) + 1
+    return dict(sorted(kinds.items(), key=lambda k: -k[1]))
 
 
 def main():
@@ -66,6 +77,7 @@ def main():
         "J": [before["J"], after["J"]], "peak": [before["peak"], after["peak"]],
         "history": [{"iteration": e["iteration"], "mesh": e["mesh"], "J": e["J"]} for e in run["history"]],
         "evaluations": run["evaluations"], "rejected": run["rejected"], "remeshes": run["remeshes"],
+        "rejections": rejection_kinds(run["rejections"]),
         "reason": run["reason"], "seconds": seconds,
         "curves": {"time": list(map(float, before["time"])), "before": list(map(float, before["stress"])),
                    "after": list(map(float, after["stress"]))},
@@ -100,6 +112,8 @@ def main():
           f"({len(run['history']) - 1 - run['remeshes']} iterations, {run['evaluations']} evaluations, "
           f"{seconds:.0f} s); plateau deviation {100 * out['plateau']['start']:.1f}% -> "
           f"{100 * out['plateau']['transient']:.1f}%")
+    for kind, count in out["rejections"].items():
+        print(f"  rejected {count}x: {kind}")
 
 
 if __name__ == "__main__":

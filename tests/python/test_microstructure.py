@@ -72,7 +72,8 @@ def test_errors_name_the_variable():
 
 def test_drop_design_from_python():
     """A block dropped on a pad of 2 x 1 cells: the stress history, J above the peak, a gradient per
-    variable, a held width in a short optimization, and errors naming the field."""
+    variable, a held width in a short optimization (its rejected designs listed with their reasons),
+    and errors naming the field."""
     f = ms.family("reentrant")
     settings = {"size": 0.01 / 20, "cells": [2, 1], "block": {"mass": 0.625}, "kappa": 1e17, "steps": 16,
                 "target_stress": 500}
@@ -86,6 +87,8 @@ def test_drop_design_from_python():
     run = d.optimize(f.initial, max_iterations=1, fixed=["width"])
     assert all(e["x"][f.width_index] == f.initial[f.width_index] for e in run["history"])
     assert run["final"]["ok"]
+    assert len(run["rejections"]) == run["rejected"]  # each with its design and reason
+    assert all(len(r["x"]) == len(f.names) and r["reason"] for r in run["rejections"])
     with pytest.raises(ValueError, match="settings.block.mass"):
         ms.DropDesign(f, {"block": {}, "kappa": 1e17, "target_stress": 500})
     with pytest.raises(ValueError, match="fixed"):

@@ -2,7 +2,8 @@
 // L-BFGS-B and MMA lower J within the family's bounds, accepted iterates on one mesh never raise
 // J, a mesh that degrades is replaced (and the restart's J on the new mesh is recorded), and the
 // reported final design is evaluated on a new mesh of it; variables named as held keep their values
-// (on the drop test's objective), and an unknown name is an input error.
+// (on the drop test's objective), and an unknown name is an input error; designs the objective
+// refuses are rejected, each recorded with its reason, and never accepted.
 
 #include "shape_opt/microstructure/cell_optimization.hpp"
 
@@ -11,6 +12,8 @@
 #include "shape_opt/microstructure/drop_design.hpp"
 
 #include <gtest/gtest.h>
+
+#include <algorithm>
 
 using namespace diffipc;
 
@@ -93,4 +96,73 @@ TEST(CellOptimization, HeldVariablesKeepTheirValues)
     } catch (const InputError& e) {
         EXPECT_EQ(e.field(), "fixed[1]");
     }
+}
+
+namespace {
+/// The plateau objective, refusing every design whose thickness[2] exceeds a cap (a stand-in
+/// for a region where simulations fail).
+class CappedDesign : public CellObjective {
+public:
+    CappedDesign(const CellDesign& design, Index j, double cap)
+        : m_design(design)
+        , m_j(j)
+        , m_cap(cap)
+    {
+    }
+    const CellFamily& family() const override { return m_design.family(); }
+    const CellMeshSettings& mesh_settings() const override { return m_design.mesh_settings(); }
+    DesignValue value(const Mesh& cell, const VectorXd& p, const MatrixXd* velocity) const override
+    {
+        if (p[m_j] > m_cap) {
+            DesignValue refused;
+            refused.message = "refused: thickness[2] = " + std::to_string(p[m_j]);
+            return refused;
+        }
+        return m_design.value(cell, p, velocity);
+    }
+
+private:
+    const CellDesign& m_design;
+    Index m_j;
+    double m_cap;
+};
+} // namespace
+
+TEST(CellOptimization, RefusedDesignsAreRejectedAndRecordedWithTheirReason)
+{
+    CellDesignSettings s;
+    s.mesh.size = 0.04;
+    s.max_strain = 0.4;
+    s.steps = 8;
+    s.samples = { 2, 4, 6, 8 };
+    s.target_stress = 500;
+    s.free_shear = false;
+    const CellDesign design(
+        read_cell_family(std::string(DIFFIPC_SOURCE_DIR) + "/shape_opt/microstructure/topologies/reentrant.json"), s);
+    const CellFamily& f = design.family();
+    const auto& names = f.names();
+    const Index j = Index(std::find(names.begin(), names.end(), "thickness[2]") - names.begin());
+    ASSERT_LT(j, f.size());
+    // the unconstrained optimum thickens thickness[2] from 0.12 towards 0.29 (study 408)
+    const double cap = f.initial()[j] + 0.01;
+    const CappedDesign capped(design, j, cap);
+    CellOptimizationSettings o;
+    o.optimizer.algorithm = OptimizerAlgorithm::LBFGSB;
+    o.optimizer.max_iterations = 4;
+    const CellOptimizationResult r = optimize_cell(capped, f.initial(), o);
+    ASSERT_GE(r.rejected, 1);
+    ASSERT_EQ(r.rejections.size(), size_t(r.rejected));
+    int refused = 0; // the others: trial designs the moved mesh cannot follow
+    for (const CellRejection& k : r.rejections) {
+        EXPECT_FALSE(k.reason.empty());
+        if (k.reason.rfind("refused", 0) == 0) {
+            ++refused;
+            EXPECT_GT(k.x[j], cap);
+            EXPECT_EQ(k.reason, "refused: thickness[2] = " + std::to_string(k.x[j]));
+        }
+    }
+    EXPECT_GE(refused, 1);
+    for (const CellIteration& it : r.history)
+        EXPECT_LE(it.x[j], cap);
+    EXPECT_LT(r.history.back().J, r.history.front().J);
 }
