@@ -330,7 +330,7 @@ namespace {
         std::unique_ptr<StateFunctional> functional, const JsonField& j, const Simulator& sim)
     {
         if (!j.has("targets")) {
-            for (const char* key : { "steps", "weight", "sigma" })
+            for (const char* key : { "steps", "weight", "sigma", "side" })
                 if (j.has(key))
                     j[key].fail("only applies with \"targets\"");
             return aggregate(std::move(functional), j);
@@ -349,14 +349,25 @@ namespace {
         double weight = j.has("weight") ? j["weight"].positive() : 1.0;
         if (j.has("sigma"))
             weight = 1.0 / std::pow(j["sigma"].positive(), 2);
-        return std::make_unique<StateTracking>(std::move(functional), steps, std::move(targets), weight);
+        TrackingSide side = TrackingSide::BOTH;
+        if (j.has("side")) {
+            const std::string s = j["side"].string();
+            if (s == "above")
+                side = TrackingSide::ABOVE;
+            else if (s == "below")
+                side = TrackingSide::BELOW;
+            else if (s != "both")
+                j["side"].fail("expected \"both\", \"above\" or \"below\", got \"" + s + "\"");
+        }
+        return std::make_unique<StateTracking>(std::move(functional), steps, std::move(targets), weight, side);
     }
 
     /// {"type": "macro_stress" | "macro_gradient", "component": "xx", "time": ... | "targets": ...}:
     /// a periodic cell's average stress or macro displacement gradient.
     std::unique_ptr<Objective> parse_macro(const JsonField& j, const Simulator& sim)
     {
-        j.require_object({ "type", "component", "time", "include_initial", "targets", "steps", "weight", "sigma" });
+        j.require_object(
+            { "type", "component", "time", "include_initial", "targets", "steps", "weight", "sigma", "side" });
         const std::string type = j["type"].string();
         if (!sim.periodic())
             j["type"].fail(type + " needs a periodic cell (the scene's \"periodic\")");
@@ -374,8 +385,8 @@ namespace {
 
     std::unique_ptr<Objective> parse_reaction_force(const JsonField& j, const Simulator& sim)
     {
-        j.require_object({ "type", "dirichlet", "obstacle", "axis", "targets", "steps", "weight", "sigma", "time",
-            "include_initial" });
+        j.require_object({ "type", "dirichlet", "obstacle", "axis", "targets", "steps", "weight", "sigma", "side",
+            "time", "include_initial" });
         if (sim.friction())
             j["type"].fail("reaction_force is not available in scenes with friction (a coefficient > 0)");
         const int condition = parse_reaction_condition(j, sim);

@@ -11,8 +11,13 @@
 
 namespace diffipc {
 
-/// @brief J = \tfrac{w}{2} \sum_{s} (f(x_{k_s}) - y_s)^2 over the listed states k_s with targets y_s.
-/// Gradient: w (f_k - y) df_k.
+/// Which deviations from a target count: both signs, or only one (a bound: ABOVE penalizes f > y,
+/// an upper bound; BELOW penalizes f < y, a lower bound).
+enum class TrackingSide { BOTH, ABOVE, BELOW };
+
+/// @brief J = \tfrac{w}{2} \sum_{s} r_s^2 over the listed states k_s with targets y_s, r_s = f(x_{k_s}) - y_s
+/// (one-sided: r_s = max(f - y, 0) for ABOVE, min(f - y, 0) for BELOW; J stays C^1).
+/// Gradient: w r_s df_k.
 class StateTracking : public Objective {
 public:
     /// @param steps   the states k compared (0 = initial state, 1..T the steps)
@@ -20,7 +25,7 @@ public:
     /// @param weight  w > 0 (1 / sigma^2 for a quantity measured with standard deviation sigma)
     /// @throws std::invalid_argument for inconsistent sizes, a null functional or w <= 0
     StateTracking(std::unique_ptr<StateFunctional> functional, std::vector<int> steps, std::vector<double> targets,
-        double weight);
+        double weight, TrackingSide side = TrackingSide::BOTH);
 
     std::string name() const override { return m_functional->name() + "_tracking"; }
     double value(const Simulator& sim, const Trajectory& trajectory) const override;
@@ -33,6 +38,9 @@ private:
     std::vector<int> m_steps;
     std::vector<double> m_targets;
     double m_weight;
+    TrackingSide m_side;
+    /// The residual that counts: f - y, clipped to the penalized side.
+    double residual(double f, double y) const;
 };
 
 } // namespace diffipc

@@ -13,14 +13,15 @@
 #include "objectives/state_tracking.hpp"
 #include "shape_opt/microstructure/cell_shape_map.hpp"
 
+#include <algorithm>
 #include <cmath>
 
 namespace diffipc {
 
 CellDesignSettings parse_cell_design_settings(const JsonField& f)
 {
-    f.require_object({ "height", "size", "material", "dhat", "kappa", "max_strain", "steps", "samples", "target_stress",
-        "shear_weight", "lateral_weight", "shear", "solver" });
+    f.require_object({ "height", "size", "material", "dhat", "kappa", "max_strain", "steps", "samples", "cap_samples",
+        "target_stress", "shear_weight", "lateral_weight", "shear", "solver" });
     CellDesignSettings s;
     if (f.has("height"))
         s.mesh.height = f["height"].positive();
@@ -47,10 +48,18 @@ CellDesignSettings parse_cell_design_settings(const JsonField& f)
         for (size_t i = 0; i < a.size(); ++i)
             s.samples.push_back(a.at(i).integer(1));
     }
-    for (size_t i = 0; i < s.samples.size(); ++i)
-        if (s.samples[i] > s.steps)
-            throw InputError(f.path() + ".samples[" + std::to_string(i) + "]",
-                "step " + std::to_string(s.samples[i]) + " is beyond the " + std::to_string(s.steps) + " steps");
+    if (f.has("cap_samples")) {
+        const JsonField a = f["cap_samples"];
+        a.require_array(0);
+        for (size_t i = 0; i < a.size(); ++i)
+            s.cap_samples.push_back(a.at(i).integer(1));
+    }
+    for (const auto& [key, steps] :
+        { std::make_pair("samples", &s.samples), std::make_pair("cap_samples", &s.cap_samples) })
+        for (size_t i = 0; i < steps->size(); ++i)
+            if ((*steps)[i] > s.steps)
+                throw InputError(f.path() + "." + key + "[" + std::to_string(i) + "]",
+                    "step " + std::to_string((*steps)[i]) + " is beyond the " + std::to_string(s.steps) + " steps");
     s.target_stress = f["target_stress"].positive();
     if (f.has("shear_weight"))
         s.shear_weight = f["shear_weight"].number();
@@ -157,13 +166,18 @@ CellEvaluation CellDesign::evaluate_mesh(const Mesh& mesh, const VectorXd& p, co
         out.contacts[k - 1] = int(r.active_contacts);
     }
     // J as objectives: 1/2 w (f - y)^2 per sample with w = 2 / sigma*^2 (stress, target -sigma*),
-    // 2 w_s (G_xy, target 0), 2 w_l (G_xx, target 0).
+    // 2 w_s (G_xy, target 0), 2 w_l (G_xx, target 0); at the cap samples only a compressive
+    // stress above sigma* (P_yy below -sigma*) counts.
     const size_t n = s.samples.size();
     const double sigma = s.target_stress;
     std::vector<WeightedSum::Term> terms;
     terms.push_back({ 1.0,
         std::make_unique<StateTracking>(
             std::make_unique<MacroStress>(1, 1, 2), s.samples, std::vector<double>(n, -sigma), 2 / (sigma * sigma)) });
+    if (!s.cap_samples.empty())
+        terms.push_back({ 1.0,
+            std::make_unique<StateTracking>(std::make_unique<MacroStress>(1, 1, 2), s.cap_samples,
+                std::vector<double>(s.cap_samples.size(), -sigma), 2 / (sigma * sigma), TrackingSide::BELOW) });
     if (s.shear_weight > 0)
         terms.push_back({ 1.0,
             std::make_unique<StateTracking>(std::make_unique<MacroGradient>(0, 1, 2), s.samples,
@@ -188,6 +202,10 @@ CellEvaluation CellDesign::evaluate_mesh(const Mesh& mesh, const VectorXd& p, co
         for (int k : s.samples) {
             const double P = trajectory.steps[size_t(k - 1)].macro_stress[3];
             volume_term -= 2 / (sigma * sigma) * (P + sigma) * P / width;
+        }
+        for (int k : s.cap_samples) {
+            const double P = trajectory.steps[size_t(k - 1)].macro_stress[3];
+            volume_term -= 2 / (sigma * sigma) * std::min(P + sigma, 0.0) * P / width;
         }
         out.gradient[m_family.width_index()] += volume_term;
     }

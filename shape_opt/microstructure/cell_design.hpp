@@ -38,6 +38,9 @@ struct CellDesignSettings {
     double max_strain = 0.4; ///< compressive strain at the last step
     int steps = 16; ///< static load steps
     std::vector<int> samples { 4, 8, 12, 16 }; ///< the steps the objective compares
+    /// Steps where the compressive stress may not exceed sigma* (one-sided: (sigma / sigma* - 1)^2
+    /// only above it); none by default. Before the plateau a stress above sigma* is a peak.
+    std::vector<int> cap_samples;
     double target_stress = 0; ///< sigma* (Pa), > 0
     double shear_weight = 50, lateral_weight = 10;
     bool free_shear = true; ///< G_xy free (else held at 0: the cell cannot sway sideways)
@@ -45,7 +48,8 @@ struct CellDesignSettings {
 };
 
 /// @brief Parses {"height", "size", "material", "dhat", "kappa", "max_strain", "steps",
-/// "samples", "target_stress", "shear_weight", "lateral_weight", "shear" ("free" | "fixed"), "solver"}.
+/// "samples", "cap_samples", "target_stress", "shear_weight", "lateral_weight", "shear" ("free" | "fixed"),
+/// "solver"}.
 /// @throws InputError naming the field
 CellDesignSettings parse_cell_design_settings(const JsonField& f);
 

@@ -130,6 +130,22 @@ TEST_P(ReactionForceGradient, MatchesFiniteDifferences)
     const StateTracking tracking(std::make_unique<ReactionForce>(Ry), { 1, 3 }, { 0.5 * R(1), 1.5 * R(3) }, 0.25);
     test::check_state_gradient(tracking, run);
     test::check_all_parameter_gradients(tracking, run);
+    // One-sided: R(1) is past its target on one side and R(3) on the other, so each bound keeps
+    // exactly one of the two terms, and the two bounds add up to the two-sided J.
+    const double r1 = 0.5 * R(1), r3 = -0.5 * R(3); // R - y at states 1 and 3
+    ASSERT_LT(r1 * r3, 0) << "the residuals must have opposite signs";
+    double both = 0;
+    for (TrackingSide side : { TrackingSide::ABOVE, TrackingSide::BELOW }) {
+        SCOPED_TRACE(side == TrackingSide::ABOVE ? "above" : "below");
+        const StateTracking bound(
+            std::make_unique<ReactionForce>(Ry), { 1, 3 }, { 0.5 * R(1), 1.5 * R(3) }, 0.25, side);
+        const double kept = (side == TrackingSide::ABOVE) == (r1 > 0) ? r1 : r3;
+        EXPECT_NEAR(bound.value(*run.sim, run.trajectory), 0.125 * kept * kept, 1e-12 * kept * kept);
+        both += bound.value(*run.sim, run.trajectory);
+        test::check_state_gradient(bound, run);
+        test::check_all_parameter_gradients(bound, run);
+    }
+    EXPECT_NEAR(both, tracking.value(*run.sim, run.trajectory), 1e-12 * both);
 }
 
 INSTANTIATE_TEST_SUITE_P(Dims, ReactionForceGradient, ::testing::Values(2, 3));
@@ -239,6 +255,16 @@ TEST(ReactionForceJson, ErrorsNameTheField)
     j = base;
     j["targets"] = { 1.0, 2.0 };
     EXPECT_NE(message(j).find("objective.targets"), std::string::npos) << message(j);
+    j = base;
+    j["side"] = "above";
+    EXPECT_NE(message(j).find("objective.side: only applies with \"targets\""), std::string::npos) << message(j);
+    j = base;
+    j["targets"] = { 1.0 };
+    j["steps"] = { 1 };
+    j["side"] = "up";
+    EXPECT_NE(message(j).find("objective.side"), std::string::npos) << message(j);
+    j["side"] = "below";
+    EXPECT_EQ(message(j), "no error");
     j = base;
     j["obstacle"] = "plate";
     j.erase("dirichlet");

@@ -10,6 +10,8 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
+
 using namespace diffipc;
 
 namespace {
@@ -27,6 +29,28 @@ CellDesignSettings compression(double size, double strain, int steps, std::vecto
     s.free_shear = false;
     s.solver = { { "max_iterations", 400 }, { "residual_tolerance", 1e-11 } };
     return s;
+}
+
+/// dJ/dp against central differences over meshes of p +- h moved from `mesh` (a mesh of p),
+/// h = 1e-5 times each variable's range.
+void expect_gradient_matches_differences(const CellDesign& design, const Mesh& mesh, const VectorXd& p)
+{
+    const CellFamily& f = design.family();
+    const CellEvaluation e = design.evaluate_moved(mesh, p, p, true);
+    ASSERT_TRUE(e.ok) << e.message;
+    for (Index j = 0; j < f.size(); ++j) {
+        const double h = 1e-5 * (f.upper()[j] - f.lower()[j]);
+        VectorXd qp = p, qm = p;
+        qp[j] += h;
+        qm[j] -= h;
+        const CellEvaluation ep = design.evaluate_moved(mesh, p, qp, false),
+                             em = design.evaluate_moved(mesh, p, qm, false);
+        ASSERT_TRUE(ep.ok && em.ok);
+        const double fd = (ep.J - em.J) / (2 * h);
+        // seen: at most 3e-6 relative (at h = 1e-4 times the range, the stub tip's truncation
+        // error reaches 3e-4; with the default residual tolerance 1e-8 the solver's noise 7e-4)
+        EXPECT_NEAR(e.gradient[j], fd, 1e-4 * std::abs(fd)) << f.names()[size_t(j)];
+    }
 }
 
 } // namespace
@@ -55,20 +79,33 @@ TEST(CellDesign, WholePipelineGradientMatchesDifferencesWithContactInTheCell)
         ASSERT_TRUE(e.ok) << e.message;
         for (int k : c.settings.samples)
             EXPECT_GT(e.contacts[k - 1], 0) << "step " << k;
-        for (Index j = 0; j < f.size(); ++j) {
-            const double h = 1e-5 * (f.upper()[j] - f.lower()[j]);
-            VectorXd qp = p, qm = p;
-            qp[j] += h;
-            qm[j] -= h;
-            const CellEvaluation ep = design.evaluate_moved(mesh, p, qp, false),
-                                 em = design.evaluate_moved(mesh, p, qm, false);
-            ASSERT_TRUE(ep.ok && em.ok);
-            const double fd = (ep.J - em.J) / (2 * h);
-            // seen: at most 3e-6 relative (at h = 1e-4 times the range, the stub tip's truncation
-            // error reaches 3e-4; with the default residual tolerance 1e-8 the solver's noise 7e-4)
-            EXPECT_NEAR(e.gradient[j], fd, 1e-4 * std::abs(fd)) << f.names()[size_t(j)];
-        }
+        expect_gradient_matches_differences(design, mesh, p);
     }
+}
+
+TEST(CellDesign, ACappedStressCountsOnlyAboveTheTargetAndItsGradientMatchesDifferences)
+{
+    // cap_samples: only a compressive stress above sigma* counts. The re-entrant cell compressed
+    // to 47% in 15 steps, capped at steps 1 (3.1%) and 13 (40.7%), with sigma* between the two
+    // stresses, so that one cap is active and one is not: J grows by exactly the active cap's
+    // (sigma_13 / sigma* - 1)^2, and its gradient matches the differences.
+    const CellFamily f = read_cell_family(kTopologies + "reentrant.json");
+    CellDesignSettings s = compression(0.025, 0.47, 15, { 14, 15 });
+    const VectorXd p = f.initial();
+    const Mesh mesh = mesh_design(f, p, s.mesh);
+    const CellEvaluation probe = CellDesign(f, s).evaluate_moved(mesh, p, p, false);
+    ASSERT_TRUE(probe.ok) << probe.message;
+    const double s1 = probe.stress[0], s13 = probe.stress[12];
+    ASSERT_LT(s1, 0.9 * s13) << "the curve must rise from step 1 to 13";
+    s.target_stress = 0.5 * (s1 + s13);
+    const CellEvaluation plain = CellDesign(f, s).evaluate_moved(mesh, p, p, false);
+    s.cap_samples = { 1, 13 };
+    const CellDesign capped(f, s);
+    const CellEvaluation e = capped.evaluate_moved(mesh, p, p, false);
+    ASSERT_TRUE(plain.ok && e.ok);
+    const double active = std::pow(s13 / s.target_stress - 1, 2);
+    EXPECT_NEAR(e.J - plain.J, active, 1e-9 * active);
+    expect_gradient_matches_differences(capped, mesh, p);
 }
 
 TEST(CellDesign, ARemeshedDesignAgreesWithinTheDiscretizationError)
@@ -134,6 +171,9 @@ TEST(CellDesign, SettingsErrorsNameTheField)
     EXPECT_EQ(field({ { "target_stress", 500 } }), "(no error)");
     EXPECT_EQ(field(nlohmann::json::object()), "cell.target_stress");
     EXPECT_EQ(field({ { "target_stress", 500 }, { "steps", 8 }, { "samples", { 4, 9 } } }), "cell.samples[1]");
+    EXPECT_EQ(field({ { "target_stress", 500 }, { "steps", 8 }, { "samples", { 8 } }, { "cap_samples", { 1, 12 } } }),
+        "cell.cap_samples[1]");
+    EXPECT_EQ(field({ { "target_stress", 500 }, { "cap_samples", 3 } }), "cell.cap_samples");
     EXPECT_EQ(field({ { "target_stress", 500 }, { "shear", "sideways" } }), "cell.shear");
     EXPECT_EQ(field({ { "target_stress", 500 }, { "max_strain", 0.95 } }), "cell.max_strain");
     EXPECT_EQ(field({ { "target_stress", 500 }, { "lateral_weight", -1 } }), "cell.lateral_weight");
