@@ -7,7 +7,7 @@
 
 A pad of nx x ny cells (default 8 x 3; cell height 1 cm, mesh size 0.025 of the cell's height)
 is bonded to the ground (its bottom vertices fixed); a stiff block (E = 100 MPa, the pad's width,
-1 cm tall, 2.5 kg per metre of depth for 8 cells: 31 Pa of weight) starts 0.5 mm above it at
+1 cm tall, 2.5 kg per metre of depth for 8 cells: 306 Pa of weight on a pad 8 cm wide) starts 0.5 mm above it at
 0.5 m/s downward under gravity, implicit Euler, dt = 0.1 ms, 400 steps, contact (dhat 10 um, the
 fixed barrier stiffness of the drop objective, drop_settings()) and friction mu = 0.3 between the
 block and the pad: the scene of diffipc.microstructure.DropDesign (shape_opt/microstructure/
