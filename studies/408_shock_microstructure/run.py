@@ -15,8 +15,8 @@ remeshes), results.md (the tables), and each design's scene (cell.msh, scene.jso
 `diffipc simulate` run checked by `diffipc check` (exact inversion and intersection tests on the
 cell's tiling, independent of the contact code). Then transient.py (the L-BFGS-B optimum
 optimized further on the drop test's peak stress) and drop.py (the drop test of the designs'
-pads against a solid pad). The default: mesh size 0.025 m in a 1 m cell, 40 iterations each, 4
-transient iterations, drops of 30 ms (300 steps). --full: a mesh continuation (40 iterations at 0.025 m, 30 more at 0.0125 m,
+pads against a solid pad). The default: mesh size 0.025 m in a 1 m cell, 40 iterations each, 3
+transient iterations, drops of 25 ms (250 steps). --full: a mesh continuation (40 iterations at 0.025 m, 30 more at 0.0125 m,
 20 more at 0.00625 m), the plateau checked at half the last size, 12 transient iterations, every
 design dropped for 40 ms.
 """
@@ -217,12 +217,12 @@ def main():
         # the transient objective from the L-BFGS-B optimum, then the drop test of the designs
         transient = os.path.join(args.output, "transient")
         subprocess.run(["/usr/bin/python3", os.path.join(here, "transient.py"), "--params", params_path, "-o", transient,
-                        "--iterations", "12" if args.full else "4"], check=True)
+                        "--iterations", "12" if args.full else "3"], check=True)
         t = json.load(open(os.path.join(transient, "transient.json")))
         drop = os.path.join(args.output, "drop")
         subprocess.run(["/usr/bin/python3", os.path.join(here, "drop.py"), "--params", params_path, "-o", drop,
                         "--cli", args.cli, "--transient", os.path.join(transient, "transient.json")]
-                       + (["--full"] if args.full else ["--steps", "300"]),
+                       + (["--full"] if args.full else ["--steps", "250"]),
                        check=True)
         with open(os.path.join(args.output, "results.md"), "a") as f:
             f.write(f"\nTransient objective (transient.py; transient/transient_history.png), from {t['start']}, "
