@@ -110,7 +110,7 @@ py::dict optimize_dict(const CellObjective& d, const py::array_t<double, py::arr
     out["history"] = history;
     out["remeshes"] = r.remeshes;
     out["evaluations"] = r.evaluations;
-    out["rejected"] = r.rejected;
+    out["rejected"] = r.rejected();
     py::list rejections;
     for (const CellRejection& j : r.rejections) {
         py::dict d;

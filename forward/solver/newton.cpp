@@ -17,7 +17,7 @@ namespace {
 } // namespace
 
 double NewtonSolver::extend(const VectorXd& x, const VectorXd& p, double slope, double length, double energy,
-    double& new_energy, VectorXd& trial, NewtonResult& result) const
+    double& new_energy, VectorXd& trial, VectorXd& longer, NewtonResult& result) const
 {
     // The full step took nearly the whole decrease the gradient predicts: along p the energy is
     // far less curved than the search matrix says (a projected Hessian where the true one is
@@ -26,7 +26,6 @@ double NewtonSolver::extend(const VectorXd& x, const VectorXd& p, double slope, 
     // (Armijo against the start) and CCD and the inversion bound admit the longer step walks
     // that mode in a few trials instead of hundreds of iterations.
     double alpha = 1.0;
-    VectorXd longer(x.size());
     for (int k = 0; k < MAX_EXTENSIONS; ++k) {
         const double a = 2 * alpha;
         if (m_settings.max_displacement > 0 && a * length > m_settings.max_displacement)
@@ -52,7 +51,7 @@ NewtonResult NewtonSolver::solve(VectorXd& x, const VectorXd& target, const std:
     NewtonResult result;
     const Index n = x.size();
     // Work vectors allocated once per solve, reused by every iteration and trial.
-    VectorXd g(n), p(n), rhs(n), pD(n), trial(n), g_trial(n);
+    VectorXd g(n), p(n), rhs(n), pD(n), trial(n), g_trial(n), longer(n);
     const double a_norm2 = control ? control->direction.squaredNorm() : 0.0;
     // max |free-dof gradient|, less the load the constraint carries under load control
     const auto free_residual = [&](const VectorXd& gradient) {
@@ -316,7 +315,7 @@ NewtonResult NewtonSolver::solve(VectorXd& x, const VectorXd& target, const std:
         }
         if (m_settings.step_extension && accepted && alpha == 1.0 && !lifting && !control && !result.roundoff_limited
             && energy - new_energy > EXTENSION_RATIO * -slope)
-            alpha = extend(x, p, slope, length, energy, new_energy, trial, result);
+            alpha = extend(x, p, slope, length, energy, new_energy, trial, longer, result);
         ls.add_to(result.times.line_search);
         if (!accepted) {
             result.status = StepStatus::LINE_SEARCH_EXHAUSTED;

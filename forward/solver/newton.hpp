@@ -22,7 +22,7 @@ struct NewtonSettings {
     /// positive definite (docs/math.md "Newton"); false: always project.
     bool adaptive_projection = true;
     /// Lengthen a full step along which the energy fell almost linearly (NewtonSolver::extend;
-    /// docs/math.md "Newton"); false: never.
+    /// docs/math.md "Step extension"); false: never.
     bool step_extension = true;
     /// Largest displacement (m, max norm over the free dofs) one line search tries; a longer
     /// Newton step is shortened to it before CCD sweeps it (prescribed dofs do not count:
@@ -114,9 +114,10 @@ private:
     /// @brief After an accepted full step x + p that decreased the energy by more than 0.9 of
     /// -slope (= -g^T p): tries 2p, 4p, ... while each lowers the energy further, satisfies
     /// Armijo and is admitted by max_step (and max_displacement). Returns the step length taken
-    /// (1 if none was better); `trial` and `new_energy` are then that step's.
+    /// (1 if none was better); `trial` and `new_energy` are then that step's. `longer`: a work
+    /// vector of x's size (the solve's, allocated once).
     double extend(const VectorXd& x, const VectorXd& p, double slope, double length, double energy, double& new_energy,
-        VectorXd& trial, NewtonResult& result) const;
+        VectorXd& trial, VectorXd& longer, NewtonResult& result) const;
 
     const Problem& m_problem;
     SparseAssembler& m_assembler;

@@ -81,7 +81,10 @@ namespace {
         }
 
         /// Why the last rejected design was rejected.
-        const std::string& last_rejection() const { return m_last_rejection; }
+        std::string last_rejection() const
+        {
+            return m_result.rejections.empty() ? std::string() : m_result.rejections.back().reason;
+        }
 
         bool iteration(const IterationInfo& info) override
         {
@@ -110,9 +113,7 @@ namespace {
         /// Counts a rejected design and records why; false.
         bool reject(const VectorXd& x, const std::string& why)
         {
-            ++m_result.rejected;
             m_result.rejections.push_back({ x, why });
-            m_last_rejection = why;
             return false;
         }
 
@@ -134,7 +135,6 @@ namespace {
         const std::function<void(const CellIteration&)>& m_progress;
         std::map<VectorXd, double, Less> m_quality;
         bool m_remesh = false;
-        std::string m_last_rejection;
         int m_last_iteration = 0;
     };
 

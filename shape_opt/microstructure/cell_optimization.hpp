@@ -51,8 +51,9 @@ struct CellOptimizationResult {
     DesignValue final; ///< at x, on a new mesh of x (with the gradient)
     std::vector<CellIteration> history;
     int remeshes = 0;
-    int evaluations = 0, rejected = 0;
-    std::vector<CellRejection> rejections; ///< every rejected design, in order (rejected of them)
+    int evaluations = 0;
+    std::vector<CellRejection> rejections; ///< every rejected design, in order
+    int rejected() const { return int(rejections.size()); }
     StopReason reason = StopReason::FAILED;
     std::string message;
 };
