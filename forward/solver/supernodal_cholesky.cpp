@@ -35,9 +35,6 @@ namespace {
     // the operations, and their rounding, are the same for any number of threads.
     constexpr int COLUMN_BLOCK = 64;
     constexpr int ROW_BLOCK = 256;
-    /// Rows per task of the panel's triangular solves (the chain of a large supernode's
-    /// blocked Cholesky waits for them at every step).
-    constexpr int TRSM_BLOCK = 64;
     /// A supernode whose work exceeds this many flops splits it into tiles.
     constexpr double TILED_FLOPS = 2e7;
 
@@ -130,6 +127,14 @@ struct SupernodalCholesky::Impl {
     void build_assembly(const SparseMatrixd& lower);
     void factor_supernode(int s, const double* a);
     void factor_supernode_tiled(int s, const double* a);
+    /// The solves with a supernode by column blocks: L y_s = y_s and below = L21 y_s
+    /// (forward); y_s -= L21^T g (g: the solution at the rows below, or null) and
+    /// L^T y_s = y_s (backward). The updates of each block step run concurrently.
+    void forward_blocked(int s, double* ys, double* below) const;
+    /// Whether the solves with s go by column blocks: a tiled supernode at least 4 blocks wide,
+    /// where the chain of diagonal blocks is long enough to pay for the steps' tasks.
+    bool blocked_solve(int s) const { return tiled[size_t(s)] && nscol(s) >= 4 * COLUMN_BLOCK; }
+    void backward_blocked(int s, double* ys, const double* g) const;
     void fail(Index column)
     {
         Index m = minor.load();
@@ -400,6 +405,22 @@ void SupernodalCholesky::Impl::factor_supernode(int s, const double* a)
 
 void SupernodalCholesky::Impl::factor_supernode_tiled(int s, const double* a)
 {
+    // A graph of tile tasks, with no barrier between the steps of the blocked algorithm: the
+    // chain of diagonal factorizations, which decides the time on many threads, advances as
+    // soon as its own inputs are ready.
+    //
+    // Column blocks of B = COLUMN_BLOCK columns; row blocks of B rows over the supernode's
+    // columns (so the diagonal tiles are square) and of ROW_BLOCK rows below them (fewer,
+    // larger BLAS calls where no diagonal waits). Tile (i, j), i >= j, goes through stages
+    // 0, 1, ..., j + 1:
+    // - stage 0 waits for the descendants' updates of its rows and columns, which run on
+    //   update tiles of one column block and about ROW_BLOCK rows, so that each one finds
+    //   its descendants' rows once for several tiles;
+    // - stage k + 1 <= j subtracts L(i, k) L(j, k)^T (syrk on a diagonal tile);
+    // - stage j + 1 factors it: potrf on a diagonal tile, trsm with L(j, j) otherwise.
+    // A stage runs when the previous stage of its tile is done and the tiles it reads are
+    // final. Each tile takes the same BLAS calls in the same order for any thread count, so
+    // the factor does not depend on it.
     const int k1 = super[s], ncol = nscol(s), nrow = nsrow(s);
     double* x = values(s);
     const int* r = rows(s);
@@ -408,123 +429,158 @@ void SupernodalCholesky::Impl::factor_supernode_tiled(int s, const double* a)
     });
     for (int e = assembly_ptr[size_t(s)]; e < assembly_ptr[size_t(s) + 1]; ++e)
         x[assembly_offset[size_t(e)]] = a[assembly_entry[size_t(e)]];
-    // Tiles of the lower trapezoid: column block cb, row block rb with rows >= its first column.
-    struct Tile {
-        int c1, c2, r1, r2;
-    };
-    auto tiles_from = [&](int first_column, int column_end) {
-        std::vector<Tile> tiles;
-        for (int c1 = first_column; c1 < column_end; c1 += COLUMN_BLOCK) {
-            const int c2 = std::min(c1 + COLUMN_BLOCK, column_end);
-            for (int r1 = c1; r1 < nrow; r1 += ROW_BLOCK)
-                tiles.push_back({ c1, c2, r1, std::min(r1 + ROW_BLOCK, nrow) });
-        }
-        return tiles;
-    };
 
-    // 1. Updates from the descendants, tile by tile (each tile adds them in descendant order).
-    const std::vector<Tile> update_tiles = tiles_from(0, ncol);
-    tbb::parallel_for(
-        tbb::blocked_range<size_t>(0, update_tiles.size(), 1), [&](const tbb::blocked_range<size_t>& range) {
-            Workspace& w = workspaces.local();
-            for (size_t t = range.begin(); t < range.end(); ++t) {
-                const Tile& tile = update_tiles[t];
-                const int first_row = r[tile.r1], last_row = r[tile.r2 - 1];
-                for (int u = update_ptr[size_t(s)]; u < update_ptr[size_t(s) + 1]; ++u) {
-                    const Update& up = updates[size_t(u)];
-                    const int* rd = rows(up.d);
-                    const int ndrow = nsrow(up.d);
-                    const int q1 = int(std::lower_bound(rd + up.p1, rd + up.p2, k1 + tile.c1) - rd);
-                    const int q2 = int(std::lower_bound(rd + q1, rd + up.p2, k1 + tile.c2) - rd);
-                    if (q1 == q2)
-                        continue;
-                    const int t1 = std::max(q1, int(std::lower_bound(rd + up.p1, rd + ndrow, first_row) - rd));
-                    const int t2 = int(std::upper_bound(rd + t1, rd + ndrow, last_row) - rd);
-                    if (t1 >= t2)
-                        continue;
-                    const int m = t2 - t1, nn = q2 - q1;
-                    if (w.c.size() < size_t(m) * size_t(nn))
-                        w.c.resize(size_t(m) * size_t(nn));
-                    const double* ld = values(up.d);
-                    gemm_nt(m, nn, nscol(up.d), ld + t1, ndrow, ld + q1, ndrow, w.c.data(), m);
-                    // Local rows of d's rows t1..t2 in s: both lists are sorted and every row of
-                    // d below its columns is a row of s, so one merge over the tile's rows finds them.
-                    if (w.map.size() < size_t(m))
-                        w.map.resize(size_t(m));
-                    for (int ii = 0, j = tile.r1; ii < m; ++ii) {
-                        while (r[j] < rd[t1 + ii])
-                            ++j;
-                        w.map[size_t(ii)] = j;
-                    }
-                    for (int jj = 0; jj < nn; ++jj) {
-                        double* column = x + size_t(rd[q1 + jj] - k1) * size_t(nrow);
-                        const double* cj = w.c.data() + size_t(jj) * size_t(m);
-                        for (int ii = std::max(0, q1 + jj - t1); ii < m; ++ii)
-                            column[w.map[size_t(ii)]] -= cj[ii];
-                    }
-                }
+    constexpr int B = COLUMN_BLOCK;
+    const int ncb = (ncol + B - 1) / B, nrb = ncb + (nrow - ncol + ROW_BLOCK - 1) / ROW_BLOCK;
+    const auto row_start = [&](int i) { return i < ncb ? i * B : ncol + (i - ncb) * ROW_BLOCK; };
+    const auto row_end = [&](int i) {
+        return i < ncb ? std::min((i + 1) * B, ncol) : std::min(ncol + (i - ncb + 1) * ROW_BLOCK, nrow);
+    };
+    const auto column_width = [&](int j) { return std::min((j + 1) * B, ncol) - j * B; };
+    const auto at = [&](int i, int j) { return x + size_t(j) * B * size_t(nrow) + size_t(row_start(i)); };
+    // Column j's tiles are rows j .. nrb - 1; tile t = (i, j) has its stage counters at
+    // pending[stage_base[t] ..]: what each stage still waits for.
+    std::vector<int> column_base(size_t(ncb) + 1, 0);
+    for (int j = 0; j < ncb; ++j)
+        column_base[size_t(j) + 1] = column_base[size_t(j)] + nrb - j;
+    const auto tile_index = [&](int i, int j) { return column_base[size_t(j)] + i - j; };
+    std::vector<int> stage_base(size_t(column_base[size_t(ncb)]) + 1, 0);
+    for (int j = 0; j < ncb; ++j)
+        for (int i = j; i < nrb; ++i)
+            stage_base[size_t(tile_index(i, j)) + 1] = stage_base[size_t(tile_index(i, j))] + j + 2;
+    std::vector<std::atomic<int>> pending(size_t(stage_base.back()));
+    for (int j = 0; j < ncb; ++j)
+        for (int i = j; i < nrb; ++i) {
+            const int base = stage_base[size_t(tile_index(i, j))];
+            pending[size_t(base)].store(1, std::memory_order_relaxed); // the descendants' updates
+            for (int k = 0; k < j; ++k) // sources L(i, k) and L(j, k), and the stage before
+                pending[size_t(base + k + 1)].store((i == j ? 1 : 2) + 1, std::memory_order_relaxed);
+            pending[size_t(base + j + 1)].store((i == j ? 0 : 1) + 1, std::memory_order_relaxed);
+        }
+    // The descendants' update tiles: column block j, the tiles' row blocks first .. last
+    // (rows r1 .. r2: whole tiles, about ROW_BLOCK rows).
+    struct UpdateTile {
+        int c1, c2, r1, r2, j, first, last;
+    };
+    std::vector<UpdateTile> update_tiles;
+    for (int j = 0; j < ncb; ++j)
+        for (int i = j; i < nrb;) {
+            int last = i;
+            while (last + 1 < nrb && row_end(last + 1) - row_start(i) <= ROW_BLOCK)
+                ++last;
+            update_tiles.push_back({ j * B, j * B + column_width(j), row_start(i), row_end(last), j, i, last });
+            i = last + 1;
+        }
+
+    // A task: stage k of tile (i, j), or (k < 0) the update tile i.
+    struct Task {
+        int i, j, k;
+    };
+    const auto descendant_updates = [&](const UpdateTile& tile) {
+        Workspace& w = workspaces.local();
+        const int first_row = r[tile.r1], last_row = r[tile.r2 - 1];
+        for (int u = update_ptr[size_t(s)]; u < update_ptr[size_t(s) + 1]; ++u) {
+            const Update& up = updates[size_t(u)];
+            const int* rd = rows(up.d);
+            const int ndrow = nsrow(up.d);
+            const int q1 = int(std::lower_bound(rd + up.p1, rd + up.p2, k1 + tile.c1) - rd);
+            const int q2 = int(std::lower_bound(rd + q1, rd + up.p2, k1 + tile.c2) - rd);
+            if (q1 == q2)
+                continue;
+            const int t1 = std::max(q1, int(std::lower_bound(rd + up.p1, rd + ndrow, first_row) - rd));
+            const int t2 = int(std::upper_bound(rd + t1, rd + ndrow, last_row) - rd);
+            if (t1 >= t2)
+                continue;
+            const int m = t2 - t1, nn = q2 - q1;
+            if (w.c.size() < size_t(m) * size_t(nn))
+                w.c.resize(size_t(m) * size_t(nn));
+            const double* ld = values(up.d);
+            gemm_nt(m, nn, nscol(up.d), ld + t1, ndrow, ld + q1, ndrow, w.c.data(), m);
+            // Local rows of d's rows t1..t2 in s: both lists are sorted and every row of
+            // d below its columns is a row of s, so one merge over the tile's rows finds them.
+            if (w.map.size() < size_t(m))
+                w.map.resize(size_t(m));
+            for (int ii = 0, j = tile.r1; ii < m; ++ii) {
+                while (r[j] < rd[t1 + ii])
+                    ++j;
+                w.map[size_t(ii)] = j;
             }
-        });
-
-    // 2. Blocked right-looking Cholesky of the panel (nrow x ncol), with a look-ahead of one
-    // column block: step kb first updates the next column block, then factors it (its
-    // diagonal block and the triangular solves below) while the rest of the trailing matrix
-    // takes step kb's update. Each tile still receives the updates of steps 0, 1, ... in
-    // order, with the same BLAS calls, so the factor does not depend on the thread count.
-    const auto factor_panel = [&](int kb) {
-        const int kw = std::min(COLUMN_BLOCK, ncol - kb);
-        double* akk = x + size_t(kb) * size_t(nrow) + size_t(kb);
-        int info = 0;
-        dpotrf_("L", &kw, akk, &nrow, &info);
-        if (info != 0) {
-            fail(k1 + kb + info - 1);
-            return false;
+            for (int jj = 0; jj < nn; ++jj) {
+                double* column = x + size_t(rd[q1 + jj] - k1) * size_t(nrow);
+                const double* cj = w.c.data() + size_t(jj) * size_t(m);
+                for (int ii = std::max(0, q1 + jj - t1); ii < m; ++ii)
+                    column[w.map[size_t(ii)]] -= cj[ii];
+            }
         }
-        const int below = nrow - kb - kw;
-        if (below > 0) // simple_partitioner: the blocks (and so each BLAS call) do not depend on the threads.
-            tbb::parallel_for(
-                tbb::blocked_range<int>(0, below, TRSM_BLOCK),
-                [&](const tbb::blocked_range<int>& range) {
-                    trsm_right_lower_t(range.end() - range.begin(), kw, akk, nrow, akk + kw + range.begin(), nrow);
-                },
-                tbb::simple_partitioner());
-        return true;
     };
-    // Step kb's update of the columns first_column .. column_end - 1 (multiples of COLUMN_BLOCK past kb).
-    const auto update = [&](int kb, int first_column, int column_end) {
-        const int kw = std::min(COLUMN_BLOCK, ncol - kb);
-        const std::vector<Tile> trailing = tiles_from(first_column, column_end);
-        tbb::parallel_for(
-            tbb::blocked_range<size_t>(0, trailing.size(), 1), [&](const tbb::blocked_range<size_t>& range) {
-                for (size_t t = range.begin(); t < range.end(); ++t) {
-                    const Tile& tile = trailing[t];
-                    const int nn = tile.c2 - tile.c1;
-                    const double* lc = x + size_t(kb) * size_t(nrow) + size_t(tile.c1); // L(c1:c2, kb:kb+kw)
-                    double* target = x + size_t(tile.c1) * size_t(nrow) + size_t(tile.r1);
-                    int r1 = tile.r1;
-                    if (r1 == tile.c1) { // the diagonal square: lower triangle only
-                        dsyrk_("L", "N", &nn, &kw, &MINUS_ONE, lc, &nrow, &ONE, target, &nrow);
-                        r1 += nn;
-                        target += nn;
-                    }
-                    if (tile.r2 > r1)
-                        gemm_nt_sub(tile.r2 - r1, nn, kw, x + size_t(kb) * size_t(nrow) + size_t(r1), nrow, lc, nrow,
-                            target, nrow);
-                }
-            });
-    };
-    if (failed() || !factor_panel(0))
-        return;
-    for (int kb = 0; kb + COLUMN_BLOCK < ncol; kb += COLUMN_BLOCK) {
-        const int next = kb + COLUMN_BLOCK, next_end = std::min(next + COLUMN_BLOCK, ncol);
-        update(kb, next, next_end);
-        tbb::task_group rest;
-        rest.run([&] { update(kb, next_end, ncol); }); // writes only columns next_end ..
-        const bool factored = !failed() && factor_panel(next); // reads and writes only columns next .. next_end
-        rest.wait();
-        if (!factored)
+    // Runs a task; appends the stages it made ready.
+    const auto run = [&](const Task& t, std::vector<Task>& ready) {
+        const auto release = [&](int i, int j, int stage) {
+            if (pending[size_t(stage_base[size_t(tile_index(i, j))] + stage)].fetch_sub(1, std::memory_order_acq_rel)
+                == 1)
+                ready.push_back({ i, j, stage });
+        };
+        if (t.k < 0) {
+            const UpdateTile& tile = update_tiles[size_t(t.i)];
+            descendant_updates(tile);
+            for (int i = tile.first; i <= tile.last; ++i)
+                release(i, tile.j, 0);
             return;
-    }
+        }
+        const int i = t.i, j = t.j, stage = t.k;
+        const int height = row_end(i) - row_start(i), width = column_width(j);
+        if (stage == 0) { // the descendants' updates are in
+            release(i, j, 1);
+            return;
+        }
+        if (stage <= j) {
+            const int k = stage - 1, kw = column_width(k);
+            const double* li = at(i, k);
+            const double* lj = at(j, k);
+            double* target = at(i, j);
+            if (i == j) // square
+                dsyrk_("L", "N", &width, &kw, &MINUS_ONE, lj, &nrow, &ONE, target, &nrow);
+            else
+                gemm_nt_sub(height, width, kw, li, nrow, lj, nrow, target, nrow);
+            release(i, j, stage + 1);
+            return;
+        }
+        double* tile = at(i, j);
+        if (i == j) {
+            int info = 0;
+            dpotrf_("L", &width, tile, &nrow, &info);
+            if (info != 0) {
+                fail(k1 + j * B + info - 1);
+                return;
+            }
+            for (int below = i + 1; below < nrb; ++below) // their final stage waits for L(j, j)
+                release(below, j, j + 1);
+        } else {
+            trsm_right_lower_t(height, width, at(j, j), nrow, tile, nrow);
+            // L(i, j) is final: stage j + 1 of the tiles that read it.
+            for (int c = j + 1; c <= std::min(i, ncb - 1); ++c)
+                release(i, c, j + 1);
+            if (i < ncb)
+                for (int below = i + 1; below < nrb; ++below)
+                    release(below, i, j + 1);
+        }
+    };
+    tbb::task_group group;
+    const auto launch = [&](const auto& self, Task t) -> void {
+        std::vector<Task> ready;
+        while (!failed()) {
+            ready.clear();
+            run(t, ready);
+            if (ready.empty())
+                return;
+            for (size_t next = 1; next < ready.size(); ++next)
+                group.run([&self, task = ready[next]] { self(self, task); });
+            t = ready.front();
+        }
+    };
+    for (size_t u = 0; u < update_tiles.size(); ++u)
+        group.run([&launch, u] { launch(launch, { int(u), 0, -1 }); });
+    group.wait();
 }
 
 bool SupernodalCholesky::factorize(const SparseMatrixd& lower)
@@ -565,6 +621,70 @@ bool SupernodalCholesky::factorize(const SparseMatrixd& lower)
     return !m.failed();
 }
 
+void SupernodalCholesky::Impl::forward_blocked(int s, double* ys, double* below) const
+{
+    const int ncol = nscol(s), nrow = nsrow(s), rows_below = nrow - ncol, one = 1;
+    const double* x = values(s);
+    constexpr int B = COLUMN_BLOCK;
+    const int ncb = (ncol + B - 1) / B, nbb = (rows_below + ROW_BLOCK - 1) / ROW_BLOCK;
+    std::fill(below, below + rows_below, 0.0);
+    for (int j = 0; j < ncb; ++j) {
+        const int w = std::min(B, ncol - j * B);
+        const double* ljj = x + size_t(j) * B * size_t(nrow) + size_t(j) * B;
+        double* yj = ys + j * B;
+        dtrsv_("L", "N", "N", &w, ljj, &nrow, yj, &one);
+        // y_i -= L(i, j) y_j for the blocks i > j; below += L21(:, j) y_j. One BLAS call per
+        // block and step, in step order: the same for any thread count.
+        const int later = ncb - j - 1;
+        tbb::parallel_for(
+            tbb::blocked_range<int>(0, later + nbb, 1),
+            [&](const tbb::blocked_range<int>& range) {
+                for (int t = range.begin(); t < range.end(); ++t) {
+                    const int r1 = t < later ? (j + 1 + t) * B : ncol + (t - later) * ROW_BLOCK;
+                    const int h = t < later ? std::min(B, ncol - r1) : std::min(ROW_BLOCK, nrow - r1);
+                    double* target = t < later ? ys + r1 : below + (r1 - ncol);
+                    const double* alpha = t < later ? &MINUS_ONE : &ONE;
+                    dgemv_("N", &h, &w, alpha, x + size_t(j) * B * size_t(nrow) + size_t(r1), &nrow, yj, &one, &ONE,
+                        target, &one);
+                }
+            },
+            tbb::simple_partitioner());
+    }
+}
+
+void SupernodalCholesky::Impl::backward_blocked(int s, double* ys, const double* g) const
+{
+    const int ncol = nscol(s), nrow = nsrow(s), rows_below = nrow - ncol, one = 1;
+    const double* x = values(s);
+    constexpr int B = COLUMN_BLOCK;
+    const int ncb = (ncol + B - 1) / B;
+    if (g && rows_below > 0)
+        tbb::parallel_for(
+            tbb::blocked_range<int>(0, ncb, 1),
+            [&](const tbb::blocked_range<int>& range) {
+                for (int k = range.begin(); k < range.end(); ++k) {
+                    const int w = std::min(B, ncol - k * B);
+                    dgemv_("T", &rows_below, &w, &MINUS_ONE, x + size_t(k) * B * size_t(nrow) + size_t(ncol), &nrow, g,
+                        &one, &ONE, ys + k * B, &one);
+                }
+            },
+            tbb::simple_partitioner());
+    for (int j = ncb - 1; j >= 0; --j) {
+        const int w = std::min(B, ncol - j * B);
+        double* yj = ys + j * B;
+        dtrsv_("L", "T", "N", &w, x + size_t(j) * B * size_t(nrow) + size_t(j) * B, &nrow, yj, &one);
+        // y_k -= L(j, k)^T y_j for the blocks k < j.
+        tbb::parallel_for(
+            tbb::blocked_range<int>(0, j, 1),
+            [&](const tbb::blocked_range<int>& range) {
+                for (int k = range.begin(); k < range.end(); ++k)
+                    dgemv_("T", &w, &B, &MINUS_ONE, x + size_t(k) * B * size_t(nrow) + size_t(j) * B, &nrow, yj, &one,
+                        &ONE, ys + k * B, &one);
+            },
+            tbb::simple_partitioner());
+    }
+}
+
 VectorXd SupernodalCholesky::solve(const VectorXd& b) const
 {
     const Impl& m = *m_impl;
@@ -595,6 +715,10 @@ VectorXd SupernodalCholesky::solve(const VectorXd& b) const
                 y[rd[i]] -= bd[i];
         }
         const double* x = m.values(s);
+        if (m.blocked_solve(s)) {
+            m.forward_blocked(s, y.data() + k1, below.data() + m.below_ptr[size_t(s)]);
+            return;
+        }
         dtrsv_("L", "N", "N", &ncol, x, &nrow, y.data() + k1, &one);
         if (nrow > ncol) {
             const int rows_below = nrow - ncol;
@@ -602,19 +726,26 @@ VectorXd SupernodalCholesky::solve(const VectorXd& b) const
                 below.data() + m.below_ptr[size_t(s)], &one);
         }
     });
-    tbb::enumerable_thread_specific<std::vector<double>> gathered;
+    // Backward, s gathers the solution at its rows below into its own slot of `below` (the
+    // forward pass is done with it): no scratch is shared between supernodes, so none can be
+    // overwritten by another supernode's step that this thread runs while it waits for tasks.
     m.top_down([&](int s) {
         const int k1 = m.super[s], ncol = m.nscol(s), nrow = m.nsrow(s);
         const double* x = m.values(s);
-        if (nrow > ncol) {
-            const int rows_below = nrow - ncol;
-            std::vector<double>& g = gathered.local();
-            g.resize(size_t(rows_below));
+        const bool blocked = m.blocked_solve(s);
+        const int rows_below = nrow - ncol;
+        double* g = rows_below > 0 ? below.data() + m.below_ptr[size_t(s)] : nullptr;
+        if (g) {
             const int* r = m.rows(s) + ncol;
             for (int i = 0; i < rows_below; ++i)
-                g[size_t(i)] = y[r[i]];
-            dgemv_("T", &rows_below, &ncol, &MINUS_ONE, x + ncol, &nrow, g.data(), &one, &ONE, y.data() + k1, &one);
+                g[i] = y[r[i]];
         }
+        if (blocked) {
+            m.backward_blocked(s, y.data() + k1, g);
+            return;
+        }
+        if (g)
+            dgemv_("T", &rows_below, &ncol, &MINUS_ONE, x + ncol, &nrow, g, &one, &ONE, y.data() + k1, &one);
         dtrsv_("L", "T", "N", &ncol, x, &nrow, y.data() + k1, &one);
     });
     VectorXd result(m.n);

@@ -9,10 +9,12 @@
 /// are too small to share (measured: 1.7x from 2 to 16 cores on a 112k-dof box). Here
 /// a supernode is a task that runs as soon as its children in the supernodal
 /// elimination tree are done (independent subtrees run concurrently), and a large
-/// supernode splits its own work into tiles (descendant updates by column and row
-/// block, a blocked right-looking Cholesky of its panel) that run concurrently. Every
-/// BLAS call is single-threaded and every tile has a fixed size, so the factor is
-/// the same, bit for bit, for any thread count.
+/// supernode splits its own work into a graph of tile tasks (descendant updates by
+/// column and row block, then a tiled right-looking Cholesky of its panel in which each
+/// tile's update, factorization or triangular solve runs as soon as its inputs are
+/// final, with no barrier between the steps). Its triangular solves go by column
+/// blocks too. Every BLAS call is single-threaded and every tile has a fixed size, so
+/// the factor and the solutions are the same, bit for bit, for any thread count.
 ///
 /// The algorithm is the left-looking supernodal Cholesky (Ng and Peyton 1993; the one
 /// in CHOLMOD's cholmod_super_numeric): supernode s gathers its columns of A, subtracts

@@ -15,9 +15,12 @@ from design_checks import tet_volumes
 def test_study_406_short(cli, tmp_path):
     meshio = pytest.importorskip("meshio")
     p = json.loads((ROOT / "studies" / "406_cantilever_3d_remesh" / "problem.json").read_text())
-    # Remesh a little earlier than the study (measured: after iteration 10, quality 0.392 -> 0.444).
+    # Remesh a little earlier than the study. gmsh's mesh depends on the design to its last
+    # bits, and so on the solver's round-off (measured: after iteration 10, 0.392 -> 0.444 with
+    # one build; with the next one's tiled Cholesky a refused attempt at iteration 10, 0.356 not
+    # above 0.392, then after iteration 12, 0.337 -> 0.346).
     p["remesh"]["quality"] = 0.4
-    p["optimizer"]["max_iterations"] = 14
+    p["optimizer"]["max_iterations"] = 16  # a few iterations on the new mesh
     p["output"] = {"design_every": 1}
     problem = tmp_path / "problem.json"
     problem.write_text(json.dumps(p))
@@ -27,7 +30,9 @@ def test_study_406_short(cli, tmp_path):
     s = json.loads((out / "summary.json").read_text())
     assert len(s["remeshes"]) == 1, (s.get("remesh_failure"), r.stdout[-2000:])
     rm = s["remeshes"][0]
-    assert rm["quality_before"] < 0.4 < rm["quality_after"]
+    # The trigger fired, and the new mesh was kept only because it is better (docs/remeshing.md).
+    assert rm["quality_before"] < 0.4
+    assert rm["quality_after"] > rm["quality_before"]
     # Discretization tolerances (README: at the study's remesh the structured mesh is 3.6% too
     # stiff against a fine reference, the new one 1.2%; measured here: J +2.0%, volume +0.0045%):
     # J within 4%, the volume within 0.1% (chords of the new surface triangles).

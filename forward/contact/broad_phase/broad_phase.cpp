@@ -7,6 +7,7 @@
 
 #include <tbb/enumerable_thread_specific.h>
 #include <tbb/parallel_for.h>
+#include <tbb/parallel_invoke.h>
 #include <tbb/parallel_sort.h>
 
 #include <algorithm>
@@ -234,12 +235,19 @@ Candidates broad_phase_candidates(
         to_full_vertex_index(mesh, c.vertex_edge);
         sort_by_full_vertex(mesh, c.vertex_edge);
     } else {
-        c.vertex_face = accelerated_pairs(
-            method, 3, boxes.vertices, &boxes.faces, [&](Index i, Index f) { return accept_vertex_face(mesh, i, f); });
-        to_full_vertex_index(mesh, c.vertex_face);
-        sort_by_full_vertex(mesh, c.vertex_face);
-        c.edge_edge = accelerated_pairs(
-            method, 3, boxes.edges, nullptr, [&](Index a, Index b) { return accept_edge_edge(mesh, a, b); });
+        // The two searches are independent; each has serial parts (the grid's sort) that the
+        // other's work can overlap.
+        tbb::parallel_invoke(
+            [&] {
+                c.vertex_face = accelerated_pairs(method, 3, boxes.vertices, &boxes.faces,
+                    [&](Index i, Index f) { return accept_vertex_face(mesh, i, f); });
+                to_full_vertex_index(mesh, c.vertex_face);
+                sort_by_full_vertex(mesh, c.vertex_face);
+            },
+            [&] {
+                c.edge_edge = accelerated_pairs(
+                    method, 3, boxes.edges, nullptr, [&](Index a, Index b) { return accept_edge_edge(mesh, a, b); });
+            });
     }
     return c;
 }
