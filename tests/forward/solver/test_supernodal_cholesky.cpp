@@ -170,7 +170,7 @@ TEST(SupernodalCholesky, SameBitsForAnyThreadCount)
     const VectorXd b = random_vector(a.rows(), 11);
     std::vector<VectorXd> solutions;
     // 16 threads oversubscribe a small machine on purpose, and each factorization is solved
-    // with many times: tasks then interleave and wait on each other in many orders (a race
+    // many times: tasks then interleave and wait on each other in many orders (a race
     // on a thread's scratch in the solve once showed only from 8 threads up).
     for (int threads : { 1, 4, 2, 16, 3 }) {
         tbb::global_control limit(tbb::global_control::max_allowed_parallelism, size_t(threads));
