@@ -412,15 +412,14 @@ void SupernodalCholesky::Impl::factor_supernode_tiled(int s, const double* a)
     // Column blocks of B = COLUMN_BLOCK columns; row blocks of B rows over the supernode's
     // columns (so the diagonal tiles are square) and of ROW_BLOCK rows below them (fewer,
     // larger BLAS calls where no diagonal waits). Tile (i, j), i >= j, goes through stages
-    // 0, 1, ..., j + 1:
-    // - stage 0 waits for the descendants' updates of its rows and columns, which run on
-    //   update tiles of one column block and about ROW_BLOCK rows, so that each one finds
-    //   its descendants' rows once for several tiles;
-    // - stage k + 1 <= j subtracts L(i, k) L(j, k)^T (syrk on a diagonal tile);
-    // - stage j + 1 factors it: potrf on a diagonal tile, trsm with L(j, j) otherwise.
-    // A stage runs when the previous stage of its tile is done and the tiles it reads are
-    // final. Each tile takes the same BLAS calls in the same order for any thread count, so
-    // the factor does not depend on it.
+    // 0, 1, ..., j:
+    // - stage k < j subtracts L(i, k) L(j, k)^T (syrk on a diagonal tile);
+    // - stage j factors it: potrf on a diagonal tile, trsm with L(j, j) otherwise.
+    // A stage runs when the previous stage of its tile is done (for stage 0: the
+    // descendants' updates of its rows and columns, which run on update tiles of one column
+    // block and about ROW_BLOCK rows, so that each one finds its descendants' rows once for
+    // several tiles) and the tiles it reads are final. Each tile takes the same BLAS calls in the same order for any
+    // thread count, so the factor does not depend on it.
     const int k1 = super[s], ncol = nscol(s), nrow = nsrow(s);
     double* x = values(s);
     const int* r = rows(s);
@@ -447,15 +446,16 @@ void SupernodalCholesky::Impl::factor_supernode_tiled(int s, const double* a)
     std::vector<int> stage_base(size_t(column_base[size_t(ncb)]) + 1, 0);
     for (int j = 0; j < ncb; ++j)
         for (int i = j; i < nrb; ++i)
-            stage_base[size_t(tile_index(i, j)) + 1] = stage_base[size_t(tile_index(i, j))] + j + 2;
+            stage_base[size_t(tile_index(i, j)) + 1] = stage_base[size_t(tile_index(i, j))] + j + 1;
     std::vector<std::atomic<int>> pending(size_t(stage_base.back()));
     for (int j = 0; j < ncb; ++j)
         for (int i = j; i < nrb; ++i) {
             const int base = stage_base[size_t(tile_index(i, j))];
-            pending[size_t(base)].store(1, std::memory_order_relaxed); // the descendants' updates
-            for (int k = 0; k < j; ++k) // sources L(i, k) and L(j, k), and the stage before
-                pending[size_t(base + k + 1)].store((i == j ? 1 : 2) + 1, std::memory_order_relaxed);
-            pending[size_t(base + j + 1)].store((i == j ? 0 : 1) + 1, std::memory_order_relaxed);
+            // Each stage waits for the stage before (stage 0: the descendants' updates), and
+            // for its sources: L(i, k) and L(j, k) at stage k < j, L(j, j) at stage j.
+            for (int k = 0; k < j; ++k)
+                pending[size_t(base + k)].store((i == j ? 1 : 2) + 1, std::memory_order_relaxed);
+            pending[size_t(base + j)].store((i == j ? 0 : 1) + 1, std::memory_order_relaxed);
         }
     // The descendants' update tiles: column block j, the tiles' row blocks first .. last
     // (rows r1 .. r2: whole tiles, about ROW_BLOCK rows).
@@ -527,14 +527,10 @@ void SupernodalCholesky::Impl::factor_supernode_tiled(int s, const double* a)
                 release(i, tile.j, 0);
             return;
         }
-        const int i = t.i, j = t.j, stage = t.k;
+        const int i = t.i, j = t.j, k = t.k;
         const int height = row_end(i) - row_start(i), width = column_width(j);
-        if (stage == 0) { // the descendants' updates are in
-            release(i, j, 1);
-            return;
-        }
-        if (stage <= j) {
-            const int k = stage - 1, kw = column_width(k);
+        if (k < j) {
+            const int kw = column_width(k);
             const double* li = at(i, k);
             const double* lj = at(j, k);
             double* target = at(i, j);
@@ -542,7 +538,7 @@ void SupernodalCholesky::Impl::factor_supernode_tiled(int s, const double* a)
                 dsyrk_("L", "N", &width, &kw, &MINUS_ONE, lj, &nrow, &ONE, target, &nrow);
             else
                 gemm_nt_sub(height, width, kw, li, nrow, lj, nrow, target, nrow);
-            release(i, j, stage + 1);
+            release(i, j, k + 1);
             return;
         }
         double* tile = at(i, j);
@@ -554,15 +550,15 @@ void SupernodalCholesky::Impl::factor_supernode_tiled(int s, const double* a)
                 return;
             }
             for (int below = i + 1; below < nrb; ++below) // their final stage waits for L(j, j)
-                release(below, j, j + 1);
+                release(below, j, j);
         } else {
             trsm_right_lower_t(height, width, at(j, j), nrow, tile, nrow);
-            // L(i, j) is final: stage j + 1 of the tiles that read it.
+            // L(i, j) is final: stage j of the tiles that read it.
             for (int c = j + 1; c <= std::min(i, ncb - 1); ++c)
-                release(i, c, j + 1);
+                release(i, c, j);
             if (i < ncb)
                 for (int below = i + 1; below < nrb; ++below)
-                    release(below, i, j + 1);
+                    release(below, i, j);
         }
     };
     tbb::task_group group;

@@ -17,7 +17,8 @@ using namespace diffipc;
 
 namespace {
 
-/// Lower triangle of an SPD stiffness-like matrix on an n^3 grid with 3 dofs per vertex:
+/// Lower triangle of an SPD stiffness-like matrix on an n x n x layers grid (layers = n when
+/// 0) with 3 dofs per vertex:
 /// sum over grid edges (a, b) of (e_a - e_b)(e_a - e_b)^T (x) M_ab with random SPD 3x3 M_ab,
 /// plus `shift` I. `keep_edge` drops edges (a pattern within the full one).
 SparseMatrixd grid_matrix(int n, double shift, unsigned seed, int drop_every = 0, int layers = 0)
