@@ -72,18 +72,21 @@ int main(int argc, char** argv)
         ->check(CLI::Range(1, 4096));
     auto* info_cmd = app.add_subcommand("info", "Print the version and the effective thread configuration");
 
-    std::string scene_path, out_dir, restart_dir;
-    int vtu_every = -1;
-    bool quiet = false;
+    SimulateOptions sim_options;
     auto* sim_cmd
         = app.add_subcommand("simulate", "Run a scene; writes trajectory.h5, summary.json and optional VTU files");
-    sim_cmd->add_option("scene", scene_path, "scene file (JSON); with --restart, default: the one the run was for");
-    sim_cmd->add_option("--restart", restart_dir,
+    sim_cmd->add_option(
+        "scene", sim_options.scene_path, "scene file (JSON); with --restart, default: the one the run was for");
+    sim_cmd->add_option("--restart", sim_options.restart,
         "continue the run in this output directory from the last committed step of its trajectory.h5");
-    sim_cmd->add_option("-o,--output", out_dir, "output directory (default: the scene's output.directory)");
-    sim_cmd->add_option("--vtu-every", vtu_every, "write a VTU frame every N steps (0: none; default: the scene's)")
+    sim_cmd->add_option("-o,--output", sim_options.out_dir, "output directory (default: the scene's output.directory)");
+    sim_cmd
+        ->add_option(
+            "--vtu-every", sim_options.vtu_every, "write a VTU frame every N steps (0: none; default: the scene's)")
         ->check(CLI::Range(0, 1 << 30));
-    sim_cmd->add_flag("-q,--quiet", quiet, "no progress output");
+    sim_cmd->add_option("--steps", sim_options.steps, "time steps to take, replacing the scene's time.steps")
+        ->check(CLI::Range(1, 1 << 30));
+    sim_cmd->add_flag("-q,--quiet", sim_options.quiet, "no progress output");
 
     std::string validate_path;
     auto* val_cmd = app.add_subcommand("validate", "Check a scene file and report what it contains");
@@ -167,7 +170,7 @@ int main(int argc, char** argv)
             return 0;
         }
         if (*sim_cmd)
-            return simulate(scene_path, out_dir, vtu_every, quiet, restart_dir);
+            return simulate(sim_options);
         if (*val_cmd)
             return validate(validate_path);
         if (*check_cmd)

@@ -61,8 +61,12 @@ std::unique_ptr<Simulator> open_simulator(Scene scene, const std::string& scene_
     }
 }
 
-int simulate(std::string scene_path, std::string out_dir, int vtu_every, bool quiet, const std::string& restart)
+int simulate(SimulateOptions options)
 {
+    std::string& scene_path = options.scene_path;
+    std::string& out_dir = options.out_dir;
+    const std::string& restart = options.restart;
+    const bool quiet = options.quiet;
     // --restart DIR: the run in DIR goes on from its last committed step in trajectory.h5.
     std::unique_ptr<StoredTrajectory> stored;
     if (!restart.empty()) {
@@ -82,8 +86,10 @@ int simulate(std::string scene_path, std::string out_dir, int vtu_every, bool qu
     Scene scene = load_scene(scene_path);
     if (out_dir.empty())
         out_dir = scene.output.directory;
-    if (vtu_every >= 0)
-        scene.output.vtu_every = vtu_every;
+    if (options.vtu_every >= 0)
+        scene.output.vtu_every = options.vtu_every;
+    if (options.steps >= 0)
+        scene.time.steps = options.steps;
     std::error_code ec;
     fs::create_directories(out_dir, ec);
     if (ec || !fs::is_directory(out_dir))

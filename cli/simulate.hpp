@@ -13,13 +13,19 @@ namespace diffipc {
 /// geometry, for example) name the scene file like the scene's own.
 std::unique_ptr<Simulator> open_simulator(Scene scene, const std::string& scene_path);
 
-/// @brief Runs a scene, streaming trajectory.h5, summary.json and VTU frames into out_dir.
-/// @param scene_path the scene file (with `restart`, empty: the one the stored run names)
-/// @param out_dir    output directory (empty: the scene's output.directory)
-/// @param vtu_every  VTU frame interval (-1: the scene's)
-/// @param restart    non-empty: continue the run in this directory from its trajectory.h5
+/// The options of `diffipc simulate`.
+struct SimulateOptions {
+    std::string scene_path; ///< the scene file (with `restart`, empty: the one the stored run names)
+    std::string out_dir; ///< output directory (empty: the scene's output.directory)
+    int vtu_every = -1; ///< VTU frame interval (-1: the scene's)
+    int steps = -1; ///< time steps, replacing the scene's time.steps (-1: the scene's)
+    bool quiet = false;
+    std::string restart; ///< non-empty: continue the run in this directory from its trajectory.h5
+};
+
+/// @brief Runs a scene, streaming trajectory.h5, summary.json and VTU frames into the output directory.
 /// @return the exit code: 0, 2 (a step failed) or 128 + signal (stopped by SIGINT/SIGTERM)
 /// @throws InputError for bad input (exit 1)
-int simulate(std::string scene_path, std::string out_dir, int vtu_every, bool quiet, const std::string& restart);
+int simulate(SimulateOptions options);
 
 } // namespace diffipc

@@ -38,6 +38,12 @@ nlohmann::json summary_json(const Simulator& simulator)
     j["wall_time"]
         = { { "total", tr.wall_time }, { "assembly", tr.phases.assembly }, { "factorization", tr.phases.factorization },
               { "solve", tr.phases.solve }, { "line_search", tr.phases.line_search } };
+    // The work per potential (Problem::work): a potential the scene does not need never runs.
+    nlohmann::json potentials = nlohmann::json::object();
+    for (const Problem::TermWork& w : simulator.problem().work())
+        potentials[w.name] = { { "values", w.values }, { "gradients", w.gradients }, { "hessians", w.hessians },
+            { "step_bounds", w.step_bounds }, { "time", w.time } };
+    j["potentials"] = potentials;
     if (simulator.contact()) {
         const double min_distance = totals.min_distance;
         const int max_active = totals.max_active_contacts;

@@ -62,12 +62,18 @@ public:
     void add_gradient(const VectorXd&, double weight, VectorXd& g) const override { g -= weight * m_force; }
     void add_hessian(const VectorXd&, double, bool, SparseAssembler&) const override { }
     /// Flattened nodal forces (N), #V*dim.
-    void set_force(const VectorXd& f) { m_force = f; }
+    void set_force(const VectorXd& f)
+    {
+        m_force = f;
+        m_zero = (f.array() == 0).all();
+    }
+    bool vanishes() const override { return m_zero; }
     const VectorXd& force() const { return m_force; }
 
 private:
     VectorXd m_rest;
     VectorXd m_force;
+    bool m_zero = true;
 };
 
 } // namespace diffipc

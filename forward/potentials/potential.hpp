@@ -52,6 +52,9 @@ public:
     }
     /// True if the last max_step() could not certify any positive step (CCD budget).
     virtual bool step_unresolved() const { return false; }
+    /// True while the term is identically zero (e.g. external forces that are all zero):
+    /// the Problem then skips it, as it skips a zero weight.
+    virtual bool vanishes() const { return false; }
     /// @brief Called after each accepted Newton iteration at the new iterate;
     /// returns true if the potential changed its own parameters (the energy
     /// at x must then be re-evaluated), e.g. an adaptive barrier stiffness.

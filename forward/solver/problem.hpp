@@ -7,13 +7,14 @@
 #include "forward/potentials/potential.hpp"
 #include "forward/solver/sparse_assembler.hpp"
 
+#include <string>
 #include <vector>
 
 namespace diffipc {
 
 class Problem {
 public:
-    void add(Potential* potential, double weight) { m_terms.push_back({ potential, weight }); }
+    void add(Potential* potential, double weight);
     /// Removes the potential's term (std::logic_error if it is not in the problem).
     void remove(const Potential* potential);
     void set_weight(const Potential* potential, double weight);
@@ -36,11 +37,28 @@ public:
     struct Term {
         Potential* potential;
         double weight;
+        int work; ///< index into work()
     };
     const std::vector<Term>& terms() const { return m_terms; }
 
+    /// The work done on one potential through this problem: how often each of its
+    /// methods ran and their wall time. A term whose weight is 0, or whose potential
+    /// vanishes() at the time, is skipped and counts nothing.
+    struct TermWork {
+        std::string name; ///< Potential::name()
+        long values = 0; ///< value() and value_scale() calls
+        long gradients = 0;
+        long hessians = 0;
+        long step_bounds = 0; ///< max_step() calls
+        double time = 0; ///< s, in all of those
+    };
+    /// One entry per potential ever added, in the order of their first add (kept after remove()).
+    const std::vector<TermWork>& work() const { return m_work; }
+
 private:
     std::vector<Term> m_terms;
+    mutable std::vector<TermWork> m_work;
+    std::vector<const Potential*> m_work_of; ///< the potential of each work() entry
 };
 
 } // namespace diffipc

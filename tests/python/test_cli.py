@@ -488,3 +488,16 @@ def test_a_periodic_cell_writes_its_macro_datasets_and_restarts_bit_for_bit(cli,
         f["positions"][...] = x
     r = run(cli, "check", "whole", "-q", cwd=tmp_path)
     assert r.returncode == 2 and r.stdout.startswith("state 4 "), r.stdout + r.stderr
+
+
+def test_steps_option_replaces_the_scenes_step_count(cli, tmp_path):
+    scene = tmp_path / "scene.json"
+    scene.write_text(json.dumps(box_scene(dim=2, steps=5)))
+    for steps in (2, 7):
+        out = tmp_path / f"out{steps}"
+        r = run(cli, "simulate", scene, "-o", out, "--steps", steps, "-q")
+        assert r.returncode == 0, r.stderr
+        summary = json.loads((out / "summary.json").read_text())
+        assert summary["steps_requested"] == steps and summary["steps_committed"] == steps
+    r = run(cli, "simulate", scene, "-o", tmp_path / "bad", "--steps", 0)
+    assert r.returncode != 0 and "--steps" in r.stderr
