@@ -34,8 +34,11 @@ TEST(ForgetRecords, SameStatesCountAndTotalsAsKeepingThem)
         EXPECT_EQ(kept.velocities(), streamed.velocities()) << name;
         // The summary of the streamed run equals the one computed from every record.
         nlohmann::json a = summary_json(kept), b = summary_json(streamed);
-        for (auto* j : { &a, &b })
+        for (auto* j : { &a, &b }) {
             j->erase("wall_time");
+            for (auto& [name, work] : (*j)["potentials"].items())
+                work.erase("time");
+        }
         EXPECT_EQ(a, b) << name;
         double min_ratio = 1, max_residual = 0;
         for (const StepRecord& r : kept.trajectory().steps) {
