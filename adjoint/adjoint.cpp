@@ -46,6 +46,9 @@ namespace {
         if (sim.steps_done() != sim.scene().time.steps)
             throw AdjointError("no gradient: the forward run committed " + std::to_string(sim.steps_done()) + " of "
                 + std::to_string(sim.scene().time.steps) + " steps");
+        if (sim.contact() && sim.contact()->penalty())
+            throw AdjointError("no gradient: penalty contact (contact.model \"penalty\") is a forward baseline; "
+                               "the adjoint differentiates IPC's barrier");
         if (sim.contact() && sim.scene().contact.adaptive_kappa)
             throw AdjointError("no gradient: the barrier stiffness must be fixed during a differentiated run "
                                "(give contact.kappa a number, or SimulationParameters::kappa)");

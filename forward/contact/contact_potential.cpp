@@ -6,6 +6,7 @@
 #include "forward/contact/broad_phase/broad_phase.hpp"
 #include "forward/contact/ccd/ccd.hpp"
 #include "forward/contact/distance/distance.hpp"
+#include "forward/contact/penalty.hpp"
 #include "forward/materials/material.hpp"
 #include "forward/solver/sparse_assembler.hpp"
 
@@ -281,31 +282,77 @@ ContactPotential::LocalDistance ContactPotential::local_distance(
     return out;
 }
 
+ContactPotential::PairEnergy ContactPotential::pair_energy(double z, bool second) const
+{
+    PairEnergy e;
+    if (m_settings.penalty) {
+        const PenaltyValue p = penalty_of_squared_distance(z, m_settings.dhat);
+        e.value = p.value;
+        e.first = p.first;
+        e.second = p.second;
+        return e;
+    }
+    const double shat = barrier_activation(m_settings.dhat, m_settings.min_distance);
+    e.value = barrier(z, shat);
+    e.first = barrier_first_derivative(z, shat);
+    if (second)
+        e.second = barrier_second_derivative(z, shat);
+    return e;
+}
+
+double ContactPotential::plane_penalty(
+    const Contact& c, const VectorXd& x, Eigen::VectorXd* grad, Eigen::MatrixXd* hess) const
+{
+    const int dim = m_mesh.dim;
+    const Eigen::VectorXd n = m_planes[size_t(c.plane)].normal.head(dim);
+    const double h = (vertex_point(x, c.vertices[0], dim) - vertex_point(x, c.vertices[1], dim)).head(dim).dot(n);
+    const double gap = h < m_settings.dhat ? m_settings.dhat - h : 0.0;
+    // d h / d(x_v, x_plane) = (n, -n); h is linear, so the Hessian is (dh)(dh)^T inside the layer.
+    Eigen::VectorXd dh(2 * dim);
+    dh << n, -n;
+    if (grad)
+        *grad = -gap * dh;
+    if (hess)
+        *hess = gap > 0 ? Eigen::MatrixXd(dh * dh.transpose()) : Eigen::MatrixXd::Zero(2 * dim, 2 * dim);
+    return 0.5 * gap * gap;
+}
+
+double ContactPotential::normal_force_per_stiffness(double d) const
+{
+    if (m_settings.penalty)
+        return penalty_force(d, m_settings.dhat);
+    const double dmin2 = m_settings.min_distance * m_settings.min_distance;
+    const double shat = barrier_activation(m_settings.dhat, m_settings.min_distance);
+    return std::abs(barrier_first_derivative(d * d - dmin2, shat)) * 2 * d;
+}
+
 double ContactPotential::local_barrier(
     const Contact& c, const VectorXd& x, Eigen::VectorXd* grad, Eigen::MatrixXd* hess) const
 {
     const int dim = m_mesh.dim;
+    if (m_settings.penalty && c.kind == ContactKind::VERTEX_PLANE)
+        return plane_penalty(c, x, grad, hess);
     const double dmin2 = m_settings.min_distance * m_settings.min_distance;
-    const double shat = barrier_activation(m_settings.dhat, m_settings.min_distance);
     const bool derivatives = grad || hess;
     const LocalDistance ld = local_distance(c, x, derivatives);
     const double s = ld.s, m = ld.m;
     const Eigen::VectorXd &gs = ld.gs, &gm = ld.gm;
     const Eigen::MatrixXd &Hs = ld.Hs, &Hm = ld.Hm;
     const double z = s - dmin2;
-    if (!(z > 0))
+    if (!(z > 0) && !m_settings.penalty)
         return infinite(c, dim, grad, hess);
-    const double b = barrier(z, shat);
+    const PairEnergy e = pair_energy(z, hess != nullptr);
+    const double b = e.value;
     if (!derivatives)
         return m * b;
-    const double b1 = barrier_first_derivative(z, shat);
+    const double b1 = e.first;
     if (grad) {
         *grad = m * b1 * gs;
         if (gm.size())
             *grad += b * gm;
     }
     if (hess) {
-        const double b2 = barrier_second_derivative(z, shat);
+        const double b2 = e.second;
         *hess = m * (b2 * gs * gs.transpose() + b1 * Hs);
         if (gm.size()) {
             *hess += b1 * (gm * gs.transpose() + gs * gm.transpose()) + b * Hm;
@@ -408,6 +455,12 @@ void ContactPotential::add_hessian(
 
 double ContactPotential::max_step(const VectorXd& mesh_x, const VectorXd& mesh_p) const
 {
+    if (m_settings.penalty) {
+        // The penalty baseline has no CCD: any step is admissible (surfaces may pass through).
+        m_segment->valid = false;
+        m_ccd_budget_exhausted = m_ccd_unresolved = false;
+        return 1.0;
+    }
     const int dim = m_mesh.dim;
     VectorXd x_storage, p_storage;
     const VectorXd& x = surface(mesh_x, x_storage);
@@ -566,7 +619,6 @@ void ContactPotential::add_shape_derivative(
         d_surface = VectorXd::Zero(x.size());
     VectorXd& d_rest_positions = has_images() ? d_surface : d_mesh_rest;
     const double dmin2 = m_settings.min_distance * m_settings.min_distance;
-    const double shat = barrier_activation(m_settings.dhat, m_settings.min_distance);
     const double scale = weight * m_settings.kappa;
     const ContactSet& set = surface_contacts(x);
     // Per contact in parallel, gathered per vertex in contact order.
@@ -593,8 +645,8 @@ void ContactPotential::add_shape_derivative(
             for (int i = 0; i < 4; ++i)
                 local.segment<3>(3 * i) = direction.segment(v[size_t(i)] * dim, dim);
             // d/d eps_x of grad(m b) = dm/deps b'(z) grad s + b(z) d(grad m)/deps
-            const double sens
-                = scale * (dm * barrier_first_derivative(z, shat) * local.dot(gs) + barrier(z, shat) * local.dot(dgm));
+            const PairEnergy e = pair_energy(z, false);
+            const double sens = scale * (dm * e.first * local.dot(gs) + e.value * local.dot(dgm));
             Eigen::Map<Eigen::Matrix<double, 12, 1>>(locals.data() + 12 * k) = sens * mollifier_threshold_gradient(c);
         }
     });

@@ -23,6 +23,9 @@ struct ContactSettings {
     double kappa = 1; ///< barrier stiffness
     int ccd_max_iterations = 1000000;
     double ccd_rescaling = 0.9;
+    /// Penalty contact instead of the barrier (forward/contact/penalty.hpp): kappa is the
+    /// penalty stiffness (N/m), min_distance must be 0, and there is no CCD.
+    bool penalty = false;
 };
 
 /// A half-space obstacle: bodies stay on the side the normal points to. Its
@@ -54,6 +57,12 @@ public:
     double max_step(const VectorXd& x, const VectorXd& p) const override;
     bool step_unresolved() const override { return m_ccd_unresolved; }
     bool end_iteration(const VectorXd& x) override;
+    /// @brief The normal force of a pair at distance d (m) per unit stiffness, without the
+    /// mollifier: |d b/d d| = |b'(d^2 - dmin^2)| 2 d for the barrier, dhat - d for the penalty
+    /// (friction's lagged normal force is kappa m times this).
+    double normal_force_per_stiffness(double d) const;
+    /// True for `"model": "penalty"` (forward/contact/penalty.hpp): no CCD, max_step() is 1.
+    bool penalty() const { return m_settings.penalty; }
     /// Shape derivative of direction^T grad B: only the edge-edge mollifier
     /// thresholds depend on the rest positions.
     void add_shape_derivative(
@@ -134,6 +143,16 @@ private:
     /// Energy (without kappa), gradient and Hessian of one contact at x; local
     /// dofs are the contact's vertices in order, dim each.
     double local_barrier(const Contact& c, const VectorXd& x, Eigen::VectorXd* grad, Eigen::MatrixXd* hess) const;
+    /// The energy of one pair without kappa and the mollifier, and its derivatives in z = s - dmin^2
+    /// (the second only if asked): IPC's barrier b(z, shat), or the penalty P(sqrt(z)). For the
+    /// barrier z must be positive.
+    struct PairEnergy {
+        double value = 0, first = 0, second = 0;
+    };
+    PairEnergy pair_energy(double z, bool second) const;
+    /// A vertex-plane pair of penalty contact, on the signed distance h (negative behind the
+    /// plane): 1/2 (dhat - h)^2 for h < dhat.
+    double plane_penalty(const Contact& c, const VectorXd& x, Eigen::VectorXd* grad, Eigen::MatrixXd* hess) const;
 
     CollisionMesh m_mesh;
     Positions m_rest;

@@ -475,8 +475,8 @@ namespace {
         if (!root.has("contact"))
             return;
         const JsonField f = root["contact"];
-        f.require_object(
-            { "enabled", "dhat", "kappa", "self_contact", "min_distance", "ccd_max_iterations", "ccd_rescaling" });
+        f.require_object({ "enabled", "dhat", "kappa", "self_contact", "min_distance", "ccd_max_iterations",
+            "ccd_rescaling", "model", "penalty_stiffness" });
         c.enabled = f.has("enabled") ? f["enabled"].boolean() : true;
         if (f.has("dhat")) {
             c.dhat = f["dhat"].positive();
@@ -509,6 +509,25 @@ namespace {
             if (!(c.ccd_rescaling > 0 && c.ccd_rescaling < 1))
                 f["ccd_rescaling"].fail("must lie in (0, 1)");
         }
+        const std::string model = f.has("model") ? f["model"].string() : "ipc";
+        if (model != "ipc" && model != "penalty")
+            f["model"].fail("expected \"ipc\" or \"penalty\", got \"" + model + "\"");
+        c.penalty = model == "penalty";
+        if (c.penalty) {
+            // The penalty's stiffness is its own parameter (N/m), not a barrier stiffness.
+            if (f.has("kappa"))
+                f["kappa"].fail("is the barrier's stiffness; penalty contact takes \"penalty_stiffness\" (N/m)");
+            if (!f.has("penalty_stiffness"))
+                f.fail("\"model\": \"penalty\" needs \"penalty_stiffness\" (N/m)");
+            c.kappa = f["penalty_stiffness"].positive();
+            c.adaptive_kappa = false;
+            if (c.min_distance > 0)
+                f["min_distance"].fail("penalty contact has no minimum separation (the penalty allows penetration)");
+            for (const char* key : { "ccd_max_iterations", "ccd_rescaling" })
+                if (f.has(key))
+                    f[key].fail("penalty contact uses no CCD");
+        } else if (f.has("penalty_stiffness"))
+            f["penalty_stiffness"].fail("is for \"model\": \"penalty\"");
     }
 
     void parse_obstacles(const JsonField& root, const std::string& base_directory, Scene& scene)

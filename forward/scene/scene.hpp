@@ -111,6 +111,10 @@ struct ContactSpec {
     double min_distance = 0; ///< minimum separation dmin (m)
     int ccd_max_iterations = 1000000; ///< per query budget of the additive CCD
     double ccd_rescaling = 0.9; ///< conservative rescaling s of the additive CCD
+    /// `"model": "penalty"`: the baseline most finite element codes use instead of IPC's barrier,
+    /// a quadratic penalty on the penetration into a layer of thickness dhat, without CCD
+    /// (docs/math.md "Penalty contact"). kappa then holds penalty_stiffness (N/m).
+    bool penalty = false;
 };
 
 /// Friction (docs/scene_format.md "friction"); needs contact.

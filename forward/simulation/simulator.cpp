@@ -309,6 +309,7 @@ void Simulator::setup_contact()
     settings.ccd_max_iterations = spec.ccd_max_iterations;
     settings.ccd_rescaling = spec.ccd_rescaling;
     settings.kappa = spec.kappa;
+    settings.penalty = spec.penalty;
     {
         // Per-vertex stiffness reference (docs/math.md): m_avg / (c h^2) in dynamics,
         // a nodal elastic stiffness E l in static solves. With a fixed kappa the adaptive
@@ -786,7 +787,7 @@ StepStatus Simulator::step()
             + " Newton iterations, residual " + format_number(result.residual) + substep_note;
         // x: the solve's last iterate; the hint only where it is in contact
         if (result.status == StepStatus::NEWTON_EXHAUSTED && m_contact && !m_scene.contact.adaptive_kappa
-            && m_scene.contact.kappa < 1e-2 * m_kappa_min && x.allFinite()
+            && !m_scene.contact.penalty && m_scene.contact.kappa < 1e-2 * m_kappa_min && x.allFinite()
             && m_contact->min_distance(x, m_scene.contact.dhat) < m_scene.contact.dhat)
             m_trajectory.failure_message += "; the fixed contact.kappa " + format_number(m_scene.contact.kappa)
                 + " is below 1/100 of the adaptive rule's minimum " + format_number(m_kappa_min)

@@ -336,6 +336,25 @@ TEST(AdjointFriction, ZeroCoefficientInContactIsRefusedOnlyWhenRequested)
     EXPECT_THROW(adjoint_gradient(sim, objective.seed(sim), request), AdjointError);
 }
 
+TEST(AdjointPenalty, PenaltyContactIsRefusedWithAMessage)
+{
+    // The penalty baseline (contact.model "penalty") is a forward option; the adjoint says so.
+    json s = box_on_plane(2, "implicit_euler");
+    s["contact"] = { { "dhat", 1e-3 }, { "model", "penalty" }, { "penalty_stiffness", 1e6 } };
+    Simulator sim(make_scene(s));
+    sim.run();
+    ASSERT_EQ(sim.trajectory().final_status, StepStatus::CONVERGED) << sim.trajectory().failure_message;
+    const StateObjective objective(sim.steps_done(), sim.mesh().num_dofs(), sim.bbox_diagonal(), 0.01, 3);
+    ParameterRequest request;
+    request.rest_positions = true;
+    try {
+        adjoint_gradient(sim, objective.seed(sim), request);
+        ADD_FAILURE() << "no AdjointError";
+    } catch (const AdjointError& e) {
+        EXPECT_NE(std::string(e.what()).find("penalty"), std::string::npos) << e.what();
+    }
+}
+
 TEST(AdjointGradients, SharedFactorizationsGiveEachSeedsGradient)
 {
     // Several objectives swept together over one run (one factorization per step) must give

@@ -205,7 +205,6 @@ void FrictionPotential::lag(const ContactPotential& contact, const VectorXd& mes
         throw std::logic_error("FrictionPotential::lag: the barrier and the friction differ in periodic images");
     const VectorXd x_lagged = contact.surface_positions(mesh_x_lagged); // the contacts' indices
     const ContactSettings& s = contact.settings();
-    const double shat = barrier_activation(s.dhat, s.min_distance);
     const double dmin2 = s.min_distance * s.min_distance;
     const ContactSet& set = contact.contacts(mesh_x_lagged);
     // In contact order, whatever the thread count.
@@ -231,15 +230,15 @@ void FrictionPotential::lag(const ContactPotential& contact, const VectorXd& mes
         if (!finite)
             return; // a degenerate pair (its barrier is finite; it simply exerts no friction)
         f.tangent = tangent_basis(f.normal, m_dim);
-        // lambda = kappa m |d b / d d| = kappa m |b'(s)| 2 d, with s = d^2 - dmin^2.
+        // lambda = kappa m |d b / d d| = kappa m |b'(s)| 2 d, with s = d^2 - dmin^2 (the barrier;
+        // the penalty's is kappa m (dhat - d)).
         const double d = std::sqrt(c.distance_squared);
         double m = 1;
         if (c.kind == ContactKind::EDGE_EDGE)
             m = edge_edge_mollifier(vertex_point(x_lagged, c.vertices[0], m_dim),
                 vertex_point(x_lagged, c.vertices[1], m_dim), vertex_point(x_lagged, c.vertices[2], m_dim),
                 vertex_point(x_lagged, c.vertices[3], m_dim), c.mollifier_threshold);
-        f.normal_force
-            = contact.kappa() * m * std::abs(barrier_first_derivative(c.distance_squared - dmin2, shat)) * 2 * d;
+        f.normal_force = contact.kappa() * m * contact.normal_force_per_stiffness(d);
         f.coefficient = mu;
         f.groups = { ga, gb };
         f.source = c;
