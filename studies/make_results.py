@@ -19,7 +19,13 @@ SECTIONS = [
      "scene's work against what its JSON needs (inertia only when dynamic, external forces only with "
      "gravity or tractions, contact only with contact or obstacles, friction only with a positive "
      "coefficient) and fails naming the scene and the term otherwise; "
-     "tests/python/test_study_501_scene_work.py runs it on every example scene."),
+     "tests/python/test_study_501_scene_work.py runs it on every example scene"),
+    ("502_error_vs_time", "Error against run time",
+     "Reference cases with exact answers (free fall per integrator, a cantilever's tip deflection against "
+     "its Richardson-extrapolated reference, a block sliding down a slope, a block sliding to a stop), one "
+     "knob varied at a time: error against wall time per knob with the Pareto front, the observed "
+     "convergence orders, and IPC side by side with the penalty baseline. The cases, their errors and "
+     "base settings are defined in the study's README"),
 ]
 
 HEADER = """# Results
@@ -37,7 +43,7 @@ def section(folder, title, text):
     body = open(path).read()
     # Figures are linked relative to the study folder; from docs/ they are one folder up.
     body = re.sub(r"\]\((?!http)([^)]+\.png)\)", lambda m: f"](../studies/{folder}/{m.group(1)})", body)
-    return f"## {title}\n\n{text} (`studies/{folder}`)\n\n{body}"
+    return f"## {title}\n\n{text} (`studies/{folder}`).\n\n{body}"
 
 
 def main(out=None):

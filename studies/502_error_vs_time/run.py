@@ -1,0 +1,383 @@
+#!/usr/bin/env python3
+"""Study 502: error against run time. Reference cases with exact answers, each run through
+`diffipc simulate` while one knob at a time is varied from a base setting; the error against the
+exact answer and the wall time of every run go to a CSV, one log-log figure per case (error
+against time, a curve per knob, points labelled by value, the Pareto front over all runs) and a
+markdown table of observed convergence orders.
+
+    PYTHONPATH=build/python /usr/bin/python3 studies/502_error_vs_time/run.py [--cli build/cli/diffipc]
+        [-o output/502] [--full] [--cases free_fall cantilever slope stopping] [--jobs 2]
+        [--results studies/502_error_vs_time]
+
+Cases (the error of each is defined in its docstring below and in the README):
+  free_fall   a box falling under gravity, 2D and 3D, knob dt per integrator (exact: y0 - g t^2 / 2)
+  cantilever  a cantilever's tip deflection under its weight (static, neo-Hookean), 2D and 3D,
+              knobs mesh size and Newton tolerance (reference: Richardson extrapolation)
+  slope       a block sliding down a 30 degree slope, mu = 0.2 (exact: v = g (sin - mu cos) t),
+              knobs dt, eps_v, dhat, kappa, friction iterations, and the penalty baseline's stiffness
+  stopping    a block sliding on flat ground at 1 m/s with mu = 0.5 (exact stopping distance
+              v0^2 / (2 mu g)), knobs dt, eps_v, dhat, and the penalty baseline's stiffness
+
+Each run is a single-threaded process (--threads 1); --jobs runs that many at once.
+"""
+import argparse
+import concurrent.futures
+import copy
+import csv
+import json
+import math
+import os
+import subprocess
+import sys
+
+import h5py
+import numpy as np
+
+import diffipc.machine
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+ROOT = os.path.dirname(os.path.dirname(HERE))
+G = 9.81
+
+
+# ---------------------------------------------------------------- cases
+
+
+def box(dim, lo, hi, cells, E=1e7, nu=0.3, model="neo_hookean", name="body"):
+    return {"name": name, "mesh": {"box": {"min": lo, "max": hi, "cells": cells}},
+            "material": {"model": model, "E": E, "nu": nu, "density": 1000.0}}
+
+
+def body_mean(f, key, step=-1):
+    body = f["mesh/body"][:] == 0
+    return f[key][step, body, :].mean(axis=0)
+
+
+def free_fall(dim, integrator, dt):
+    """Error: |mean vertical displacement at T - (-g T^2/2)| / (g T^2/2), T = 0.4 s (the body does
+    not deform: every vertex falls alike)."""
+    T = 0.4
+    hi = [0.1] * dim
+    scene = {"dimension": dim, "bodies": [box(dim, [0.0] * dim, hi, [2] * dim)],
+             "gravity": [0.0, -G] + [0.0] * (dim - 2),
+             "time": {"integrator": integrator, "dt": dt, "steps": int(round(T / dt))},
+             "solver": {"residual_tolerance": 1e-10}}
+
+    def error(f):
+        y = body_mean(f, "positions")[1] - body_mean(f, "positions", 0)[1]
+        exact = -0.5 * G * T * T
+        return abs(y - exact) / abs(exact)
+    return scene, error
+
+
+def cantilever(dim, refine, tolerance=1e-10):
+    """Tip deflection w (mean vertical displacement of the free end's vertices) of a 0.5 m x 0.1 m
+    (x 0.1 m) neo-Hookean cantilever (E = 1e8 Pa) under its weight, static; cells 5 r x r (x r). The
+    error is against the Richardson extrapolation of the three finest meshes (after the sweep)."""
+    L, H = 0.5, 0.1
+    cells = [5 * refine] + [refine] * (dim - 1)
+    scene = {"dimension": dim, "bodies": [box(dim, [0.0] * dim, [L] + [H] * (dim - 1), cells, E=1e8)],
+             "gravity": [0.0, -G] + [0.0] * (dim - 2),
+             "dirichlet": [{"body": 0, "region": {"min": [-1.0] * dim, "max": [0.0] + [1.0] * (dim - 1)},
+                            "displacement": [0.0] * dim}],
+             "time": {"integrator": "static", "dt": 1.0, "steps": 1},
+             "solver": {"residual_tolerance": tolerance}}
+
+    def deflection(f):
+        X = f["mesh/rest_positions"][:]
+        x = f["positions"][-1]
+        tip = np.abs(X[:, 0] - L) < 1e-9
+        return -(x[tip, 1] - X[tip, 1]).mean()
+    return scene, deflection
+
+
+def block(theta, mu, v0, dt, eps_v, dhat, kappa, iterations, penalty, T):
+    """A 0.1 m x 0.05 m block (8 x 4 cells, E = 1e7 Pa) on a plane tilted by theta degrees, its
+    lowest side 1.05 dhat above it (just outside the contact layer: it settles in without being
+    thrown off), sliding down the slope at v0."""
+    b = box(2, [0.0, 1.05 * dhat], [0.1, 0.05 + 1.05 * dhat], [8, 4])
+    b["rotation"] = [-theta]
+    th = math.radians(theta)
+    b["initial_velocity"] = [v0 * math.cos(th), -v0 * math.sin(th)]
+    return {"dimension": 2, "bodies": [b], "gravity": [0.0, -G],
+            "obstacles": [{"name": "ground", "plane": {"point": [0, 0], "normal": [math.sin(th), math.cos(th)]}}],
+            "contact": contact_block(dhat, kappa, penalty),
+            "friction": {"coefficient": mu, "eps_v": eps_v, "iterations": iterations},
+            "time": {"integrator": "implicit_euler", "dt": dt, "steps": int(round(T / dt))},
+            "solver": {"residual_tolerance": 1e-8}}
+
+
+def slope(dt=5e-4, eps_v=1e-3, dhat=2e-4, kappa="adaptive", iterations=5, penalty=None):
+    """A block sliding down a 30 degree slope from rest, mu = 0.2: a = g (sin 30 - 0.2 cos 30) =
+    3.207 m/s^2. Error: |s(T) - a T^2/2| / (a T^2/2), s the mean displacement along the slope at
+    T = 0.3 s."""
+    T, mu = 0.3, 0.2
+    scene = block(30.0, mu, 0.0, dt, eps_v, dhat, kappa, iterations, penalty, T)
+    th = math.radians(30.0)
+    a = G * (math.sin(th) - mu * math.cos(th))
+    down = np.array([math.cos(th), -math.sin(th)])
+
+    def error(f):
+        s = (body_mean(f, "positions") - body_mean(f, "positions", 0)) @ down
+        return abs(s - 0.5 * a * T * T) / (0.5 * a * T * T)
+    return scene, error
+
+
+def stopping(dt=5e-4, eps_v=1e-3, dhat=2e-4, kappa="adaptive", penalty=None):
+    """A block sliding on flat ground at v0 = 1 m/s with mu = 0.5 stops after d = v0^2 / (2 mu g) =
+    0.1019 m (at t = 0.204 s). Error: |x(T) - d| / d, x the mean horizontal displacement at T = 0.3 s."""
+    T, mu, v0 = 0.3, 0.5, 1.0
+    scene = block(0.0, mu, v0, dt, eps_v, dhat, kappa, 5, penalty, T)
+    d = v0 * v0 / (2 * mu * G)
+
+    def error(f):
+        x = body_mean(f, "positions")[0] - body_mean(f, "positions", 0)[0]
+        return abs(x - d) / d
+    return scene, error
+
+
+def contact_block(dhat, kappa, penalty):
+    if penalty is not None:
+        return {"dhat": dhat, "model": "penalty", "penalty_stiffness": penalty}
+    return {"dhat": dhat, "kappa": kappa}
+
+
+def sweeps(full):
+    """(case, variant, knob, value, builder): one knob varied at a time from the base setting."""
+    dts = [0.05, 0.025, 0.0125, 0.00625, 0.003125] + ([0.0015625, 0.00078125] if full else [])
+    out = []
+    for dim in (2, 3):
+        for integ in ("implicit_euler", "bdf2", "newmark"):
+            for dt in dts:
+                out.append(("free_fall", f"{dim}D {integ}", "dt", dt, lambda d=dim, i=integ, t=dt: free_fall(d, i, t)))
+    refines = {2: [1, 2, 4, 8, 16, 32] + ([64, 128] if full else []), 3: [1, 2, 4, 8, 16]}
+    for dim in (2, 3):
+        for r in refines[dim]:
+            out.append(("cantilever", f"{dim}D", "cells across", r, lambda d=dim, r=r: cantilever(d, r)))
+        for tol in (1e-4, 1e-5, 1e-6, 1e-7, 1e-8):
+            out.append(("cantilever", f"{dim}D", "residual tolerance", tol,
+                        lambda d=dim, t=tol: cantilever(d, refines[d][-2], t)))
+    k_penalty = [1e3, 1e4, 1e5, 1e6, 1e7] + ([1e8] if full else [])
+    for case, fn, extra in (("slope", slope, {"friction iterations": [1, 2, 5, 10]}), ("stopping", stopping, {})):
+        knobs = {"dt": [0.008, 0.004, 0.002, 0.001, 0.0005, 0.00025] + ([0.000125] if full else []),
+                 "eps_v": [1e-1, 1e-2, 1e-3, 1e-4, 1e-5],
+                 "dhat": [2e-3, 1e-3, 5e-4, 2e-4, 1e-4],
+                 "kappa": [1e3, 1e5, 1e7, "adaptive"],
+                 "penalty stiffness": k_penalty, **extra}
+        arg = {"dt": "dt", "eps_v": "eps_v", "dhat": "dhat", "kappa": "kappa",
+               "penalty stiffness": "penalty", "friction iterations": "iterations"}
+        for knob, values in knobs.items():
+            for v in values:
+                out.append((case, "IPC" if knob != "penalty stiffness" else "penalty", knob, v,
+                            lambda f=fn, k=arg[knob], v=v: f(**{k: v})))
+    return out
+
+
+# ---------------------------------------------------------------- running
+
+
+def run_one(cli, out, index, case, variant, knob, value, build):
+    scene, measure = build()
+    folder = os.path.join(out, f"{case}_{index:03d}")
+    os.makedirs(folder, exist_ok=True)
+    path = os.path.join(folder, "scene.json")
+    with open(path, "w") as f:
+        json.dump(scene, f, indent=1)
+    cmd = [cli, "simulate", path, "-o", folder, "-q", "--vtu-every", "0", "--threads", "1"]
+    done = subprocess.run(cmd, capture_output=True, text=True)
+    summary = json.load(open(os.path.join(folder, "summary.json")))
+    row = dict(case=case, variant=variant, knob=knob, value=value, status=summary["status"],
+               steps=summary["steps_committed"], newton=summary["counts"]["newton_iterations"],
+               time=summary["wall_time"]["total"], measured=float("nan"), error=float("nan"),
+               min_gap=float("nan"), folder=os.path.relpath(folder, ROOT))
+    if done.returncode == 0:
+        with h5py.File(os.path.join(folder, "trajectory.h5"), "r") as f:
+            row["measured"] = float(measure(f))
+            if scene.get("obstacles"):
+                row["min_gap"] = float(signed_gap(f, scene))
+    return row
+
+
+def signed_gap(f, scene):
+    """The smallest signed distance of a body vertex to the plane obstacle over all committed
+    states, from the positions alone (negative: the body is behind the plane)."""
+    plane = scene["obstacles"][0]["plane"]
+    n = np.array(plane["normal"], float)
+    n /= np.linalg.norm(n)
+    body = f["mesh/body"][:] == 0
+    return ((f["positions"][:, body, :] - np.array(plane["point"])) @ n).min()
+
+
+def finish_errors(rows):
+    """The cantilever's error against its Richardson-extrapolated reference; the others measured
+    their error directly. Returns the references {variant: (w_ref, observed order)}."""
+    refs = {}
+    for r in rows:
+        if r["case"] != "cantilever":
+            r["error"] = r["measured"]
+    for variant in sorted({r["variant"] for r in rows if r["case"] == "cantilever"}):
+        mesh = sorted((r for r in rows if r["case"] == "cantilever" and r["variant"] == variant
+                       and r["knob"] == "cells across" and r["status"] == "CONVERGED"), key=lambda r: r["value"])
+        if len(mesh) < 3:
+            continue
+        w1, w2, w3 = (m["measured"] for m in mesh[-3:])
+        p = math.log2(abs(w1 - w2) / abs(w2 - w3))
+        w_ref = w3 + (w3 - w2) / (2 ** p - 1)
+        refs[variant] = (w_ref, p)
+        for r in rows:
+            if r["case"] == "cantilever" and r["variant"] == variant:
+                if r["knob"] == "cells across":
+                    r["error"] = abs(r["measured"] - w_ref) / abs(w_ref)
+                else:
+                    # The solver's error: against the same mesh at the default sweep's tolerance 1e-10.
+                    same = next(m for m in mesh if m["value"] == mesh[-2]["value"])
+                    r["error"] = abs(r["measured"] - same["measured"]) / abs(same["measured"])
+    return refs
+
+
+def observed_order(points):
+    """Least-squares slope of log(error) against log(knob) over the points with a finite, positive error."""
+    pts = [(v, e) for v, e in points if e > 0 and math.isfinite(e)]
+    if len(pts) < 2:
+        return float("nan")
+    x = np.log([p[0] for p in pts])
+    y = np.log([p[1] for p in pts])
+    return float(np.polyfit(x, y, 1)[0])
+
+
+# ---------------------------------------------------------------- outputs
+
+
+def pareto(points):
+    """The points (time, error) not dominated by a faster and more accurate one, by time."""
+    front, best = [], float("inf")
+    for t, e in sorted(points):
+        if e < best:
+            front.append((t, e))
+            best = e
+    return front
+
+
+def plot_case(case, rows, path):
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    fig, ax = plt.subplots(figsize=(8, 5.5))
+    groups = sorted({(r["variant"], r["knob"]) for r in rows})
+    for variant, knob in groups:
+        pts = [r for r in rows if (r["variant"], r["knob"]) == (variant, knob) and r["error"] > 0
+               and math.isfinite(r["error"])]
+        if not pts:
+            continue
+        label = f"{variant}: {knob}" if case in ("free_fall", "cantilever") else knob
+        if variant == "penalty":
+            label = "penalty: stiffness (N/m)"
+        line, = ax.plot([r["time"] for r in pts], [r["error"] for r in pts], "o-", ms=4, label=label)
+        for r in pts:
+            ax.annotate(f"{r['value']:g}" if not isinstance(r["value"], str) else r["value"], (r["time"], r["error"]),
+                        fontsize=6, color=line.get_color(), xytext=(3, 2), textcoords="offset points")
+    allpts = [(r["time"], r["error"]) for r in rows if r["error"] > 0 and math.isfinite(r["error"])]
+    front = pareto(allpts)
+    if front:
+        ax.plot(*zip(*front), "k--", lw=1, label="Pareto front (all runs)")
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.set_xlabel("wall time of the run (s)")
+    ax.set_ylabel("relative error")
+    ax.set_title(f"{case}: error against run time, one knob varied at a time")
+    ax.legend(fontsize=7, loc="best")
+    ax.grid(True, which="both", lw=0.3)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+EXPECTED = {("free_fall", "implicit_euler"): 1.0, ("free_fall", "bdf2"): 2.0, ("cantilever", "cells across"): -2.0,
+            ("slope", "dt"): 1.0, ("stopping", "dt"): 1.0}
+
+
+def orders_table(rows, refs):
+    """Observed orders: the slope of log(error) against log(knob) (for meshes, against h ~ 1/cells,
+    over the three finest: the coarse ones lock in bending); error range for exact schemes."""
+    lines = ["| case | variant | knob | values | errors | observed order | expected |",
+             "| --- | --- | --- | --- | --- | --- | --- |"]
+    for case, variant, knob in sorted({(r["case"], r["variant"], r["knob"]) for r in rows}):
+        pts = sorted((r["value"], r["error"]) for r in rows
+                     if (r["case"], r["variant"], r["knob"]) == (case, variant, knob) and not isinstance(r["value"], str))
+        values = ", ".join(f"{v:g}" for v, _ in pts)
+        errors = f"{min(e for _, e in pts):.1e} .. {max(e for _, e in pts):.1e}"
+        fit = pts
+        if knob == "cells across":
+            fit = [(1.0 / v, e) for v, e in pts[-3:]]
+        expected = next((f"{abs(o):g}" for (c, k), o in EXPECTED.items()
+                         if c == case and (k == knob or k in variant) and (knob in ("dt", "cells across"))), "")
+        order = f"{observed_order(fit):.2f}" if expected else "—"
+        if case == "free_fall" and "newmark" in variant:
+            expected, order = "exact (error at round-off)", "—"
+        lines.append(f"| {case} | {variant} | {knob} | {values} | {errors} | {order} | {expected} |")
+    text = "\n".join(lines) + "\n"
+    for variant, (w, p) in sorted(refs.items()):
+        text += (f"\nCantilever {variant}: Richardson reference tip deflection {w * 1e3:.5f} mm from the three finest "
+                 f"meshes, their observed order {p:.2f}.\n")
+    return text
+
+
+def penalty_table(rows):
+    lines = ["| case | contact | setting | status | relative error | min signed gap (m) | Newton | time (s) |",
+             "| --- | --- | --- | --- | --- | --- | --- | --- |"]
+    for case in ("slope", "stopping"):
+        base = [r for r in rows if r["case"] == case and r["knob"] == "dhat" and r["value"] == 2e-4]
+        pen = sorted((r for r in rows if r["case"] == case and r["variant"] == "penalty"), key=lambda r: r["value"])
+        for r in base + pen:
+            setting = "adaptive kappa, dhat 2e-4" if r["variant"] == "IPC" else f"k = {r['value']:g} N/m, dhat 2e-4"
+            lines.append(f"| {case} | {r['variant']} | {setting} | {r['status']} | {r['error']:.2e} | "
+                         f"{r['min_gap']:.2e} | {r['newton']} | {r['time']:.3f} |")
+        ok = [r for r in pen if r["status"] == "CONVERGED" and r["min_gap"] > 0]
+        if ok:
+            best = min(ok, key=lambda r: r["error"])
+            lines.append(f"| {case} | penalty, best in the sweep | k = {best['value']:g} N/m | | {best['error']:.2e} | "
+                         f"{best['min_gap']:.2e} | {best['newton']} | {best['time']:.3f} |")
+    return "\n".join(lines) + "\n"
+
+
+def main(argv=None):
+    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--cli", default=os.path.join(ROOT, "build", "cli", "diffipc"))
+    p.add_argument("-o", "--output", default=os.path.join(ROOT, "output", "502"))
+    p.add_argument("--full", action="store_true", help="finer time steps and meshes")
+    p.add_argument("--cases", nargs="*", default=["free_fall", "cantilever", "slope", "stopping"])
+    p.add_argument("--jobs", type=int, default=2)
+    p.add_argument("--results", default=None, help="write results.md, results.csv and the figures here")
+    a = p.parse_args(argv)
+    todo = [s for s in sweeps(a.full) if s[0] in a.cases]
+    with concurrent.futures.ThreadPoolExecutor(a.jobs) as pool:
+        rows = list(pool.map(lambda k: run_one(a.cli, a.output, k, *todo[k]), range(len(todo))))
+    refs = finish_errors(rows)
+    if not a.results:
+        for r in rows:
+            print(r)
+        return rows
+    os.makedirs(a.results, exist_ok=True)
+    with open(os.path.join(a.results, "results.csv"), "w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=list(rows[0].keys()))
+        w.writeheader()
+        w.writerows(rows)
+    text = diffipc.machine.provenance(ROOT, __file__, sys.argv[1:] if argv is None else argv)
+    text += f"\n{len(rows)} runs, each single-threaded, {a.jobs} at a time.\n"
+    for case in a.cases:
+        png = f"{case}.png"
+        plot_case(case, [r for r in rows if r["case"] == case], os.path.join(a.results, png))
+        text += f"\n![{case}: error against run time]({png})\n"
+    text += "\n### Observed orders\n\n" + orders_table(rows, refs)
+    if any(r["variant"] == "penalty" for r in rows):
+        text += "\n### IPC and the penalty baseline\n\n" + penalty_table(rows)
+    failed = [r for r in rows if r["status"] != "CONVERGED"]
+    text += f"\n{len(failed)} of {len(rows)} runs did not converge"
+    text += (": " + "; ".join(f"{r['case']} {r['variant']} {r['knob']} = {r['value']}: {r['status']}" for r in failed)
+             if failed else ".") + "\n"
+    open(os.path.join(a.results, "results.md"), "w").write(text)
+    return rows
+
+
+if __name__ == "__main__":
+    main()

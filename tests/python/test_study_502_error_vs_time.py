@@ -1,0 +1,94 @@
+"""Study 502 (studies/502_error_vs_time): error against run time on reference cases with exact
+answers. The study's default sweep runs once (about 15 s on 2 cores); the observed orders are
+asserted against the schemes' (first order for implicit Euler, second for BDF2, Newmark exact for
+a constant acceleration, second order in space for P1 on the smooth 2D cantilever), IPC never lets
+a block behind its plane, and the penalty baseline's runs are real runs whose soft settings
+penetrate and fail."""
+import importlib.util
+import math
+
+import pytest
+
+from conftest import ROOT
+
+STUDY = ROOT / "studies" / "502_error_vs_time"
+
+
+def load_study():
+    spec = importlib.util.spec_from_file_location("study_502_run", STUDY / "run.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+study = load_study()
+
+
+@pytest.fixture(scope="module")
+def sweep(tmp_path_factory):
+    import os
+    cli = os.environ.get("DIFFIPC_CLI", str(ROOT / "build" / "cli" / "diffipc"))
+    out = tmp_path_factory.mktemp("s502")
+    rows = study.main(["--cli", cli, "-o", str(out / "runs"), "--results", str(out / "results")])
+    return rows, out / "results"
+
+
+def select(rows, case, variant=None, knob=None):
+    return [r for r in rows if r["case"] == case and (variant is None or r["variant"] == variant)
+            and (knob is None or r["knob"] == knob)]
+
+
+def order(rows):
+    return study.observed_order([(r["value"], r["error"]) for r in rows])
+
+
+def test_every_run_converged_and_outputs_exist(sweep):
+    rows, results = sweep
+    assert len(rows) > 80
+    assert all(r["status"] == "CONVERGED" for r in rows), [r for r in rows if r["status"] != "CONVERGED"]
+    assert all(math.isfinite(r["error"]) and r["time"] > 0 for r in rows)
+    for name in ("results.md", "results.csv", "free_fall.png", "cantilever.png", "slope.png", "stopping.png"):
+        assert (results / name).exists(), name
+    text = (results / "results.md").read_text()
+    assert "Command: `" in text and "Machine: " in text
+
+
+def test_time_orders_of_the_integrators_in_free_fall(sweep):
+    rows, _ = sweep
+    for dim in (2, 3):
+        ie = order(select(rows, "free_fall", f"{dim}D implicit_euler"))
+        bdf2 = order(select(rows, "free_fall", f"{dim}D bdf2"))
+        assert 0.95 < ie < 1.05, ie
+        assert 1.9 < bdf2 < 2.1, bdf2
+        # Newmark integrates a constant acceleration exactly: the error is round-off.
+        assert max(r["error"] for r in select(rows, "free_fall", f"{dim}D newmark")) < 1e-10
+
+
+def test_spatial_order_of_p1_on_the_cantilever(sweep):
+    rows, _ = sweep
+    for dim in (2, 3):
+        mesh = sorted(select(rows, "cantilever", f"{dim}D", "cells across"), key=lambda r: r["value"])
+        errors = [r["error"] for r in mesh]
+        assert all(a > b for a, b in zip(errors, errors[1:])), errors  # refining always helps
+    mesh2 = sorted(select(rows, "cantilever", "2D", "cells across"), key=lambda r: r["value"])
+    p = study.observed_order([(1.0 / r["value"], r["error"]) for r in mesh2[-3:]])
+    assert 1.6 < p < 2.3, p  # P1's second order, reached on the finest 2D meshes
+    # The Newton tolerance: the solver's error falls as the tolerance tightens, and the default
+    # tolerance is far below the discretization error.
+    tol = sorted(select(rows, "cantilever", "2D", "residual tolerance"), key=lambda r: -r["value"])
+    assert tol[-1]["error"] < 1e-6 and tol[-1]["error"] <= tol[0]["error"]
+
+
+def test_contact_cases_first_order_in_time_and_the_penalty_baseline(sweep):
+    rows, _ = sweep
+    for case in ("slope", "stopping"):
+        p = order(select(rows, case, "IPC", "dt"))
+        assert 0.85 < p < 1.3, (case, p)
+        # IPC: no vertex ever behind the plane, in any run of any knob (positions checked here).
+        assert all(r["min_gap"] > 0 for r in select(rows, case, "IPC")), case
+        penalty = {r["value"]: r for r in select(rows, case, "penalty")}
+        # The soft penalty lets the block sink through the plane and gets the motion wrong ...
+        assert penalty[1e3]["min_gap"] < 0 and penalty[1e3]["error"] > 0.3, penalty[1e3]
+        # ... a well-tuned stiffness matches IPC on these gentle cases.
+        ipc = next(r for r in select(rows, case, "IPC", "dhat") if r["value"] == 2e-4)
+        assert penalty[1e7]["min_gap"] > 0 and penalty[1e7]["error"] < 2 * ipc["error"] + 1e-3
