@@ -28,6 +28,7 @@ nlohmann::json summary_json(const Simulator& simulator)
     j["min_volume_ratio"] = totals.min_volume_ratio;
     j["max_residual"] = totals.max_residual;
     j["linear_fallbacks"] = totals.linear_fallbacks;
+    j["line_search_cuts"] = totals.line_search_cuts;
     j["roundoff_limited_steps"] = totals.roundoff_limited_steps;
     if (simulator.scene().time.adaptive.enabled)
         j["load_stepping"] = { { "substepped_steps", totals.substepped_steps }, { "substeps", totals.substeps },

@@ -111,7 +111,8 @@ namespace {
 
     /// States (positions, velocities, accelerations) of file rows first .. first + rows - 1,
     /// given to `use(row, x, v, a)`; a row that is not finite is an error naming its step.
-    template <typename Use> void read_state_rows(const File& file, const StoredTrajectory& st, hsize_t first, hsize_t rows, Use use)
+    template <typename Use>
+    void read_state_rows(const File& file, const StoredTrajectory& st, hsize_t first, hsize_t rows, Use use)
     {
         const Index size = st.vertices * st.dim;
         const std::vector<double> x = file.read<double>("positions", first, long(rows));
@@ -145,6 +146,9 @@ StoredTrajectory read_trajectory(const std::string& path, int last_states)
         throw InputError(path, "not a diffipc trajectory: 'positions' is not [T+1, N, d]");
     const std::vector<int> status = file.read<int>("status");
     const std::vector<int> iterations = file.read<int>("newton_iterations");
+    // Files written before the line search's cuts were recorded lack them (read as 0).
+    const std::vector<int> cuts_ls
+        = file.has("line_search_cuts") ? file.read<int>("line_search_cuts") : std::vector<int>();
     const std::vector<double> residual = file.read<double>("residual");
     const std::vector<double> newton_step = file.read<double>("newton_step");
     const std::vector<double> volume = file.read<double>("min_volume_ratio");
@@ -170,6 +174,8 @@ StoredTrajectory read_trajectory(const std::string& path, int last_states)
     }
     if (out.contact)
         T = std::min({ T, kappa.size(), min_distance.size(), active.size(), friction_residual.size() });
+    if (!cuts_ls.empty())
+        T = std::min(T, cuts_ls.size());
     // Automatic load stepping (written when the scene enables it).
     std::vector<int> substeps, cuts, control_steps, relaxation_steps;
     std::vector<double> min_increment;
@@ -209,6 +215,7 @@ StoredTrajectory read_trajectory(const std::string& path, int last_states)
         r.time = time[k];
         r.status = StepStatus(status[k - 1]);
         r.newton_iterations = iterations[k - 1];
+        r.line_search_cuts = cuts_ls.empty() ? 0 : cuts_ls[k - 1];
         r.residual = residual[k - 1];
         r.newton_step = newton_step[k - 1];
         r.min_volume_ratio = volume[k - 1];
@@ -251,8 +258,8 @@ void read_states(StoredTrajectory& stored, int first, int last)
         throw std::out_of_range("read_states: steps " + std::to_string(first) + " .. " + std::to_string(last)
             + " of a trajectory of " + std::to_string(tr.committed()));
     const File file(stored.path);
-    read_state_rows(file, stored, hsize_t(first), hsize_t(last - first + 1),
-        [&](hsize_t k, VectorXd x, VectorXd v, VectorXd a) {
+    read_state_rows(
+        file, stored, hsize_t(first), hsize_t(last - first + 1), [&](hsize_t k, VectorXd x, VectorXd v, VectorXd a) {
             StepRecord& r = tr.step(int(k));
             r.positions = std::move(x);
             r.velocities = std::move(v);

@@ -212,6 +212,7 @@ TrajectoryWriter::TrajectoryWriter(const std::string& path, const Mesh& mesh, co
             { "accelerations", D, { N, d }, true, vec(&StepRecord::accelerations) },
             { "status", I, {}, false, [impl](const StepRecord&) -> const void* { return &impl->status; } },
             { "newton_iterations", I, {}, false, integer(&StepRecord::newton_iterations) },
+            { "line_search_cuts", I, {}, false, integer(&StepRecord::line_search_cuts) },
             { "residual", D, {}, false, dbl(&StepRecord::residual) },
             { "newton_step", D, {}, false, dbl(&StepRecord::newton_step) },
             { "min_volume_ratio", D, {}, false, dbl(&StepRecord::min_volume_ratio) },
@@ -325,7 +326,8 @@ void TrajectoryWriter::close()
 int TrajectoryWriter::steps() const { return m_impl->steps; }
 const std::string& TrajectoryWriter::path() const { return m_impl->path; }
 
-void write_hdf5(const std::string& path, const Mesh& mesh, const Trajectory& trajectory, bool contact, bool load_stepping)
+void write_hdf5(
+    const std::string& path, const Mesh& mesh, const Trajectory& trajectory, bool contact, bool load_stepping)
 {
     TrajectoryWriter writer(path, mesh, trajectory, contact, {}, load_stepping);
     for (const StepRecord& r : trajectory.steps)

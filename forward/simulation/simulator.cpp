@@ -744,6 +744,7 @@ StepStatus Simulator::step()
     record.residual = result.residual;
     record.newton_step = result.newton_step;
     record.linear_fallbacks = result.linear_fallbacks;
+    record.line_search_cuts = result.line_search_cuts;
     record.roundoff_limited = result.roundoff_limited;
     record.phases = result.times;
     if (m_contact) {

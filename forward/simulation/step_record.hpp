@@ -29,6 +29,7 @@ struct StepRecord {
     double min_volume_ratio = 1; ///< min over elements of volume / rest volume
     double wall_time = 0; ///< s
     int linear_fallbacks = 0;
+    int line_search_cuts = 0; ///< backtracking halvings of the step's accepted Newton steps
     /// Newton stopped because its step fell below the round-off of x while the
     /// residual was above tolerance (the residual is then at its floor).
     bool roundoff_limited = false;
@@ -109,6 +110,7 @@ struct StepTotals {
     double min_volume_ratio = 1;
     double max_residual = 0;
     int linear_fallbacks = 0;
+    int line_search_cuts = 0;
     int roundoff_limited_steps = 0;
     double min_distance = std::numeric_limits<double>::infinity();
     int max_active_contacts = 0;
@@ -131,6 +133,7 @@ struct StepTotals {
         min_volume_ratio = std::min(min_volume_ratio, r.min_volume_ratio);
         max_residual = std::max(max_residual, r.residual);
         linear_fallbacks += r.linear_fallbacks;
+        line_search_cuts += r.line_search_cuts;
         roundoff_limited_steps += r.roundoff_limited;
         min_distance = std::min(min_distance, r.min_distance);
         max_active_contacts = std::max(max_active_contacts, r.active_contacts);

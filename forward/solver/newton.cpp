@@ -301,6 +301,7 @@ NewtonResult NewtonSolver::solve(VectorXd& x, const VectorXd& target, const std:
                 continue;
             if (lifting || new_energy <= energy + m_settings.armijo * alpha * slope + roundoff) {
                 accepted = true;
+                result.line_search_cuts += h;
                 break;
             }
             if (unresolvable && h == 0) {
@@ -308,6 +309,7 @@ NewtonResult NewtonSolver::solve(VectorXd& x, const VectorXd& target, const std:
                 const double trial_max = free_residual(g_trial);
                 if (g_trial.allFinite() && trial_max < 0.5 * gmax) {
                     accepted = true;
+                    result.line_search_cuts += h;
                     result.roundoff_limited = true;
                     break;
                 }

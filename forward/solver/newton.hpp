@@ -43,6 +43,9 @@ struct NewtonResult {
     int true_hessian_steps = 0; ///< iterations that used the unprojected (positive definite) Hessian
     /// Full steps lengthened because the energy fell almost linearly along them (NewtonSolver::extend).
     int extended_steps = 0;
+    /// Line-search halvings of the accepted steps (a step that CCD or the inversion bound
+    /// shortened first counts only the halvings after that).
+    int line_search_cuts = 0;
     /// Converged because the full Newton step fell below the round-off of x
     /// while the residual was still above its tolerance.
     bool roundoff_limited = false;
@@ -52,6 +55,7 @@ struct NewtonResult {
     {
         iterations += r.iterations;
         linear_fallbacks += r.linear_fallbacks;
+        line_search_cuts += r.line_search_cuts;
         times += r.times;
     }
     /// This result (status, residual, ...) with the iterations, fallbacks and times of `total`:
@@ -61,6 +65,7 @@ struct NewtonResult {
         NewtonResult r = *this;
         r.iterations = total.iterations;
         r.linear_fallbacks = total.linear_fallbacks;
+        r.line_search_cuts = total.line_search_cuts;
         r.times = total.times;
         return r;
     }

@@ -501,3 +501,21 @@ def test_steps_option_replaces_the_scenes_step_count(cli, tmp_path):
         assert summary["steps_requested"] == steps and summary["steps_committed"] == steps
     r = run(cli, "simulate", scene, "-o", tmp_path / "bad", "--steps", 0)
     assert r.returncode != 0 and "--steps" in r.stderr
+
+
+def test_line_search_cuts_are_recorded_per_step_and_in_total(cli, tmp_path, root):
+    h5py = pytest.importorskip("h5py")
+    out = tmp_path / "boxes"
+    r = run(cli, "simulate", root / "studies" / "202_boxes_head_on" / "scene.json", "-o", out, "--steps", 3, "-q",
+            "--vtu-every", 0)
+    assert r.returncode == 0, r.stderr
+    summary = json.loads((out / "summary.json").read_text())
+    with h5py.File(out / "trajectory.h5", "r") as f:
+        cuts = f["line_search_cuts"][:]
+    assert len(cuts) == 3 and cuts.min() >= 0
+    assert cuts.sum() == summary["line_search_cuts"] > 0  # the boxes' impact needs backtracking
+    # A restarted run keeps the stored steps' counts.
+    r = run(cli, "simulate", "--restart", out, "--steps", 4, "-q")
+    assert r.returncode == 0, r.stderr
+    with h5py.File(out / "trajectory.h5", "r") as f:
+        assert list(f["line_search_cuts"][:3]) == list(cuts)
