@@ -26,6 +26,12 @@ SECTIONS = [
      "knob varied at a time: error against wall time per knob with the Pareto front, the observed "
      "convergence orders, and IPC side by side with the penalty baseline. The cases, their errors and "
      "base settings are defined in the study's README"),
+    ("503_stability_atlas", "Stability atlas",
+     "Extreme cases (stiffness, incompressibility, time step, impact speed, mass ratio, friction, thin "
+     "plates, a stack of 20 bodies, a body squeezed to 5% of its width) with IPC and the penalty baseline: "
+     "per cell the status, Newton iterations, line-search cuts, gaps, volume ratios, invalid states found by "
+     "independent checks, energy drift and time; every cell that does not finish valid with why, what would "
+     "fix it and the measured outcome of that fix"),
 ]
 
 HEADER = """# Results
