@@ -6,7 +6,7 @@ against time, a curve per knob, points labelled by value, the Pareto front over 
 markdown table of observed convergence orders.
 
     PYTHONPATH=build/python /usr/bin/python3 studies/502_error_vs_time/run.py [--cli build/cli/diffipc]
-        [-o output/502] [--full] [--cases free_fall cantilever slope stopping] [--jobs 2]
+        [-o output/502] [--full] [--cases free_fall cantilever slope stopping hertz] [--jobs 2]
         [--results studies/502_error_vs_time]
 
 Cases (the error of each is defined in its docstring below and in the README):
@@ -17,6 +17,8 @@ Cases (the error of each is defined in its docstring below and in the README):
               knobs dt, eps_v, dhat, kappa, friction iterations, and the penalty baseline's stiffness
   stopping    a block sliding on flat ground at 1 m/s with mu = 0.5 (exact stopping distance
               v0^2 / (2 mu g)), knobs dt, eps_v, dhat, and the penalty baseline's stiffness
+  hertz       a half cylinder pressed onto a plane (Hertz's contact half-width), knobs the mesh size
+              at the contact, dhat, both together, and the penalty baseline's stiffness
 
 Each run is a single-threaded process (--threads 1); --jobs runs that many at once.
 """
@@ -63,7 +65,7 @@ def free_fall(dim, integrator, dt):
              "time": {"integrator": integrator, "dt": dt, "steps": int(round(T / dt))},
              "solver": {"residual_tolerance": 1e-10}}
 
-    def error(f):
+    def error(f, folder=None):
         y = body_mean(f, "positions")[1] - body_mean(f, "positions", 0)[1]
         exact = -0.5 * G * T * T
         return abs(y - exact) / abs(exact)
@@ -83,7 +85,7 @@ def cantilever(dim, refine, tolerance=1e-10):
              "time": {"integrator": "static", "dt": 1.0, "steps": 1},
              "solver": {"residual_tolerance": tolerance}}
 
-    def deflection(f):
+    def deflection(f, folder=None):
         X = f["mesh/rest_positions"][:]
         x = f["positions"][-1]
         tip = np.abs(X[:, 0] - L) < 1e-9
@@ -117,7 +119,7 @@ def slope(dt=5e-4, eps_v=1e-3, dhat=2e-4, kappa="adaptive", iterations=5, penalt
     a = G * (math.sin(th) - mu * math.cos(th))
     down = np.array([math.cos(th), -math.sin(th)])
 
-    def error(f):
+    def error(f, folder=None):
         s = (body_mean(f, "positions") - body_mean(f, "positions", 0)) @ down
         return abs(s - 0.5 * a * T * T) / (0.5 * a * T * T)
     return scene, error
@@ -130,9 +132,83 @@ def stopping(dt=5e-4, eps_v=1e-3, dhat=2e-4, kappa="adaptive", penalty=None):
     scene = block(0.0, mu, v0, dt, eps_v, dhat, kappa, 5, penalty, T)
     d = v0 * v0 / (2 * mu * G)
 
-    def error(f):
+    def error(f, folder=None):
         x = body_mean(f, "positions")[0] - body_mean(f, "positions", 0)[0]
         return abs(x - d) / d
+    return scene, error
+
+
+HERTZ_R, HERTZ_E, HERTZ_NU, HERTZ_DEPTH = 0.1, 1e7, 0.3, 5e-4
+
+
+def half_disk_mesh(h_contact, path):
+    """The lower half of a disk of radius R centred at (0, R), meshed by gmsh with triangles of size
+    h_contact + 0.2 r at distance r from its lowest point (at most 1 cm); a vertex at the centre
+    of its flat top edge. Written as gmsh 2.2 ASCII."""
+    import gmsh
+    R = HERTZ_R
+    gmsh.initialize(["hertz", "-v", "2"])
+    try:
+        gmsh.model.add("half_disk")
+        occ = gmsh.model.occ
+        disk = occ.addDisk(0, R, 0, R, R)
+        upper = occ.addRectangle(-R, R, 0, 2 * R, R)
+        half, _ = occ.cut([(2, disk)], [(2, upper)])
+        centre = occ.addPoint(0, R, 0)
+        occ.fragment(half, [(0, centre)])
+        occ.synchronize()
+        gmsh.model.addPhysicalGroup(2, [t for _, t in gmsh.model.getEntities(2)], 1)
+        field = gmsh.model.mesh.field
+        field.add("MathEval", 1)
+        field.setString(1, "F", f"{h_contact}+0.2*sqrt(x*x+y*y)")
+        field.setAsBackgroundMesh(1)
+        for option in ("Mesh.MeshSizeExtendFromBoundary", "Mesh.MeshSizeFromPoints", "Mesh.MeshSizeFromCurvature"):
+            gmsh.option.setNumber(option, 0)
+        gmsh.option.setNumber("Mesh.MeshSizeMax", 0.01)
+        gmsh.option.setNumber("Mesh.MshFileVersion", 2.2)
+        gmsh.model.mesh.generate(2)
+        gmsh.write(path)
+    finally:
+        gmsh.finalize()
+
+
+def hertz(mesh, dhat, penalty=None):
+    """A half cylinder (radius 0.1 m, neo-Hookean, E = 1e7 Pa, nu = 0.3, plane strain) pressed
+    0.5 mm onto a rigid plane by its flat top edge (static, 4 load steps). Hertz's line contact:
+    half-width a_H = sqrt(4 F R / (pi E*)), E* = E / (1 - nu^2), peak pressure p0 = 2 F / (pi a_H),
+    F the measured force per unit length. The contact half-width is measured from the nodal contact
+    forces f_i at x_i as a = 2 sqrt(sum f_i (x_i - xbar)^2 / sum f_i), exact for Hertz's elliptical
+    pressure (its second moment is a^2 / 4). Error: |a - a_H| / a_H."""
+    R, g0 = HERTZ_R, 0.5 * dhat
+    top = R + g0
+    scene = {"dimension": 2,
+             "bodies": [{"name": "cylinder", "mesh": {"file": mesh}, "translation": [0.0, g0],
+                         "material": {"model": "neo_hookean", "E": HERTZ_E, "nu": HERTZ_NU, "density": 1000.0}}],
+             "obstacles": [{"name": "floor", "plane": {"point": [0, 0], "normal": [0, 1]}}],
+             "contact": contact_block(dhat, "adaptive", penalty),
+             "dirichlet": [{"body": 0, "region": {"min": [-1, top], "max": [1, top]},
+                            "displacement": [None, f"-{HERTZ_DEPTH}*t"]},
+                           {"body": 0, "region": {"min": [0, top], "max": [0, top]}, "displacement": [0, None]}],
+             "time": {"integrator": "static", "dt": 0.25, "steps": 4},
+             "solver": {"residual_tolerance": 1e-8}, "output": {"vtu_every": 4}}
+
+    def error(f, folder):
+        import meshio
+        frame = meshio.read(os.path.join(folder, "frame_4.vtu"))
+        force, x = frame.point_data["contact_force"][:, 1], frame.points[:, 0]
+        on = force > 0
+        F = force[on].sum()
+        xbar = (force[on] * x[on]).sum() / F
+        a = 2 * math.sqrt((force[on] * (x[on] - xbar) ** 2).sum() / F)
+        a_h = math.sqrt(4 * F * R / (math.pi * HERTZ_E / (1 - HERTZ_NU ** 2)))
+        # The peak pressure from the force of the vertex nearest the centre over its share of the surface.
+        xs, fs = x[on][np.argsort(x[on])], force[on][np.argsort(x[on])]
+        c = int(np.argmin(np.abs(xs - xbar)))
+        share = (xs[min(c + 1, len(xs) - 1)] - xs[max(c - 1, 0)]) / 2
+        p0 = 2 * F / (math.pi * a_h)
+        note = (f"F = {F:.5g} N/m, a = {a * 1e3:.4f} mm, a_H = {a_h * 1e3:.4f} mm, {int(on.sum())} vertices in "
+                f"contact, centre pressure {fs[c] / share:.4g} Pa against p0 = {p0:.4g} Pa")
+        return abs(a - a_h) / a_h, note
     return scene, error
 
 
@@ -173,6 +249,28 @@ def sweeps(full):
     return out
 
 
+def hertz_sweeps(out, full):
+    """The Hertz case's runs; its meshes are made here, before the runs start."""
+    meshes = [2e-3, 1e-3, 5e-4, 2.5e-4] + ([1.25e-4] if full else [])
+    joint = [(2e-3, 8e-4), (1e-3, 4e-4), (5e-4, 2e-4), (2.5e-4, 1e-4)] + ([(1.25e-4, 5e-5)] if full else [])
+    folder = os.path.join(out, "meshes")
+    os.makedirs(folder, exist_ok=True)
+    path = {}
+    for h in sorted(set(meshes) | {h for h, _ in joint}):
+        path[h] = os.path.abspath(os.path.join(folder, f"half_disk_{h:g}.msh"))
+        if not os.path.exists(path[h]):
+            half_disk_mesh(h, path[h])
+    fine = 2.5e-4
+    runs = [("hertz", "IPC", "contact mesh size (dhat 1e-4)", h, lambda h=h: hertz(path[h], 1e-4)) for h in meshes]
+    runs += [("hertz", "IPC", "dhat (mesh 2.5e-4)", d, lambda d=d: hertz(path[fine], d))
+             for d in [4e-4, 2e-4, 1e-4, 5e-5, 2.5e-5]]
+    runs += [("hertz", "IPC", "mesh size and dhat together (value: mesh)", h, lambda h=h, d=d: hertz(path[h], d))
+             for h, d in joint]
+    runs += [("hertz", "penalty", "penalty stiffness (mesh 2.5e-4, dhat 1e-4)", k,
+              lambda k=k: hertz(path[fine], 1e-4, penalty=k)) for k in [1e8, 1e9, 1e10, 1e11]]
+    return runs
+
+
 # ---------------------------------------------------------------- running
 
 
@@ -183,16 +281,20 @@ def run_one(cli, out, index, case, variant, knob, value, build):
     path = os.path.join(folder, "scene.json")
     with open(path, "w") as f:
         json.dump(scene, f, indent=1)
-    cmd = [cli, "simulate", path, "-o", folder, "-q", "--vtu-every", "0", "--threads", "1"]
+    vtu = str(scene.get("output", {}).get("vtu_every", 0))
+    cmd = [cli, "simulate", path, "-o", folder, "-q", "--vtu-every", vtu, "--threads", "1"]
     done = subprocess.run(cmd, capture_output=True, text=True)
     summary = json.load(open(os.path.join(folder, "summary.json")))
     row = dict(case=case, variant=variant, knob=knob, value=value, status=summary["status"],
                steps=summary["steps_committed"], newton=summary["counts"]["newton_iterations"],
                time=summary["wall_time"]["total"], measured=float("nan"), error=float("nan"),
-               min_gap=float("nan"), folder=os.path.relpath(folder, ROOT))
+               min_gap=float("nan"), note="", folder=os.path.relpath(folder, ROOT))
     if done.returncode == 0:
         with h5py.File(os.path.join(folder, "trajectory.h5"), "r") as f:
-            row["measured"] = float(measure(f))
+            measured = measure(f, folder)
+            if isinstance(measured, tuple):
+                measured, row["note"] = measured
+            row["measured"] = float(measured)
             if scene.get("obstacles"):
                 row["min_gap"] = float(signed_gap(f, scene))
     return row
@@ -345,11 +447,13 @@ def main(argv=None):
     p.add_argument("--cli", default=os.path.join(ROOT, "build", "cli", "diffipc"))
     p.add_argument("-o", "--output", default=os.path.join(ROOT, "output", "502"))
     p.add_argument("--full", action="store_true", help="finer time steps and meshes")
-    p.add_argument("--cases", nargs="*", default=["free_fall", "cantilever", "slope", "stopping"])
+    p.add_argument("--cases", nargs="*", default=["free_fall", "cantilever", "slope", "stopping", "hertz"])
     p.add_argument("--jobs", type=int, default=2)
     p.add_argument("--results", default=None, help="write results.md, results.csv and the figures here")
     a = p.parse_args(argv)
     todo = [s for s in sweeps(a.full) if s[0] in a.cases]
+    if "hertz" in a.cases:
+        todo += hertz_sweeps(a.output, a.full)
     with concurrent.futures.ThreadPoolExecutor(a.jobs) as pool:
         rows = list(pool.map(lambda k: run_one(a.cli, a.output, k, *todo[k]), range(len(todo))))
     refs = finish_errors(rows)
@@ -369,6 +473,12 @@ def main(argv=None):
         plot_case(case, [r for r in rows if r["case"] == case], os.path.join(a.results, png))
         text += f"\n![{case}: error against run time]({png})\n"
     text += "\n### Observed orders\n\n" + orders_table(rows, refs)
+    hz = [r for r in rows if r["case"] == "hertz"]
+    if hz:
+        text += "\n### Hertz contact of a half cylinder\n\n| contact | knob | value | error of a | time (s) | measured |\n"
+        text += "| --- | --- | --- | --- | --- | --- |\n"
+        for r in hz:
+            text += f"| {r['variant']} | {r['knob']} | {r['value']:g} | {r['error']:.2e} | {r['time']:.3f} | {r['note']} |\n"
     if any(r["variant"] == "penalty" for r in rows):
         text += "\n### IPC and the penalty baseline\n\n" + penalty_table(rows)
     failed = [r for r in rows if r["status"] != "CONVERGED"]

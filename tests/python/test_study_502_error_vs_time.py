@@ -92,3 +92,16 @@ def test_contact_cases_first_order_in_time_and_the_penalty_baseline(sweep):
         # ... a well-tuned stiffness matches IPC on these gentle cases.
         ipc = next(r for r in select(rows, case, "IPC", "dhat") if r["value"] == 2e-4)
         assert penalty[1e7]["min_gap"] > 0 and penalty[1e7]["error"] < 2 * ipc["error"] + 1e-3
+
+
+def test_hertz_contact_width_converges_as_mesh_and_dhat_shrink(sweep):
+    rows, _ = sweep
+    joint = sorted(select(rows, "hertz", "IPC", "mesh size and dhat together (value: mesh)"), key=lambda r: -r["value"])
+    errors = [r["error"] for r in joint]
+    assert len(errors) >= 4 and all(a > b for a, b in zip(errors, errors[1:])), errors
+    assert errors[-1] < 0.05, errors  # within 5% of Hertz's half-width on the finest pair
+    mesh = sorted(select(rows, "hertz", "IPC", "contact mesh size (dhat 1e-4)"), key=lambda r: -r["value"])
+    assert all(a["error"] > b["error"] for a, b in zip(mesh, mesh[1:])), [r["error"] for r in mesh]
+    # The penalty's layer gives the same width at the same mesh (its runs are real: a measured force).
+    for r in select(rows, "hertz", "penalty"):
+        assert r["status"] == "CONVERGED" and r["error"] < 0.1 and "F = " in r["note"], r
