@@ -6,7 +6,7 @@ against time, a curve per knob, points labelled by value, the Pareto front over 
 markdown table of observed convergence orders.
 
     PYTHONPATH=build/python /usr/bin/python3 studies/502_error_vs_time/run.py [--cli build/cli/diffipc]
-        [-o output/502] [--full] [--cases free_fall cantilever slope stopping hertz] [--jobs 2]
+        [-o output/502] [--full] [--cases free_fall cantilever slope stopping hertz bounce] [--jobs 2]
         [--results studies/502_error_vs_time]
 
 Cases (the error of each is defined in its docstring below and in the README):
@@ -17,6 +17,8 @@ Cases (the error of each is defined in its docstring below and in the README):
               knobs dt, eps_v, dhat, kappa, friction iterations, and the penalty baseline's stiffness
   stopping    a block sliding on flat ground at 1 m/s with mu = 0.5 (exact stopping distance
               v0^2 / (2 mu g)), knobs dt, eps_v, dhat, and the penalty baseline's stiffness
+  bounce      a soft box bouncing on a frictionless plane for 1 s: energy drift per bounce, knob dt per
+              integrator (implicit Euler, BDF2, Newmark)
   hertz       a half cylinder pressed onto a plane (Hertz's contact half-width), knobs the mesh size
               at the contact, dhat, both together, and the penalty baseline's stiffness
 
@@ -35,6 +37,7 @@ import sys
 import h5py
 import numpy as np
 
+import diffipc.energy
 import diffipc.machine
 
 HERE = os.path.dirname(os.path.abspath(__file__))
@@ -138,6 +141,37 @@ def stopping(dt=5e-4, eps_v=1e-3, dhat=2e-4, kappa="adaptive", penalty=None):
     return scene, error
 
 
+def bounce(integrator, dt):
+    """A soft box (0.1 m x 0.05 m, 8 x 4 cells, E = 1e5 Pa, 5 kg/m) dropped from 5 cm onto a
+    frictionless plane, for 1 s. E is the kinetic + elastic + gravitational energy computed from the
+    stored states (diffipc.energy; the barrier's is not counted: it is 0 out of contact). The error is
+    the first bounce's energy change relative to the bouncing energy, |E(after) - E(0)| / (E(0) -
+    E_rest), E(after) at the first state out of contact after the first contact, E_rest = E(0) - m g
+    0.05 m (the box at rest on the plane). An elastic bounce keeps it: the exact error is 0."""
+    T = 1.0
+    scene = {"dimension": 2, "bodies": [box(2, [0.0, 0.05], [0.1, 0.1], [8, 4], E=1e5)], "gravity": [0.0, -G],
+             "obstacles": [{"name": "ground", "plane": {"point": [0, 0], "normal": [0, 1]}}],
+             "contact": {"dhat": 1e-4},
+             "time": {"integrator": integrator, "dt": dt, "steps": int(round(T / dt))},
+             "solver": {"residual_tolerance": 1e-8}}
+
+    def error(f, folder=None):
+        e = diffipc.energy.mechanical_energy(f, scene)
+        touching = np.concatenate([[False], f["active_contacts"][:] > 0])  # per state, the initial one first
+        starts = np.flatnonzero(touching[1:] & ~touching[:-1]) + 1
+        ends = np.flatnonzero(~touching[1:] & touching[:-1]) + 1  # first free state after an episode
+        # At rest on the plane the box is 5 cm lower (its 5 kg/m, the contact layer neglected): the
+        # bouncing energy is E(0) - E_rest = m g 0.05 m.
+        rest = e[0] - 1000.0 * 0.1 * 0.05 * G * 0.05
+        if len(ends) == 0:
+            return float("nan"), "never left the plane"
+        first = (e[ends[0]] - e[0]) / (e[0] - rest)
+        note = (f"{len(starts)} contact episodes; the first bounce changes the bouncing energy by {100 * first:+.2f}%; "
+                f"energy {e[0]:.4g} -> {e[-1]:.4g} J/m at 1 s (at rest: {rest:.4g})")
+        return abs(first), note
+    return scene, error
+
+
 HERTZ_R, HERTZ_E, HERTZ_NU, HERTZ_DEPTH = 0.1, 1e7, 0.3, 5e-4
 
 
@@ -233,6 +267,9 @@ def sweeps(full):
         for tol in (1e-4, 1e-5, 1e-6, 1e-7, 1e-8):
             out.append(("cantilever", f"{dim}D", "residual tolerance", tol,
                         lambda d=dim, t=tol: cantilever(d, refines[d][-2], t)))
+    for integ in ("implicit_euler", "bdf2", "newmark"):
+        for dt in [2e-3, 1e-3, 5e-4, 2.5e-4] + ([1.25e-4] if full else []):
+            out.append(("bounce", integ, "dt", dt, lambda i=integ, t=dt: bounce(i, t)))
     k_penalty = [1e3, 1e4, 1e5, 1e6, 1e7] + ([1e8] if full else [])
     for case, fn, extra in (("slope", slope, {"friction iterations": [1, 2, 5, 10]}), ("stopping", stopping, {})):
         knobs = {"dt": [0.008, 0.004, 0.002, 0.001, 0.0005, 0.00025] + ([0.000125] if full else []),
@@ -371,7 +408,7 @@ def plot_case(case, rows, path):
                and math.isfinite(r["error"])]
         if not pts:
             continue
-        label = f"{variant}: {knob}" if case in ("free_fall", "cantilever") else knob
+        label = f"{variant}: {knob}" if case in ("free_fall", "cantilever", "bounce") else knob
         if variant == "penalty":
             label = "penalty: stiffness (N/m)"
         line, = ax.plot([r["time"] for r in pts], [r["error"] for r in pts], "o-", ms=4, label=label)
@@ -447,7 +484,7 @@ def main(argv=None):
     p.add_argument("--cli", default=os.path.join(ROOT, "build", "cli", "diffipc"))
     p.add_argument("-o", "--output", default=os.path.join(ROOT, "output", "502"))
     p.add_argument("--full", action="store_true", help="finer time steps and meshes")
-    p.add_argument("--cases", nargs="*", default=["free_fall", "cantilever", "slope", "stopping", "hertz"])
+    p.add_argument("--cases", nargs="*", default=["free_fall", "cantilever", "slope", "stopping", "hertz", "bounce"])
     p.add_argument("--jobs", type=int, default=2)
     p.add_argument("--results", default=None, help="write results.md, results.csv and the figures here")
     a = p.parse_args(argv)
@@ -473,6 +510,12 @@ def main(argv=None):
         plot_case(case, [r for r in rows if r["case"] == case], os.path.join(a.results, png))
         text += f"\n![{case}: error against run time]({png})\n"
     text += "\n### Observed orders\n\n" + orders_table(rows, refs)
+    bo = [r for r in rows if r["case"] == "bounce"]
+    if bo:
+        text += "\n### Bouncing box: energy per integrator\n\n| integrator | dt | status | first bounce's error | measured |\n"
+        text += "| --- | --- | --- | --- | --- |\n"
+        for r in bo:
+            text += f"| {r['variant']} | {r['value']:g} | {r['status']} | {r['error']:.2e} | {r['note']} |\n"
     hz = [r for r in rows if r["case"] == "hertz"]
     if hz:
         text += "\n### Hertz contact of a half cylinder\n\n| contact | knob | value | error of a | time (s) | measured |\n"

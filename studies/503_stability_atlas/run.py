@@ -30,6 +30,7 @@ import sys
 import h5py
 import numpy as np
 
+import diffipc.energy
 import diffipc.machine
 
 HERE = os.path.dirname(os.path.abspath(__file__))
@@ -226,42 +227,6 @@ def check_states(cli, folder):
     return inverted, intersecting
 
 
-def energies(f, scene):
-    """Kinetic + elastic (neo-Hookean, computed here) + gravitational energy of the bodies per state (J/m)."""
-    X = f["mesh/rest_positions"][:]
-    tris = f["mesh/elements"][:]
-    eb = f["mesh/element_body"][:]
-    x = f["positions"][:]
-    v = f["velocities"][:]
-    nb = len(scene["bodies"])
-    mats = [b["material"] for b in scene["bodies"]]
-    E = np.array([mats[b]["E"] for b in eb])
-    nu = np.array([mats[b]["nu"] for b in eb])
-    rho = np.array([mats[b]["density"] for b in eb])
-    mu, lam = E / (2 * (1 + nu)), E * nu / ((1 + nu) * (1 - 2 * nu))
-    Dm = np.stack([X[tris[:, 1]] - X[tris[:, 0]], X[tris[:, 2]] - X[tris[:, 0]]], axis=2)
-    area = 0.5 * np.abs(np.linalg.det(Dm))
-    Dm_inv = np.linalg.inv(Dm)
-    mass = np.zeros(len(X))
-    for k in range(3):
-        np.add.at(mass, tris[:, k], rho * area / 3)
-    body_vertex = f["mesh/body"][:] < nb
-    g = np.array(scene.get("gravity", [0.0, 0.0]))
-    out = []
-    for s in range(x.shape[0]):
-        Ds = np.stack([x[s, tris[:, 1]] - x[s, tris[:, 0]], x[s, tris[:, 2]] - x[s, tris[:, 0]]], axis=2)
-        F = Ds @ Dm_inv
-        J = np.linalg.det(F)
-        if np.any(J <= 0):
-            out.append(float("inf"))
-            continue
-        psi = mu / 2 * (np.einsum("eij,eij->e", F, F) - 2) - mu * np.log(J) + lam / 2 * np.log(J) ** 2
-        kinetic = 0.5 * (mass[body_vertex] * (v[s, body_vertex] ** 2).sum(axis=1)).sum()
-        potential = -(mass[body_vertex] * (x[s, body_vertex] @ g)).sum()
-        out.append(kinetic + (area * psi).sum() + potential)
-    return np.array(out)
-
-
 def plane_gap(f, scene):
     """The smallest signed distance of a body vertex to a plane obstacle over all states (m), from
     the positions (moving planes follow their motion through their stored vertex)."""
@@ -325,7 +290,7 @@ def run_cell(cli, out, family, value, model, scene, conserved):
             row["plane_gap"] = plane_gap(f, scene)
             row["passed_through"] = passed_through(f, scene)
             if conserved and row["steps"] > 0:
-                e = energies(f, scene)
+                e = diffipc.energy.mechanical_energy(f, scene)
                 scale = max(abs(e[0]), 1e-300)
                 row["energy_drift"] = float((e[-1] - e[0]) / scale)
     return row

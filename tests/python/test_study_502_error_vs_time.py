@@ -45,9 +45,12 @@ def order(rows):
 def test_every_run_converged_and_outputs_exist(sweep):
     rows, results = sweep
     assert len(rows) > 80
-    assert all(r["status"] == "CONVERGED" for r in rows), [r for r in rows if r["status"] != "CONVERGED"]
-    assert all(math.isfinite(r["error"]) and r["time"] > 0 for r in rows)
-    for name in ("results.md", "results.csv", "free_fall.png", "cantilever.png", "slope.png", "stopping.png"):
+    # Newmark's bounces may fail (it gains energy at impacts, see the README); nothing else does.
+    unconverged = [r for r in rows if r["status"] != "CONVERGED"]
+    assert all(r["case"] == "bounce" and r["variant"] == "newmark" for r in unconverged), unconverged
+    assert all(math.isfinite(r["error"]) and r["time"] > 0 for r in rows if r["status"] == "CONVERGED")
+    for name in ("results.md", "results.csv", "free_fall.png", "cantilever.png", "slope.png", "stopping.png",
+                 "hertz.png", "bounce.png"):
         assert (results / name).exists(), name
     text = (results / "results.md").read_text()
     assert "Command: `" in text and "Machine: " in text
@@ -105,3 +108,15 @@ def test_hertz_contact_width_converges_as_mesh_and_dhat_shrink(sweep):
     # The penalty's layer gives the same width at the same mesh (its runs are real: a measured force).
     for r in select(rows, "hertz", "penalty"):
         assert r["status"] == "CONVERGED" and r["error"] < 0.1 and "F = " in r["note"], r
+
+
+def test_bounce_energy_loss_of_the_dissipative_integrators_falls_with_dt(sweep):
+    rows, _ = sweep
+    by = {}
+    for integrator in ("implicit_euler", "bdf2"):
+        runs = sorted(select(rows, "bounce", integrator, "dt"), key=lambda r: -r["value"])
+        errors = [r["error"] for r in runs]
+        assert all(a > b for a, b in zip(errors, errors[1:])), (integrator, errors)
+        by[integrator] = {r["value"]: r["error"] for r in runs}
+    # BDF2 loses less of the bounce than implicit Euler at every step.
+    assert all(by["bdf2"][dt] < by["implicit_euler"][dt] for dt in by["bdf2"])
