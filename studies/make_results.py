@@ -32,6 +32,10 @@ SECTIONS = [
      "per cell the status, Newton iterations, line-search cuts, gaps, volume ratios, invalid states found by "
      "independent checks, energy drift and time; every cell that does not finish valid with why, what would "
      "fix it and the measured outcome of that fix"),
+    ("504_gradient_error", "Gradient error against run time",
+     "The adjoint gradient's error against a tightly converged reference as the forward tolerance and the "
+     "time step vary, on three adjoint examples (a bar's dJ/dE, a sliding block's dJ/dmu, a ring's dJ/dv0), "
+     "and the checkpointed adjoint's cost against its memory for several strides"),
 ]
 
 HEADER = """# Results
