@@ -9,7 +9,7 @@ the energy drift where energy is conserved by the physics (frictionless, no pres
 and the wall time.
 
     PYTHONPATH=build/python /usr/bin/python3 studies/503_stability_atlas/run.py [--cli build/cli/diffipc]
-        [-o output/503] [--jobs 2] [--families E nu ...] [--results studies/503_stability_atlas]
+        [-o output/503] [--jobs 2] [--families E nu ...] [--full] [--results studies/503_stability_atlas]
 
 The penalty baseline runs every contact cell with contact.model "penalty" and penalty_stiffness =
 10 E (Pa: 2D energies are per unit thickness, so the stiffness of a contact pair per unit
@@ -120,7 +120,7 @@ def squeeze(ratio):
     return s
 
 
-# (family, label of its values, values, builder, energy conserved by the physics?)
+# (family, label of its values, values, builder, energy conserved by the physics?); --full adds FULL's.
 FAMILIES = [
     ("E", "Young's modulus (Pa)", [1e3, 1e5, 1e7, 1e9, 1e11], lambda v: drop(E=v), True),
     ("nu", "Poisson's ratio", [0.3, 0.45, 0.49, 0.499], lambda v: drop(nu=v), True),
@@ -133,6 +133,18 @@ FAMILIES = [
     ("stack", "bodies in the stack", [5, 10, 20], stack, True),
     ("squeeze", "final gap / width", [0.5, 0.2, 0.1, 0.05], squeeze, False),
 ]
+FULL = {"E": [1e4, 1e6, 1e8, 1e10], "nu": [0.0, 0.4, 0.495], "dt": [3e-5, 3e-4, 3e-3, 3e-2],
+        "speed": [3, 50], "mass_ratio": [10, 1e3, 1e5], "mu": [0.25, 0.577, 0.75, 1.5], "thin": [10, 0.5],
+        "stack": [15, 30], "squeeze": [0.3, 0.02]}
+
+
+def families(full):
+    """FAMILIES with FULL's values merged in when `full`."""
+    if not full:
+        return FAMILIES
+    return [(f, label, sorted(set(values) | set(FULL.get(f, []))), build, conserved)
+            for f, label, values, build, conserved in FAMILIES]
+
 
 # What would fix a cell that did not finish valid: a note per failure kind, with a change to the
 # cell's scene that the study runs to verify it (the outcome is printed beside the note).
@@ -430,8 +442,10 @@ def main(argv=None):
     p.add_argument("-o", "--output", default=os.path.join(ROOT, "output", "503"))
     p.add_argument("--jobs", type=int, default=2)
     p.add_argument("--families", nargs="*", default=[f[0] for f in FAMILIES])
+    p.add_argument("--full", action="store_true", help="more values per family (about 3 times the runs)")
     p.add_argument("--results", default=None, help="write results.md, results.csv and atlas.png here")
     a = p.parse_args(argv)
+    FAMILIES[:] = families(a.full)  # the other functions read the module's list
     todo = []
     for fam, _, values, build, conserved in FAMILIES:
         if fam not in a.families:
