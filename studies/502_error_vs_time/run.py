@@ -6,7 +6,7 @@ against time, a curve per knob, points labelled by value, the Pareto front over 
 markdown table of observed convergence orders.
 
     PYTHONPATH=build/python /usr/bin/python3 studies/502_error_vs_time/run.py [--cli build/cli/diffipc]
-        [-o output/502] [--full] [--cases free_fall cantilever slope stopping hertz bounce] [--jobs 2]
+        [-o output/502] [--full] [--cases free_fall cantilever slope stopping rolling hertz bounce] [--jobs 2]
         [--results studies/502_error_vs_time]
 
 Cases (the error of each is defined in its docstring below and in the README):
@@ -17,6 +17,8 @@ Cases (the error of each is defined in its docstring below and in the README):
               knobs dt, eps_v, dhat, kappa, friction iterations, and the penalty baseline's stiffness
   stopping    a block sliding on flat ground at 1 m/s with mu = 0.5 (exact stopping distance
               v0^2 / (2 mu g)), knobs dt, eps_v, dhat, and the penalty baseline's stiffness
+  rolling     a thick ring rolling down a 30 degree slope without slipping (a = g sin / (1 + k)),
+              knobs dt, eps_v, the polygon's segments, mu
   bounce      a soft box bouncing on a frictionless plane for 1 s: energy drift per bounce, knob dt per
               integrator (implicit Euler, BDF2, Newmark)
   hertz       a half cylinder pressed onto a plane (Hertz's contact half-width), knobs the mesh size
@@ -138,6 +140,40 @@ def stopping(dt=5e-4, eps_v=1e-3, dhat=2e-4, kappa="adaptive", penalty=None):
     def error(f, folder=None):
         x = body_mean(f, "positions")[0] - body_mean(f, "positions", 0)[0]
         return abs(x - d) / d
+    return scene, error
+
+
+def rolling(dt=5e-4, eps_v=1e-3, segments=48, mu=0.5):
+    """A thick ring (annulus, radii 0.05 and 0.025 m, 3 layers, E = 1e8 Pa: nearly rigid) released on
+    a 30 degree slope with mu = 0.5 rolls without slipping (mu above tan 30 k / (1 + k) = 0.22,
+    k = I / (m R^2) = (1 + 0.5^2) / 2): its centre accelerates at a = g sin 30 / (1 + k) = 3.019 m/s^2.
+    Error: |s(T) - a T^2 / 2| / (a T^2 / 2), s the displacement of the mass centre (the lumped-mass
+    average of the vertices) along the slope, T = 0.3 s. The ring is a polygon of `segments` sides."""
+    T, th, R, r = 0.3, math.radians(30.0), 0.05, 0.025
+    k = (1 + (r / R) ** 2) / 2
+    a = G * math.sin(th) / (1 + k)
+    gap = 1.05e-4
+    centre = [(R + gap) * math.sin(th), (R + gap) * math.cos(th)]  # R + gap from the slope, along its normal
+    ring = {"name": "ring", "mesh": {"annulus": {"center": centre, "inner_radius": r, "outer_radius": R,
+                                                 "segments": segments, "layers": 3}},
+            "material": {"model": "neo_hookean", "E": 1e8, "nu": 0.3, "density": 1000.0}}
+    scene = {"dimension": 2, "bodies": [ring], "gravity": [0.0, -G],
+             "obstacles": [{"name": "slope", "plane": {"point": [0, 0], "normal": [math.sin(th), math.cos(th)]}}],
+             "contact": {"dhat": 1e-4}, "friction": {"coefficient": mu, "eps_v": eps_v, "iterations": 3},
+             "time": {"integrator": "implicit_euler", "dt": dt, "steps": int(round(T / dt))},
+             "solver": {"residual_tolerance": 1e-8}}
+    down = np.array([math.cos(th), -math.sin(th)])
+
+    def error(f, folder=None):
+        X, tris = f["mesh/rest_positions"][:], f["mesh/elements"][:]
+        area = 0.5 * np.abs(np.cross(X[tris[:, 1]] - X[tris[:, 0]], X[tris[:, 2]] - X[tris[:, 0]]))
+        mass = np.zeros(len(X))
+        for j in range(3):
+            np.add.at(mass, tris[:, j], area / 3)
+        x = f["positions"][:]
+        c = (mass[:, None] * x).sum(axis=1) / mass.sum()
+        s_end = (c[-1] - c[0]) @ down
+        return abs(s_end - 0.5 * a * T * T) / (0.5 * a * T * T)
     return scene, error
 
 
@@ -267,6 +303,10 @@ def sweeps(full):
         for tol in (1e-4, 1e-5, 1e-6, 1e-7, 1e-8):
             out.append(("cantilever", f"{dim}D", "residual tolerance", tol,
                         lambda d=dim, t=tol: cantilever(d, refines[d][-2], t)))
+    for knob, values in (("dt", [2e-3, 1e-3, 5e-4, 2.5e-4, 1.25e-4]), ("eps_v", [1e-1, 1e-2, 1e-3, 1e-4]),
+                         ("segments", [24, 48, 96]), ("mu", [0.3, 0.5, 1.0])):
+        for v in values:
+            out.append(("rolling", "IPC", knob, v, lambda k=knob, v=v: rolling(**{k: v})))
     for integ in ("implicit_euler", "bdf2", "newmark"):
         for dt in [2e-3, 1e-3, 5e-4, 2.5e-4] + ([1.25e-4] if full else []):
             out.append(("bounce", integ, "dt", dt, lambda i=integ, t=dt: bounce(i, t)))
@@ -484,7 +524,8 @@ def main(argv=None):
     p.add_argument("--cli", default=os.path.join(ROOT, "build", "cli", "diffipc"))
     p.add_argument("-o", "--output", default=os.path.join(ROOT, "output", "502"))
     p.add_argument("--full", action="store_true", help="finer time steps and meshes")
-    p.add_argument("--cases", nargs="*", default=["free_fall", "cantilever", "slope", "stopping", "hertz", "bounce"])
+    p.add_argument("--cases", nargs="*",
+                   default=["free_fall", "cantilever", "slope", "stopping", "rolling", "hertz", "bounce"])
     p.add_argument("--jobs", type=int, default=2)
     p.add_argument("--results", default=None, help="write results.md, results.csv and the figures here")
     a = p.parse_args(argv)

@@ -50,7 +50,7 @@ def test_every_run_converged_and_outputs_exist(sweep):
     assert all(r["case"] == "bounce" and r["variant"] == "newmark" for r in unconverged), unconverged
     assert all(math.isfinite(r["error"]) and r["time"] > 0 for r in rows if r["status"] == "CONVERGED")
     for name in ("results.md", "results.csv", "free_fall.png", "cantilever.png", "slope.png", "stopping.png",
-                 "hertz.png", "bounce.png"):
+                 "rolling.png", "hertz.png", "bounce.png"):
         assert (results / name).exists(), name
     text = (results / "results.md").read_text()
     assert "Command: `" in text and "Machine: " in text
@@ -120,3 +120,13 @@ def test_bounce_energy_loss_of_the_dissipative_integrators_falls_with_dt(sweep):
         by[integrator] = {r["value"]: r["error"] for r in runs}
     # BDF2 loses less of the bounce than implicit Euler at every step.
     assert all(by["bdf2"][dt] < by["implicit_euler"][dt] for dt in by["bdf2"])
+
+
+def test_rolling_ring_error_falls_with_its_segments(sweep):
+    rows, _ = sweep
+    runs = sorted(select(rows, "rolling", "IPC", "segments"), key=lambda r: r["value"])
+    errors = [r["error"] for r in runs]
+    assert all(a > b for a, b in zip(errors, errors[1:])), errors
+    assert 0.7 < study.observed_order([(1.0 / r["value"], r["error"]) for r in runs]) < 1.5, errors
+    # Rolling without slip within 2% at the base setting, whatever dt.
+    assert all(r["error"] < 0.02 for r in select(rows, "rolling", "IPC", "dt")), select(rows, "rolling", "IPC", "dt")
