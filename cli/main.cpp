@@ -1,4 +1,4 @@
-// diffipc command-line interface: simulate, validate, check, bench, gradcheck, optimize.
+// diffipc command-line interface: simulate, validate, check, bench, gradcheck, optimize, study.
 // Exit codes: 0 success, 1 bad input (one line naming the field or file),
 // 2 a simulation step failed (outputs of the committed steps are still written; check: a state is invalid),
 // 3 internal error, 4 gradcheck: a direction failed, 130 / 143 simulate or optimize stopped by
@@ -10,6 +10,7 @@
 #include "cli/gradcheck.hpp"
 #include "cli/optimize.hpp"
 #include "cli/simulate.hpp"
+#include "cli/study.hpp"
 #include "forward/common/error.hpp"
 #include "forward/common/threads.hpp"
 #include "forward/io/output.hpp"
@@ -87,6 +88,13 @@ int main(int argc, char** argv)
     sim_cmd->add_option("--steps", sim_options.steps, "time steps to take, replacing the scene's time.steps")
         ->check(CLI::Range(1, 1 << 30));
     sim_cmd->add_flag("-q,--quiet", sim_options.quiet, "no progress output");
+
+    StudyOptions study_options;
+    auto* study_cmd = app.add_subcommand(
+        "study", "Run a study of studies/ (its run.py, with this build): its figures, tables and CSV go to its folder");
+    study_cmd->add_option("name", study_options.name, "the study's folder or number, e.g. 502");
+    study_cmd->add_flag("--full", study_options.full, "the study's full sweep (slower)");
+    study_cmd->add_flag("--list", study_options.list, "list the studies that can be run");
 
     std::string validate_path;
     auto* val_cmd = app.add_subcommand("validate", "Check a scene file and report what it contains");
@@ -184,6 +192,11 @@ int main(int argc, char** argv)
             return run_bench(bench_options);
         if (*grad_cmd)
             return gradcheck(problem_path, directions);
+        if (*study_cmd) {
+            if (study_options.name.empty() && !study_options.list)
+                throw InputError("study", "name a study (diffipc study --list shows them)");
+            return run_study(study_options);
+        }
     } catch (const InputError& e) {
         std::fprintf(stderr, "diffipc: error: %s\n", e.what());
         return 1;

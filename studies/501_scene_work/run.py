@@ -5,7 +5,9 @@ potential, how often the solver evaluated it and its wall time (summary.json "po
 with the contact phases (broad phase, CCD, barrier) and the linear algebra.
 
     PYTHONPATH=build/python /usr/bin/python3 studies/501_scene_work/run.py [--cli build/cli/diffipc] [-o output/501]
-        [--steps 2 | --full] [--threads N] [--table studies/501_scene_work/results.md]
+        [--steps 2 | --full] [--threads N] [--results studies/501_scene_work | --table FILE.md]
+
+(or `diffipc study 501`).
 
 What each scene needs is read from its JSON, independently of the solver: inertia only in a
 dynamic scene (or while a static step relaxes with its proximal term, which is inertia's mass
@@ -115,15 +117,18 @@ def table(rows):
 
 def main(argv=None):
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("--cli", default=os.path.join(ROOT, "build", "cli", "diffipc"))
+    p.add_argument("--cli", default=os.environ.get("DIFFIPC_CLI", os.path.join(ROOT, "build", "cli", "diffipc")))
     p.add_argument("-o", "--output", default=os.path.join(ROOT, "output", "501"))
     p.add_argument("--steps", type=int, default=2, help="time steps per scene (default 2)")
     p.add_argument("--full", action="store_true", help="each scene's own number of steps")
     p.add_argument("--threads", type=int, default=0)
     p.add_argument("--table", default=None,
                    help="write the markdown table here, and the raw numbers beside it as CSV (default: print it)")
+    p.add_argument("--results", default=None, help="write results.md and results.csv into this folder")
     p.add_argument("--scenes", nargs="*", help="scene files (default: every example scene)")
     a = p.parse_args(argv)
+    if a.results:
+        a.table = os.path.join(a.results, "results.md")
     rows, problems = [], []
     for path in a.scenes or example_scenes():
         rel, summary = run_scene(a.cli, os.path.abspath(path), a.output, None if a.full else a.steps, a.threads)

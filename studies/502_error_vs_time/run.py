@@ -521,7 +521,7 @@ def penalty_table(rows):
 
 def main(argv=None):
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("--cli", default=os.path.join(ROOT, "build", "cli", "diffipc"))
+    p.add_argument("--cli", default=os.environ.get("DIFFIPC_CLI", os.path.join(ROOT, "build", "cli", "diffipc")))
     p.add_argument("-o", "--output", default=os.path.join(ROOT, "output", "502"))
     p.add_argument("--full", action="store_true", help="finer time steps and meshes")
     p.add_argument("--cases", nargs="*",

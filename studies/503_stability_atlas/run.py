@@ -438,7 +438,7 @@ def failures(rows, fixes):
 
 def main(argv=None):
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("--cli", default=os.path.join(ROOT, "build", "cli", "diffipc"))
+    p.add_argument("--cli", default=os.environ.get("DIFFIPC_CLI", os.path.join(ROOT, "build", "cli", "diffipc")))
     p.add_argument("-o", "--output", default=os.path.join(ROOT, "output", "503"))
     p.add_argument("--jobs", type=int, default=2)
     p.add_argument("--families", nargs="*", default=[f[0] for f in FAMILIES])

@@ -18,7 +18,9 @@ more steps at several strides: peak step records held, bytes, recomputed steps, 
 its cost relative to the forward, against the full-memory adjoint.
 
     PYTHONPATH=build/python /usr/bin/python3 studies/504_gradient_error/run.py \
-        [--results studies/504_gradient_error] [--full]
+        [--results studies/504_gradient_error] [--full] [-o output/504]
+
+(or `diffipc study 504`).
 """
 import argparse
 import copy
@@ -168,9 +170,14 @@ def main(argv=None):
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--results", default=None, help="write results.md, results.csv and gradient_error.png here")
     p.add_argument("--full", action="store_true", help="dt / 16 too, and the checkpointing run with 16x the steps")
+    p.add_argument("-o", "--output", default=None, help="also write every gradient computed (gradients.json) here")
     a = p.parse_args(argv)
     rows = sweeps(a.full)
     ring_path = ring_gradients()
+    if a.output:
+        os.makedirs(a.output, exist_ok=True)
+        json.dump({"ring_dt": [dict(dt=r["dt"], gradient=r["g"].tolist(), J=r["J"]) for r in ring_path]},
+                  open(os.path.join(a.output, "gradients.json"), "w"), indent=1)
     checkpoints = checkpoint_rows(a.full)
     if not a.results:
         for r in rows + checkpoints:

@@ -1,4 +1,5 @@
 import json
+import os
 import subprocess
 
 import numpy as np
@@ -519,3 +520,33 @@ def test_line_search_cuts_are_recorded_per_step_and_in_total(cli, tmp_path, root
     assert r.returncode == 0, r.stderr
     with h5py.File(out / "trajectory.h5", "r") as f:
         assert list(f["line_search_cuts"][:3]) == list(cuts)
+
+
+def test_study_runs_a_studys_script_with_this_build(cli, tmp_path, root):
+    r = run(cli, "study", "--list")
+    assert r.returncode == 0
+    for name in ("501_scene_work", "502_error_vs_time", "503_stability_atlas", "504_gradient_error"):
+        assert name in r.stdout.split()
+    r = run(cli, "study", "999")
+    assert r.returncode == 1 and "no study '999'" in r.stderr and "502_error_vs_time" in r.stderr
+    # A stand-in study (DIFFIPC_STUDIES) records what it was given: the options its run.py declares,
+    # this CLI, the module's path; its exit code is the command's.
+    studies = tmp_path / "studies"
+    (studies / "900_probe").mkdir(parents=True)
+    (studies / "900_probe" / "run.py").write_text(
+        "import argparse, json, os, sys\n"
+        "p = argparse.ArgumentParser()\n"
+        "p.add_argument(\"--results\"); p.add_argument(\"-o\"); p.add_argument(\"--cli\")\n"
+        "p.add_argument(\"--full\", action=\"store_true\")\n"
+        "a = p.parse_args()\n"
+        "json.dump(dict(vars(a), env_cli=os.environ.get('DIFFIPC_CLI'), path=os.environ.get('PYTHONPATH')),\n"
+        "          open(os.path.join(a.results, 'args.json'), 'w'))\n"
+        "sys.exit(3)\n")
+    env = dict(os.environ, DIFFIPC_STUDIES=str(studies))
+    r = subprocess.run([cli, "study", "900", "--full"], capture_output=True, text=True, env=env, timeout=60)
+    assert r.returncode == 3, r.stderr
+    got = json.loads((studies / "900_probe" / "args.json").read_text())
+    assert got["results"] == str(studies / "900_probe") and got["full"] is True
+    assert got["o"] == str(tmp_path / "output" / "900_probe")
+    assert os.path.samefile(got["cli"], cli) and os.path.samefile(got["env_cli"], cli)
+    assert got["path"].split(":")[0].endswith("python")
