@@ -24,7 +24,7 @@ import os
 import subprocess
 import sys
 
-import diffipc.machine
+import diffipc.studies
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(os.path.dirname(HERE))
@@ -137,7 +137,7 @@ def main(argv=None):
         problems += check(rel, scene, summary)
     text = table(rows)
     if a.table:
-        open(a.table, "w").write(diffipc.machine.provenance(ROOT, __file__, sys.argv[1:] if argv is None else argv) + "\n" + text)
+        open(a.table, "w").write(diffipc.studies.provenance(ROOT, __file__, sys.argv[1:] if argv is None else argv) + "\n" + text)
         with open(os.path.splitext(a.table)[0] + ".csv", "w", newline="") as f:
             out = csv.writer(f)
             out.writerow(["scene", "potential", "values", "gradients", "hessians", "step_bounds", "time_s"])

@@ -29,7 +29,6 @@ Each run is a single-threaded process (--threads 1); --jobs runs that many at on
 import argparse
 import concurrent.futures
 import copy
-import csv
 import json
 import math
 import os
@@ -40,7 +39,7 @@ import h5py
 import numpy as np
 
 import diffipc.energy
-import diffipc.machine
+import diffipc.studies
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(os.path.dirname(HERE))
@@ -540,29 +539,26 @@ def main(argv=None):
             print(r)
         return rows
     os.makedirs(a.results, exist_ok=True)
-    with open(os.path.join(a.results, "results.csv"), "w", newline="") as f:
-        w = csv.DictWriter(f, fieldnames=list(rows[0].keys()))
-        w.writeheader()
-        w.writerows(rows)
-    text = diffipc.machine.provenance(ROOT, __file__, sys.argv[1:] if argv is None else argv)
+    diffipc.studies.write_csv(os.path.join(a.results, "results.csv"), rows)
+    text = diffipc.studies.provenance(ROOT, __file__, sys.argv[1:] if argv is None else argv)
     text += f"\n{len(rows)} runs, each single-threaded, {a.jobs} at a time.\n"
     for case in a.cases:
         png = f"{case}.png"
         plot_case(case, [r for r in rows if r["case"] == case], os.path.join(a.results, png))
         text += f"\n![{case}: error against run time]({png})\n"
     text += "\n### Observed orders\n\n" + orders_table(rows, refs)
+    table = diffipc.studies.markdown_table
     bo = [r for r in rows if r["case"] == "bounce"]
     if bo:
-        text += "\n### Bouncing box: energy per integrator\n\n| integrator | dt | status | first bounce's error | measured |\n"
-        text += "| --- | --- | --- | --- | --- |\n"
-        for r in bo:
-            text += f"| {r['variant']} | {r['value']:g} | {r['status']} | {r['error']:.2e} | {r['note']} |\n"
+        text += "\n### Bouncing box: energy per integrator\n\n" + table(
+            ["integrator", "dt", "status", "first bounce's error", "measured"],
+            [[r["variant"], f"{r['value']:g}", r["status"], f"{r['error']:.2e}", r["note"]] for r in bo])
     hz = [r for r in rows if r["case"] == "hertz"]
     if hz:
-        text += "\n### Hertz contact of a half cylinder\n\n| contact | knob | value | error of a | time (s) | measured |\n"
-        text += "| --- | --- | --- | --- | --- | --- |\n"
-        for r in hz:
-            text += f"| {r['variant']} | {r['knob']} | {r['value']:g} | {r['error']:.2e} | {r['time']:.3f} | {r['note']} |\n"
+        text += "\n### Hertz contact of a half cylinder\n\n" + table(
+            ["contact", "knob", "value", "error of a", "time (s)", "measured"],
+            [[r["variant"], r["knob"], f"{r['value']:g}", f"{r['error']:.2e}", f"{r['time']:.3f}", r["note"]]
+             for r in hz])
     if any(r["variant"] == "penalty" for r in rows):
         text += "\n### IPC and the penalty baseline\n\n" + penalty_table(rows)
     failed = [r for r in rows if r["status"] != "CONVERGED"]

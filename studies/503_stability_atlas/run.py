@@ -19,7 +19,6 @@ dhat), the same dhat, everything else equal.
 import argparse
 import concurrent.futures
 import copy
-import csv
 import json
 import math
 import os
@@ -31,7 +30,7 @@ import h5py
 import numpy as np
 
 import diffipc.energy
-import diffipc.machine
+import diffipc.studies
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(os.path.dirname(HERE))
@@ -463,13 +462,10 @@ def main(argv=None):
                                      "plane_gap", "energy_drift", "time")}, verdict(r))
         return rows
     os.makedirs(a.results, exist_ok=True)
-    with open(os.path.join(a.results, "results.csv"), "w", newline="") as f:
-        w = csv.DictWriter(f, fieldnames=list(rows[0].keys()))
-        w.writeheader()
-        w.writerows(rows)
+    diffipc.studies.write_csv(os.path.join(a.results, "results.csv"), rows)
     plot_atlas(rows, os.path.join(a.results, "atlas.png"))
     notes = failures(rows, verify_fixes(a.cli, a.output, rows, a.jobs))
-    text = diffipc.machine.provenance(ROOT, __file__, sys.argv[1:] if argv is None else argv)
+    text = diffipc.studies.provenance(ROOT, __file__, sys.argv[1:] if argv is None else argv)
     text += f"\n{len(rows)} runs, each single-threaded, {a.jobs} at a time.\n\n"
     text += "| contact | cells finished, every state valid | stopped with a status | with invalid states | " \
             "invalid states in all |\n| --- | --- | --- | --- | --- |\n"

@@ -24,7 +24,6 @@ its cost relative to the forward, against the full-memory adjoint.
 """
 import argparse
 import copy
-import csv
 import json
 import math
 import os
@@ -33,7 +32,7 @@ import sys
 import numpy as np
 
 import diffipc
-import diffipc.machine
+import diffipc.studies
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(os.path.dirname(HERE))
@@ -184,12 +183,9 @@ def main(argv=None):
             print(r)
         return rows, checkpoints
     os.makedirs(a.results, exist_ok=True)
-    with open(os.path.join(a.results, "results.csv"), "w", newline="") as f:
-        w = csv.DictWriter(f, fieldnames=list(rows[0].keys()))
-        w.writeheader()
-        w.writerows(rows)
+    diffipc.studies.write_csv(os.path.join(a.results, "results.csv"), rows)
     plot(rows, checkpoints, os.path.join(a.results, "gradient_error.png"))
-    text = diffipc.machine.provenance(ROOT, __file__, sys.argv[1:] if argv is None else argv)
+    text = diffipc.studies.provenance(ROOT, __file__, sys.argv[1:] if argv is None else argv)
     text += "\n![gradient error against run time; checkpointed adjoint](gradient_error.png)\n"
     text += ("\n| example | knob | value | relative gradient error | forward (s) | adjoint (s) |\n"
              "| --- | --- | --- | --- | --- | --- |\n")

@@ -29,3 +29,13 @@ def box_scene(dim=2, model="neo_hookean", E=1e5, nu=0.3, steps=3, integrator="im
         "time": {"integrator": integrator, "dt": dt, "steps": steps},
         "solver": {"residual_tolerance": 1e-10},
     }
+
+
+def load_script(path):
+    """A study's script (studies/NNN/run.py, ...) as a module, to call its functions."""
+    import importlib.util
+    path = pathlib.Path(path)
+    spec = importlib.util.spec_from_file_location(f"{path.parent.name}_{path.stem}", path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module

@@ -1,16 +1,13 @@
 """docs/results.md is generated (studies/make_results.py) from the studies' own results: it must
 be exactly what the script writes from the results.md files in the tree, so that no number in it
 was typed by hand; and every figure it links exists."""
-import importlib.util
 import re
 
-from conftest import ROOT
+from conftest import ROOT, load_script
 
 
 def test_results_page_is_generated_from_the_studies(tmp_path):
-    spec = importlib.util.spec_from_file_location("make_results", ROOT / "studies" / "make_results.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
+    module = load_script(ROOT / "studies" / "make_results.py")
     out = tmp_path / "results.md"
     module.main(str(out))
     assert out.read_text() == (ROOT / "docs" / "results.md").read_text(), \

@@ -2,25 +2,17 @@
 step through the CLI and its summary.json's per-potential counts are checked against what the
 scene's JSON needs; the check itself is shown to catch each kind of needless (or missing) work."""
 import copy
-import importlib.util
 import json
 import os
 
 import pytest
 
-from conftest import ROOT, box_scene
+from conftest import ROOT, box_scene, load_script
 
 STUDY = ROOT / "studies" / "501_scene_work"
 
 
-def load_study():
-    spec = importlib.util.spec_from_file_location("study_501_run", STUDY / "run.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
-
-
-study = load_study()
+study = load_script(STUDY / "run.py")
 
 
 def test_every_example_scene_runs_only_what_it_needs(cli, tmp_path):

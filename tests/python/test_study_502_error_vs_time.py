@@ -4,24 +4,16 @@ asserted against the schemes' (first order for implicit Euler, second for BDF2, 
 a constant acceleration, second order in space for P1 on the smooth 2D cantilever), IPC never lets
 a block behind its plane, and the penalty baseline's runs are real runs whose soft settings
 penetrate and fail."""
-import importlib.util
 import math
 
 import pytest
 
-from conftest import ROOT
+from conftest import ROOT, load_script
 
 STUDY = ROOT / "studies" / "502_error_vs_time"
 
 
-def load_study():
-    spec = importlib.util.spec_from_file_location("study_502_run", STUDY / "run.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
-
-
-study = load_study()
+study = load_script(STUDY / "run.py")
 
 
 @pytest.fixture(scope="module")

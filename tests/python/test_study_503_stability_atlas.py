@@ -4,7 +4,6 @@ have no intersecting, inverted or passed-through state and no vertex behind a pl
 committed step of any cell, checked by `diffipc check` and by the study's own position checks;
 a cell that stops says why with its status and writes no NaN. The penalty baseline's invalid
 cells show that the checks can fail."""
-import importlib.util
 import math
 import os
 
@@ -12,19 +11,12 @@ import h5py
 import numpy as np
 import pytest
 
-from conftest import ROOT
+from conftest import ROOT, load_script
 
 STUDY = ROOT / "studies" / "503_stability_atlas"
 
 
-def load_study():
-    spec = importlib.util.spec_from_file_location("study_503_run", STUDY / "run.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
-
-
-study = load_study()
+study = load_script(STUDY / "run.py")
 
 
 @pytest.fixture(scope="module")

@@ -1,23 +1,15 @@
 """Study 504 (studies/504_gradient_error): the gradient's error against the forward tolerance and
 the time step on three adjoint examples, and the checkpointed adjoint's memory and cost."""
-import importlib.util
 import math
 
 import pytest
 
-from conftest import ROOT
+from conftest import ROOT, load_script
 
 STUDY = ROOT / "studies" / "504_gradient_error"
 
 
-def load_study():
-    spec = importlib.util.spec_from_file_location("study_504_run", STUDY / "run.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
-
-
-study = load_study()
+study = load_script(STUDY / "run.py")
 
 
 @pytest.fixture(scope="module")

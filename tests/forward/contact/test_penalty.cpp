@@ -6,6 +6,7 @@
 // apart; and the scene keys' errors.
 
 #include "../potential_fd.hpp"
+#include "contact_scenes.hpp"
 
 #include "forward/common/error.hpp"
 #include "forward/contact/contact_potential.hpp"
@@ -58,22 +59,8 @@ TEST(PenaltyContact, ScalarFormMatchesTheSpringInTheLayer)
 
 TEST(PenaltyContact, GradientAndHessian2DRingsAndPlane)
 {
-    json s;
-    s["dimension"] = 2;
-    json ring = { { "mesh",
-                      { { "annulus",
-                          { { "center", { 0, 0.3 } }, { "inner_radius", 0.2 }, { "outer_radius", 0.2995 },
-                              { "segments", 24 }, { "layers", 1 } } } } },
-        { "material", { { "model", "neo_hookean" }, { "E", 1e5 }, { "nu", 0.3 }, { "density", 1000 } } } };
-    json ring2 = ring;
-    ring2["mesh"]["annulus"]["center"] = { 0.5995, 0.3 };
-    ring["name"] = "a";
-    ring2["name"] = "b";
-    s["bodies"] = { ring, ring2 };
-    s["obstacles"] = { { { "plane", { { "point", { 0, 0 } }, { "normal", { 0, 1 } } } } } };
-    s["contact"] = { { "dhat", 1e-3 }, { "model", "penalty" }, { "penalty_stiffness", 1e4 } };
-    s["time"] = { { "integrator", "implicit_euler" }, { "dt", 0.01 }, { "steps", 1 } };
-    Simulator sim(test::make_scene(s));
+    Simulator sim(test::make_scene(
+        test::rings_on_plane({ { "dhat", 1e-3 }, { "model", "penalty" }, { "penalty_stiffness", 1e4 } })));
     EXPECT_TRUE(sim.contact()->penalty());
     VectorXd x = sim.positions() + 1e-5 * test::random_vector(sim.positions().size(), 7);
     expect_derivatives(sim, x, 1e-9);
@@ -90,24 +77,9 @@ TEST(PenaltyContact, GradientAndHessian2DRingsAndPlane)
 
 TEST(PenaltyContact, GradientAndHessian3DBoxesAndPlane)
 {
-    json s;
-    s["dimension"] = 3;
-    auto box = [](const std::string& name, std::vector<double> lo, std::vector<double> hi) {
-        return test::box_body(name, lo, hi, std::vector<int> { 2, 1, 2 });
-    };
-    s["bodies"] = { box("a", { 0, 0.0005, 0 }, { 1, 0.5, 1 }), box("b", { 0.1, 0.5005, 0.1 }, { 0.9, 1.0, 0.9 }) };
-    s["obstacles"] = { { { "plane", { { "point", { 0, 0, 0 } }, { "normal", { 0, 1, 0 } } } } } };
-    s["contact"] = { { "dhat", 1e-3 }, { "model", "penalty" }, { "penalty_stiffness", 1e4 } };
-    s["time"] = { { "integrator", "implicit_euler" }, { "dt", 0.01 }, { "steps", 1 } };
-    Simulator sim(test::make_scene(s));
-    VectorXd x = sim.positions();
-    for (Index v = 0; v < sim.scene().body_vertices; ++v) {
-        if (sim.mesh().vertex_body[v] != 1)
-            continue;
-        const double px = x[v * 3] - 0.5, pz = x[v * 3 + 2] - 0.5;
-        x[v * 3] = 0.5 + std::cos(0.3) * px - std::sin(0.3) * pz;
-        x[v * 3 + 2] = 0.5 + std::sin(0.3) * px + std::cos(0.3) * pz;
-    }
+    Simulator sim(test::make_scene(
+        test::boxes_on_plane({ { "dhat", 1e-3 }, { "model", "penalty" }, { "penalty_stiffness", 1e4 } })));
+    VectorXd x = test::turn_upper_box(sim, 0.3);
     x += 5e-5 * test::random_vector(x.size(), 11);
     int kinds[4] = { 0, 0, 0, 0 };
     for (const Contact& c : sim.contact()->contacts(x))

@@ -1,4 +1,5 @@
-"""The machine a study ran on, for the line that docs/results.md prints under each figure."""
+"""Helpers of the studies (studies/5xx): the machine and command a result came from (the lines
+docs/results.md prints above each figure), and their CSV and markdown tables."""
 import datetime
 import os
 import platform
@@ -65,3 +66,18 @@ def command_line(root, script, args):
 def provenance(root, script, args):
     """Markdown lines naming the command (command_line()) and the machine of a study's results."""
     return f"Command: `{command_line(root, script, args)}`\n\nMachine: {describe(root)}\n"
+
+
+def write_csv(path, rows):
+    """Rows (dicts with the same keys) as a CSV file with a header."""
+    import csv
+    with open(path, "w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=list(rows[0].keys()))
+        w.writeheader()
+        w.writerows(rows)
+
+
+def markdown_table(head, lines):
+    """A markdown table: `head` the column titles, `lines` the rows (sequences of cells)."""
+    out = "| " + " | ".join(head) + " |\n|" + " --- |" * len(head) + "\n"
+    return out + "".join("| " + " | ".join(str(c) for c in line) + " |\n" for line in lines)

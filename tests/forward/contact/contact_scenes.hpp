@@ -1,0 +1,65 @@
+#pragma once
+// Contact test scenes shared by the barrier's and the penalty's derivative checks: states with
+// active contacts of every kind (2D vertex-edge and vertex-plane; 3D vertex-face, edge-edge and
+// vertex-plane).
+
+#include "../test_utils.hpp"
+
+#include "forward/simulation/simulator.hpp"
+
+#include <cmath>
+
+namespace diffipc::test {
+
+/// Two 2D rings resting within 0.5 mm of a plane and of each other; `contact` is the scene's block.
+inline nlohmann::json rings_on_plane(const nlohmann::json& contact)
+{
+    nlohmann::json s;
+    s["dimension"] = 2;
+    nlohmann::json ring = { { "mesh",
+                                { { "annulus",
+                                    { { "center", { 0, 0.3 } }, { "inner_radius", 0.2 }, { "outer_radius", 0.2995 },
+                                        { "segments", 24 }, { "layers", 1 } } } } },
+        { "material", { { "model", "neo_hookean" }, { "E", 1e5 }, { "nu", 0.3 }, { "density", 1000 } } } };
+    nlohmann::json ring2 = ring;
+    ring2["mesh"]["annulus"]["center"] = { 0.5995, 0.3 };
+    ring["name"] = "a";
+    ring2["name"] = "b";
+    s["bodies"] = { ring, ring2 };
+    s["obstacles"] = { { { "plane", { { "point", { 0, 0 } }, { "normal", { 0, 1 } } } } } };
+    s["contact"] = contact;
+    s["time"] = { { "integrator", "implicit_euler" }, { "dt", 0.01 }, { "steps", 1 } };
+    return s;
+}
+
+/// Two 3D boxes, the second on the first, both within 0.5 mm of each other and of a plane.
+inline nlohmann::json boxes_on_plane(const nlohmann::json& contact)
+{
+    nlohmann::json s;
+    s["dimension"] = 3;
+    auto box = [](const std::string& name, std::vector<double> lo, std::vector<double> hi) {
+        return box_body(name, lo, hi, std::vector<int> { 2, 1, 2 });
+    };
+    s["bodies"] = { box("a", { 0, 0.0005, 0 }, { 1, 0.5, 1 }), box("b", { 0.1, 0.5005, 0.1 }, { 0.9, 1.0, 0.9 }) };
+    s["obstacles"] = { { { "plane", { { "point", { 0, 0, 0 } }, { "normal", { 0, 1, 0 } } } } } };
+    s["contact"] = contact;
+    s["time"] = { { "integrator", "implicit_euler" }, { "dt", 0.01 }, { "steps", 1 } };
+    return s;
+}
+
+/// boxes_on_plane()'s positions with body b turned by `angle` (rad) about the vertical axis through
+/// its centre, so that its edges cross body a's.
+inline Eigen::VectorXd turn_upper_box(const Simulator& sim, double angle)
+{
+    Eigen::VectorXd x = sim.positions();
+    for (Index v = 0; v < sim.scene().body_vertices; ++v) {
+        if (sim.mesh().vertex_body[v] != 1)
+            continue;
+        const double px = x[v * 3] - 0.5, pz = x[v * 3 + 2] - 0.5;
+        x[v * 3] = 0.5 + std::cos(angle) * px - std::sin(angle) * pz;
+        x[v * 3 + 2] = 0.5 + std::sin(angle) * px + std::cos(angle) * pz;
+    }
+    return x;
+}
+
+} // namespace diffipc::test
