@@ -57,4 +57,18 @@ void lame_to_young_poisson(const VectorXd& E, const VectorXd& nu, const VectorXd
     }
 }
 
+std::vector<std::string> computed_blocks(const ParameterGradient& g)
+{
+    std::vector<std::string> out;
+    const std::pair<const char*, bool> blocks[] = { { "rest_positions", g.rest_positions.size() > 0 },
+        { "lame", g.mu.size() > 0 || g.lambda.size() > 0 }, { "density", g.density.size() > 0 },
+        { "friction", g.friction.size() > 0 }, { "initial_displacement", g.initial_displacement.size() > 0 },
+        { "initial_velocity", g.initial_velocity.size() > 0 }, { "prescribed", g.prescribed.size() > 0 },
+        { "macro", g.macro.size() > 0 } };
+    for (const auto& [name, held] : blocks)
+        if (held)
+            out.push_back(name);
+    return out;
+}
+
 } // namespace diffipc

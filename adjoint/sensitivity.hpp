@@ -14,6 +14,7 @@
 
 #include "forward/common/types.hpp"
 
+#include <string>
 #include <vector>
 
 namespace diffipc {
@@ -52,6 +53,10 @@ struct ParameterGradient {
     /// this += scale * other, growing empty blocks as needed.
     void add(const ParameterGradient& other, double scale = 1.0);
 };
+
+/// The names of the blocks a gradient holds (non-empty): "rest_positions", "lame" (mu and
+/// lambda), "density", "friction", "initial_displacement", "initial_velocity", "prescribed", "macro".
+std::vector<std::string> computed_blocks(const ParameterGradient& g);
 
 /// @brief Adds `scale * v` to `block`, allocating it (zeros) if empty.
 void accumulate(VectorXd& block, const VectorXd& v, double scale = 1.0);

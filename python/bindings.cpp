@@ -371,6 +371,9 @@ PYBIND11_MODULE(_diffipc, m)
             },
             "dg_i/dp as row i (numpy, #constraints by size), or None if the gradient was not requested")
         .def_readonly("forward_time", &Evaluation::forward_time, "s, summed over load cases")
+        .def_readonly("adjoint_blocks", &Evaluation::adjoint_blocks,
+            "with the gradient: the parameter blocks the adjoint computed (rest_positions, lame, density, "
+            "friction, initial_displacement, initial_velocity, prescribed, macro)")
         .def_readonly("adjoint_time", &Evaluation::adjoint_time,
             "s, summed over load cases (with checkpointing: the recomputed steps included)")
         .def_property_readonly(

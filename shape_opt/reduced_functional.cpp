@@ -387,6 +387,10 @@ Evaluation ReducedFunctional::evaluate(const VectorXd& p, bool gradient, bool co
                 out.constraint_values[row] = value;
             if (!g)
                 return;
+            for (const std::string& b : computed_blocks(*g))
+                if (std::find(out.adjoint_blocks.begin(), out.adjoint_blocks.end(), b) == out.adjoint_blocks.end())
+                    out.adjoint_blocks.push_back(b);
+            std::sort(out.adjoint_blocks.begin(), out.adjoint_blocks.end());
             if (row < 0) {
                 m_parameters->add_gradient(*g, sp, sim.plane_stress(), out.gradient);
                 return;

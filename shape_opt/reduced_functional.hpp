@@ -59,6 +59,10 @@ struct Evaluation {
     double forward_time = 0, adjoint_time = 0;
     /// One per load case when the problem has checkpointing and the gradient was computed; else empty.
     std::vector<LoadCaseCheckpoint> checkpoints;
+    /// With the gradient: the parameter blocks the adjoint computed (adjoint/sensitivity.hpp
+    /// computed_blocks(), union over load cases and functionals, sorted): only those the
+    /// parametrization reads, nothing else.
+    std::vector<std::string> adjoint_blocks;
     /// With constraints: g_i(p) for every constraint (not compared with its bound), and with
     /// the gradient dg_i/dp as row i; else empty.
     VectorXd constraint_values;

@@ -13,8 +13,13 @@ What each scene needs is read from its JSON, independently of the solver: inerti
 dynamic scene (or while a static step relaxes with its proximal term, which is inertia's mass
 term), external forces only with gravity or tractions, contact only with a contact block or
 obstacles, friction only with a positive coefficient (a periodic cell adds no term: it maps
-the same potentials to the fluctuation and the macroscopic gradient). The script exits with status 1, naming the scene and the potential, if a
-potential ran that the scene does not need or one it needs did not run.
+the same potentials to the fluctuation and the macroscopic gradient).
+
+Then one gradient of each example problem (studies/30x, 401-404, the tutorials'), with the
+parameter blocks the adjoint computed against those its parameters read (shape: rest positions;
+E, nu, mu, lambda: the Lame parameters; ...). The script exits with status 1, naming the scene and
+the potential or the problem and the blocks, if work ran that is not needed or needed work did
+not run.
 """
 import argparse
 import csv
@@ -52,6 +57,37 @@ def needs(scene):
         "contact": contact,
         "friction": contact and any(m > 0 for m in sides),
     }
+
+
+# The parameter blocks of the adjoint each parameter type reads (docs/problem_format.md "parameters").
+BLOCKS = {"shape": "rest_positions", "E": "lame", "nu": "lame", "mu": "lame", "lambda": "lame",
+          "density": "density", "friction": "friction", "initial_velocity": "initial_velocity",
+          "initial_displacement": "initial_displacement", "prescribed": "prescribed"}
+
+
+def example_problems():
+    """The gradient examples and the optimization studies that run in seconds, and the tutorials'."""
+    found = sorted(glob.glob(os.path.join(ROOT, "studies", "30*", "problem.json")))
+    found += sorted(glob.glob(os.path.join(ROOT, "studies", "40[1-4]*", "problem.json")))
+    return found + sorted(glob.glob(os.path.join(ROOT, "docs", "tutorial", "**", "problem*.json"), recursive=True))
+
+
+def adjoint_work(path):
+    """One gradient of a problem at its initial design: (parameter types, blocks needed, blocks the
+    adjoint computed, forward time, adjoint time)."""
+    import diffipc
+    problem = json.load(open(path))
+    types = sorted({p["type"] for p in problem["parameters"]})
+    J = diffipc.ReducedFunctional(path)
+    e = J.evaluation(J.initial, True)
+    return types, sorted({BLOCKS[t] for t in types}), sorted(e.adjoint_blocks), e.forward_time, e.adjoint_time
+
+
+def check_adjoint(name, types, needed, computed):
+    """The violations of 'no derivative nobody asked for' (and of 'every derivative asked for')."""
+    extra, missing = sorted(set(computed) - set(needed)), sorted(set(needed) - set(computed))
+    out = [f"{name}: the adjoint computed {extra}, which its parameters {types} do not read"] if extra else []
+    return out + ([f"{name}: the adjoint did not compute {missing}, which its parameters {types} read"] if missing else [])
 
 
 def evaluations(entry):
@@ -126,6 +162,8 @@ def main(argv=None):
                    help="write the markdown table here, and the raw numbers beside it as CSV (default: print it)")
     p.add_argument("--results", default=None, help="write results.md and results.csv into this folder")
     p.add_argument("--scenes", nargs="*", help="scene files (default: every example scene)")
+    p.add_argument("--problems", nargs="*", help="problem files for the adjoint's table (default: the examples)")
+    p.add_argument("--no-adjoint", action="store_true", help="scenes only")
     a = p.parse_args(argv)
     if a.results:
         a.table = os.path.join(a.results, "results.md")
@@ -135,7 +173,22 @@ def main(argv=None):
         scene = json.load(open(path))
         rows.append((rel, scene, summary))
         problems += check(rel, scene, summary)
+    adjoint_rows = []
+    if not a.no_adjoint:
+        for path in a.problems or example_problems():
+            rel = os.path.relpath(os.path.abspath(path), ROOT)
+            types, needed, computed, forward, adjoint = adjoint_work(path)
+            adjoint_rows.append((rel, types, needed, computed, forward, adjoint))
+            problems += check_adjoint(rel, types, needed, computed)
     text = table(rows)
+    if adjoint_rows:
+        text += ("\nThe adjoint, one gradient per problem at its initial design: the parameter blocks its "
+                 "parameters read and those the backward sweep computed (adjoint/sensitivity.hpp).\n\n")
+        text += "| problem | parameters | blocks needed | blocks computed | forward | adjoint |\n"
+        text += "| --- | --- | --- | --- | --- | --- |\n"
+        for rel, types, needed, computed, forward, adjoint in adjoint_rows:
+            text += (f"| `{rel}` | {', '.join(types)} | {', '.join(needed)} | {', '.join(computed)} | "
+                     f"{1e3 * forward:.1f} ms | {1e3 * adjoint:.1f} ms |\n")
     if a.table:
         open(a.table, "w").write(diffipc.studies.provenance(ROOT, __file__, sys.argv[1:] if argv is None else argv) + "\n" + text)
         with open(os.path.splitext(a.table)[0] + ".csv", "w", newline="") as f:

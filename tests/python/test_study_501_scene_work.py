@@ -18,7 +18,7 @@ study = load_script(STUDY / "run.py")
 def test_every_example_scene_runs_only_what_it_needs(cli, tmp_path):
     table = tmp_path / "table.md"
     rc = study.main(["--cli", cli, "-o", str(tmp_path / "runs"), "--steps", "1", "--table", str(table)])
-    assert rc == 0, "a scene ran work it does not need (see the VIOLATION lines above)"
+    assert rc == 0, "a scene or a problem ran work it does not need (see the VIOLATION lines above)"
     text = table.read_text()
     scenes = study.example_scenes()
     assert len(scenes) >= 15
@@ -82,3 +82,15 @@ def test_static_scene_skips_inertia_and_zero_friction_builds_nothing(cli, tmp_pa
     summary = run(cli, tmp_path, scene, "static_friction")
     assert study.check("static_friction", scene, summary) == []
     assert study.evaluations(summary["potentials"]["friction"]) > 0
+
+
+def test_the_adjoint_computes_only_the_blocks_its_parameters_read(tmp_path):
+    # Two examples here (the study's run covers all of them): a shape and a material problem.
+    for name, block in (("301_beam_shape_stress", "rest_positions"), ("302_bar_youngs_markers", "lame")):
+        types, needed, computed, forward, adjoint = study.adjoint_work(str(ROOT / "studies" / name / "problem.json"))
+        assert needed == computed == [block], (name, types, computed)
+        assert forward > 0 and adjoint > 0
+    # The check names an extra or a missing block.
+    assert study.check_adjoint("p", ["E"], ["lame"], ["lame"]) == []
+    assert "rest_positions" in study.check_adjoint("p", ["E"], ["lame"], ["lame", "rest_positions"])[0]
+    assert "did not compute ['lame']" in study.check_adjoint("p", ["E"], ["lame"], [])[0]
