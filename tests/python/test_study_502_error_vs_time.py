@@ -68,6 +68,10 @@ def test_spatial_order_of_p1_on_the_cantilever(sweep):
     mesh2 = sorted(select(rows, "cantilever", "2D", "cells across"), key=lambda r: r["value"])
     p = study.observed_order([(1.0 / r["value"], r["error"]) for r in mesh2[-3:]])
     assert 1.6 < p < 2.3, p  # P1's second order, reached on the finest 2D meshes
+    # In 3D the tetrahedra lock in bending longer: on 16 cells across the order is still rising toward 2.
+    mesh3 = sorted(select(rows, "cantilever", "3D", "cells across"), key=lambda r: r["value"])
+    p3 = study.observed_order([(1.0 / r["value"], r["error"]) for r in mesh3[-3:]])
+    assert 1.3 < p3 < 2.3, p3
     # The Newton tolerance: the solver's error falls as the tolerance tightens, and the default
     # tolerance is far below the discretization error.
     tol = sorted(select(rows, "cantilever", "2D", "residual tolerance"), key=lambda r: -r["value"])
