@@ -21,8 +21,10 @@ SECTIONS = [
      "coefficient) and fails naming the scene and the term otherwise; "
      "tests/python/test_study_501_scene_work.py runs it on every example scene"),
     ("502_error_vs_time", "Error against run time",
-     "Reference cases with exact answers (free fall per integrator, a cantilever's tip deflection against "
-     "its Richardson-extrapolated reference, a block sliding down a slope, a block sliding to a stop), one "
+     "Reference cases with exact answers (free fall per integrator, the uniaxial stretch of each material, "
+     "a cantilever's tip deflection against its Richardson-extrapolated reference, a block sliding down a "
+     "slope, a block sliding to a stop, a ring rolling without slip, Hertz contact of a half cylinder, the "
+     "energy of a bouncing box per integrator), one "
      "knob varied at a time: error against wall time per knob with the Pareto front, the observed "
      "convergence orders, and IPC side by side with the penalty baseline. The cases, their errors and "
      "base settings are defined in the study's README"),

@@ -6,11 +6,14 @@ against time, a curve per knob, points labelled by value, the Pareto front over 
 markdown table of observed convergence orders.
 
     PYTHONPATH=build/python /usr/bin/python3 studies/502_error_vs_time/run.py [--cli build/cli/diffipc]
-        [-o output/502] [--full] [--cases free_fall cantilever slope stopping rolling hertz bounce] [--jobs 2]
+        [-o output/502] [--full] [--cases free_fall uniaxial cantilever slope stopping rolling hertz bounce] [--jobs 2]
         [--results studies/502_error_vs_time]
 
 Cases (the error of each is defined in its docstring below and in the README):
   free_fall   a box falling under gravity, 2D and 3D, knob dt per integrator (exact: y0 - g t^2 / 2)
+  uniaxial    a bar of each material stretched 20% by an end traction (static), 2D and 3D, knobs
+              the Newton tolerance and the mesh (exact: the material's uniaxial stress equations,
+              solved here)
   cantilever  a cantilever's tip deflection under its weight (static, neo-Hookean), 2D and 3D,
               knobs mesh size and Newton tolerance (reference: Richardson extrapolation)
   slope       a block sliding down a 30 degree slope, mu = 0.2 (exact: v = g (sin - mu cos) t),
@@ -73,6 +76,78 @@ def free_fall(dim, integrator, dt):
         y = body_mean(f, "positions")[1] - body_mean(f, "positions", 0)[1]
         exact = -0.5 * G * T * T
         return abs(y - exact) / abs(exact)
+    return scene, error
+
+
+UNIAXIAL_E, UNIAXIAL_NU, UNIAXIAL_T = 1e6, 0.3, 2e5
+MATERIALS = ("linear", "stvk", "neo_hookean", "stable_neo_hookean")
+
+
+def uniaxial_stretches(model, dim, E=UNIAXIAL_E, nu=UNIAXIAL_NU, T=UNIAXIAL_T):
+    """The principal stretches (a along the load, b lateral) of a bar under the nominal traction T
+    with free lateral faces: the roots of P11(a, b) = T and P22(a, b) = 0 for each model's first
+    Piola-Kirchhoff stress (docs/math.md), solved here by scipy, independently of the solver."""
+    from scipy.optimize import fsolve
+    mu, lam = E / (2 * (1 + nu)), E * nu / ((1 + nu) * (1 - 2 * nu))
+    lat = dim - 1
+
+    def residual(z):
+        a, b = z
+        J = a * b ** lat
+        if model == "linear":
+            e1, e2 = a - 1, b - 1
+            tr = e1 + lat * e2
+            P = (2 * mu * e1 + lam * tr, 2 * mu * e2 + lam * tr)
+        elif model == "stvk":
+            E1, E2 = (a * a - 1) / 2, (b * b - 1) / 2
+            tr = E1 + lat * E2
+            P = (a * (2 * mu * E1 + lam * tr), b * (2 * mu * E2 + lam * tr))
+        elif model == "neo_hookean":
+            P = (mu * (a - 1 / a) + lam * math.log(J) / a, mu * (b - 1 / b) + lam * math.log(J) / b)
+        else:  # stable neo-Hookean (Smith et al. 2018): P = mu F + (lambda' (J - 1) - mu) cof F
+            c = (lam + mu) * (J - 1) - mu
+            P = (mu * a + c * J / a, mu * b + c * J / b)
+        return [P[0] - T, P[1]]
+    import warnings
+    with warnings.catch_warnings():  # fsolve warns when it cannot improve a root already at round-off
+        warnings.simplefilter("ignore", RuntimeWarning)
+        z = fsolve(residual, [1 + T / E, 1 - nu * T / E], xtol=1e-14)
+    # Accept only a root: the stresses' residual at round-off of the traction.
+    if not np.all(np.abs(residual(z)) < 1e-9 * T):
+        raise RuntimeError(f"uniaxial closed form for {model}: no root found (residual {residual(z)})")
+    return z
+
+
+def uniaxial(dim, model, tolerance=1e-10, refine=1):
+    """A 2 m x 0.5 m (x 0.5 m) bar (4 r x 2 r (x r) cells, E = 1e6 Pa, nu = 0.3) held on rollers at
+    x = 0 and pulled by a nominal traction of 2e5 Pa at x = 2 m in three static load steps. P1
+    represents the homogeneous stretch exactly, so the error is the solver's alone. Error: the
+    largest deviation of a vertex from (a X, b Y, b Z) over the stretch a L - L (relative)."""
+    L, W, T = 2.0, 0.5, UNIAXIAL_T
+    cells = [4 * refine, 2 * refine] if dim == 2 else [4 * refine, refine, refine]
+    body = box(dim, [0.0] * dim, [L] + [W] * (dim - 1), cells, E=UNIAXIAL_E, nu=UNIAXIAL_NU, model=model)
+
+    def region(lo, hi):
+        return {"min": lo, "max": hi}
+    origin = [0.0] * dim
+    dirichlet = [{"body": 0, "region": region([0.0] + [-1.0] * (dim - 1), [0.0] + [5.0] * (dim - 1)),
+                  "displacement": [0.0] + [None] * (dim - 1)},
+                 {"body": 0, "region": region(origin, origin), "displacement": [None] + [0.0] * (dim - 1)}]
+    if dim == 3:  # no spin about the bar's axis
+        corner = [0.0, W, 0.0]
+        dirichlet.append({"body": 0, "region": region(corner, corner), "displacement": [None, None, 0.0]})
+    scene = {"dimension": dim, "bodies": [body], "dirichlet": dirichlet,
+             "neumann": [{"body": 0, "region": region([L] + [-1.0] * (dim - 1), [L] + [5.0] * (dim - 1)),
+                          "traction": [f"{T}*t/3"] + [0] * (dim - 1)}],
+             "time": {"integrator": "static", "dt": 1.0, "steps": 3},
+             "solver": {"residual_tolerance": tolerance}}
+    a, b = uniaxial_stretches(model, dim)
+
+    def error(f, folder=None):
+        X = f["mesh/rest_positions"][:]
+        x = f["positions"][-1]
+        exact = X * np.array([a] + [b] * (dim - 1))
+        return np.abs(x - exact).max() / (abs(a - 1) * L), f"stretches a = {a:.6f}, b = {b:.6f}"
     return scene, error
 
 
@@ -295,6 +370,14 @@ def sweeps(full):
         for integ in ("implicit_euler", "bdf2", "newmark"):
             for dt in dts:
                 out.append(("free_fall", f"{dim}D {integ}", "dt", dt, lambda d=dim, i=integ, t=dt: free_fall(d, i, t)))
+    for dim in (2, 3):
+        for model in MATERIALS:
+            for tol in (1e-2, 1e-4, 1e-6, 1e-8, 1e-10):
+                out.append(("uniaxial", f"{dim}D {model}", "residual tolerance", tol,
+                            lambda d=dim, m=model, t=tol: uniaxial(d, m, t)))
+            for r in (1, 2, 4):
+                out.append(("uniaxial", f"{dim}D {model}", "cells (x 4 along the bar)", r,
+                            lambda d=dim, m=model, r=r: uniaxial(d, m, 1e-10, r)))
     refines = {2: [1, 2, 4, 8, 16, 32] + ([64, 128] if full else []), 3: [1, 2, 4, 8, 16]}
     for dim in (2, 3):
         for r in refines[dim]:
@@ -447,7 +530,7 @@ def plot_case(case, rows, path):
                and math.isfinite(r["error"])]
         if not pts:
             continue
-        label = f"{variant}: {knob}" if case in ("free_fall", "cantilever", "bounce") else knob
+        label = f"{variant}: {knob}" if case in ("free_fall", "uniaxial", "cantilever", "bounce") else knob
         if variant == "penalty":
             label = "penalty: stiffness (N/m)"
         line, = ax.plot([r["time"] for r in pts], [r["error"] for r in pts], "o-", ms=4, label=label)
@@ -492,6 +575,8 @@ def orders_table(rows, refs):
         order = f"{observed_order(fit):.2f}" if expected else "—"
         if case == "free_fall" and "newmark" in variant:
             expected, order = "exact (error at round-off)", "—"
+        if case == "uniaxial" and knob.startswith("cells"):
+            expected, order = "exact: P1 represents the homogeneous stretch (error at the solver's tolerance)", "—"
         lines.append(f"| {case} | {variant} | {knob} | {values} | {errors} | {order} | {expected} |")
     text = "\n".join(lines) + "\n"
     for variant, (w, p) in sorted(refs.items()):
@@ -524,7 +609,7 @@ def main(argv=None):
     p.add_argument("-o", "--output", default=os.path.join(ROOT, "output", "502"))
     p.add_argument("--full", action="store_true", help="finer time steps and meshes")
     p.add_argument("--cases", nargs="*",
-                   default=["free_fall", "cantilever", "slope", "stopping", "rolling", "hertz", "bounce"])
+                   default=["free_fall", "uniaxial", "cantilever", "slope", "stopping", "rolling", "hertz", "bounce"])
     p.add_argument("--jobs", type=int, default=2)
     p.add_argument("--results", default=None, help="write results.md, results.csv and the figures here")
     a = p.parse_args(argv)

@@ -41,7 +41,7 @@ def test_every_run_converged_and_outputs_exist(sweep):
     unconverged = [r for r in rows if r["status"] != "CONVERGED"]
     assert all(r["case"] == "bounce" and r["variant"] == "newmark" for r in unconverged), unconverged
     assert all(math.isfinite(r["error"]) and r["time"] > 0 for r in rows if r["status"] == "CONVERGED")
-    for name in ("results.md", "results.csv", "free_fall.png", "cantilever.png", "slope.png", "stopping.png",
+    for name in ("results.md", "results.csv", "free_fall.png", "uniaxial.png", "cantilever.png", "slope.png", "stopping.png",
                  "rolling.png", "hertz.png", "bounce.png"):
         assert (results / name).exists(), name
     text = (results / "results.md").read_text()
@@ -57,6 +57,24 @@ def test_time_orders_of_the_integrators_in_free_fall(sweep):
         assert 1.9 < bdf2 < 2.1, bdf2
         # Newmark integrates a constant acceleration exactly: the error is round-off.
         assert max(r["error"] for r in select(rows, "free_fall", f"{dim}D newmark")) < 1e-10
+
+
+def test_uniaxial_stretch_of_every_material_matches_its_closed_form(sweep):
+    rows, _ = sweep
+    for dim in (2, 3):
+        for model in study.MATERIALS:
+            tol = sorted(select(rows, "uniaxial", f"{dim}D {model}", "residual tolerance"), key=lambda r: -r["value"])
+            assert len(tol) == 5 and all(r["status"] == "CONVERGED" for r in tol), tol
+            # The solver's error falls as the tolerance tightens; at 1e-10 it is below 1e-8 of the stretch.
+            assert tol[-1]["error"] < 1e-8 and tol[-1]["error"] <= tol[0]["error"], (dim, model, tol)
+            # P1 represents the homogeneous stretch: no mesh error on any mesh.
+            mesh = select(rows, "uniaxial", f"{dim}D {model}", "cells (x 4 along the bar)")
+            assert len(mesh) == 3 and all(r["error"] < 1e-8 for r in mesh), (dim, model, mesh)
+    # The closed forms differ between the models (the check is not of one model four times).
+    a = {m: study.uniaxial_stretches(m, 3)[0] for m in study.MATERIALS}
+    assert len({round(v, 6) for v in a.values()}) == 4, a
+    # The linear model's stretch: 1 + T / E exactly (uniaxial stress, free lateral faces).
+    assert abs(a["linear"] - 1.2) < 1e-12, a
 
 
 def test_spatial_order_of_p1_on_the_cantilever(sweep):
