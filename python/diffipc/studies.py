@@ -31,8 +31,11 @@ def _memory_gib():
 def _revision(root):
     try:
         done = subprocess.run(["git", "-C", root, "rev-parse", "--short", "HEAD"], capture_output=True, text=True)
-        dirty = subprocess.run(["git", "-C", root, "status", "--porcelain", "--untracked-files=no"],
-                               capture_output=True, text=True)
+        # The studies' own outputs (tables, figures) are not sources: a study that rewrites them
+        # before it prints this line still ran the committed code.
+        outputs = [":(exclude,glob)studies/*/results.*", ":(exclude,glob)studies/*/*.png"]
+        dirty = subprocess.run(["git", "-C", root, "status", "--porcelain", "--untracked-files=no", "--", "."]
+                               + outputs, capture_output=True, text=True)
         if done.returncode == 0:
             return done.stdout.strip() + ("+changes" if dirty.stdout.strip() else "")
     except OSError:
