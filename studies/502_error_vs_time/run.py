@@ -525,6 +525,11 @@ def plot_case(case, rows, path):
     import matplotlib.pyplot as plt
     fig, ax = plt.subplots(figsize=(8, 5.5))
     groups = sorted({(r["variant"], r["knob"]) for r in rows})
+    # Past the colour cycle's 10 colours: a colour per variant, a line style per knob.
+    variants = sorted({v for v, _ in groups})
+    knobs = sorted({k for _, k in groups})
+    many = len(groups) > 10
+    cmap = plt.get_cmap("tab10" if len(variants) <= 10 else "tab20")
     for variant, knob in groups:
         pts = [r for r in rows if (r["variant"], r["knob"]) == (variant, knob) and r["error"] > 0
                and math.isfinite(r["error"])]
@@ -533,7 +538,9 @@ def plot_case(case, rows, path):
         label = f"{variant}: {knob}" if case in ("free_fall", "uniaxial", "cantilever", "bounce") else knob
         if variant == "penalty":
             label = "penalty: stiffness (N/m)"
-        line, = ax.plot([r["time"] for r in pts], [r["error"] for r in pts], "o-", ms=4, label=label)
+        style = dict(color=cmap(variants.index(variant)), ls=["-", "--", ":", "-."][knobs.index(knob) % 4]) if many else {}
+        line, = ax.plot([r["time"] for r in pts], [r["error"] for r in pts], "o", ms=4, label=label,
+                        **({"ls": "-"} | style))
         for r in pts:
             ax.annotate(f"{r['value']:g}" if not isinstance(r["value"], str) else r["value"], (r["time"], r["error"]),
                         fontsize=6, color=line.get_color(), xytext=(3, 2), textcoords="offset points")
