@@ -176,6 +176,8 @@ int run_bench(const BenchOptions& options)
         return run_scene_bench(options);
     if (options.suite == "scaling")
         return run_scaling_bench(options);
+    if (options.suite == "gpu")
+        return run_gpu_bench(options);
     const bool full = options.size == "full";
     std::vector<BenchScene> scenes;
     if (full) {

@@ -10,7 +10,8 @@ struct BenchOptions {
     /// forward: elasticity without contact; contact: the ~20k-tet contact scene;
     /// scenes: the full contact studies (studies/2xx) run to the end with exact checks;
     /// adjoint: the contact scene with a fixed kappa, then shape and material gradients;
-    /// scaling: the 50k and 200k-tet boxes, the contact scene and the adjoint per thread count
+    /// scaling: the 50k and 200k-tet boxes, the contact scene and the adjoint per thread count;
+    /// gpu: the elastic boxes on the CPU and the GPU path
     std::string suite = "forward";
     std::string source_dir = "."; ///< repository root (for the studies)
     double friction = 0; ///< contact suite: friction coefficient of the slabs (0: frictionless)
@@ -25,6 +26,10 @@ int run_bench(const BenchOptions& options);
 
 /// The scaling suite (cli/bench_scaling.cpp): every scene per thread count, efficiency per phase.
 int run_scaling_bench(const BenchOptions& options);
+
+/// The gpu suite (cli/bench_gpu.cpp): 50k, 200k and 1M-tet boxes on the CPU path (all usable cores)
+/// and on the GPU path, side by side; `scenes` picks any of 50k,200k,1m.
+int run_gpu_bench(const BenchOptions& options);
 
 /// @brief CHOLMOD's and diffipc's numeric factorization of the same Newton matrices (the two
 /// boxes, the contact scene) per thread count (cli/bench_factorization.cpp).

@@ -87,6 +87,9 @@ int main(int argc, char** argv)
         ->check(CLI::Range(0, 1 << 30));
     sim_cmd->add_option("--steps", sim_options.steps, "time steps to take, replacing the scene's time.steps")
         ->check(CLI::Range(1, 1 << 30));
+    sim_cmd->add_option("--device", sim_options.device,
+        "cpu | gpu: where the Newton solves run, replacing the scene's \"device\" (gpu: elastic scenes without "
+        "contact, for now)");
     sim_cmd->add_flag("-q,--quiet", sim_options.quiet, "no progress output");
 
     StudyOptions study_options;
@@ -113,15 +116,15 @@ int main(int argc, char** argv)
     auto* bench_cmd = app.add_subcommand("bench", "Run the fixed benchmark scenes and print per-phase timings");
     bench_cmd->add_option("--size", bench_options.size, "small | full")->check(CLI::IsMember({ "small", "full" }));
     bench_cmd->add_option("--steps", bench_options.steps, "time steps per scene (the first is a warm-up)");
-    bench_cmd->add_option("--suite", bench_options.suite, "forward | contact | scenes | adjoint | scaling")
-        ->check(CLI::IsMember({ "forward", "contact", "scenes", "adjoint", "scaling" }));
+    bench_cmd->add_option("--suite", bench_options.suite, "forward | contact | scenes | adjoint | scaling | gpu")
+        ->check(CLI::IsMember({ "forward", "contact", "scenes", "adjoint", "scaling", "gpu" }));
     bench_cmd
         ->add_option("--thread-counts", bench_options.thread_counts,
             "scaling suite: thread counts, comma-separated (default 1, 2, 4, ... the usable cores)")
         ->delimiter(',')
         ->check(CLI::Range(1, 4096));
-    bench_cmd->add_option(
-        "--scenes", bench_options.scenes, "scaling suite: any of 50k,200k,contact,adjoint,factor (default: all)");
+    bench_cmd->add_option("--scenes", bench_options.scenes,
+        "scaling suite: any of 50k,200k,contact,adjoint,factor; gpu suite: any of 50k,200k,1m (default: all)");
     bench_cmd->add_option("--source-dir", bench_options.source_dir, "repository root, where studies/ lives");
     bench_cmd->add_option("--friction", bench_options.friction, "contact suite: friction coefficient (0: none)")
         ->check(CLI::Range(0.0, 10.0));

@@ -90,6 +90,8 @@ int simulate(SimulateOptions options)
         scene.output.vtu_every = options.vtu_every;
     if (options.steps >= 0)
         scene.time.steps = options.steps;
+    if (!options.device.empty())
+        select_device(scene, options.device, "--device");
     std::error_code ec;
     fs::create_directories(out_dir, ec);
     if (ec || !fs::is_directory(out_dir))

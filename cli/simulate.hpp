@@ -20,6 +20,7 @@ struct SimulateOptions {
     int vtu_every = -1; ///< VTU frame interval (-1: the scene's)
     int steps = -1; ///< time steps, replacing the scene's time.steps (-1: the scene's)
     bool quiet = false;
+    std::string device; ///< "cpu" | "gpu": replaces the scene's "device" (empty: the scene's)
     std::string restart; ///< non-empty: continue the run in this directory from its trajectory.h5
 };
 

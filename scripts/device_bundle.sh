@@ -8,6 +8,9 @@
 # Env:    DEVBUNDLE_DIR=path         where to write (default: .devbundle at the repository root; emptied first)
 #         DEVBUNDLE_LIBSTDCXX=1      bundle libstdc++ and libgcc_s too (if the GPU machine's are older than ours)
 #         DEVBUNDLE_MAX_MIB=60       fail if the bundle is larger (what travels with a run is limited)
+#         DEVBUNDLE_XZ=1             pack bin/ and lib/ into bundle.tar.xz (the CLI's libraries, OpenBLAS and gmsh among
+#                                    them, are larger than a run carries); unpack there first:
+#                                    tar -C .devbundle -xJf .devbundle/bundle.tar.xz
 # Then, in a device run (carry=[".devbundle"]), from the repository root:
 #         export LD_LIBRARY_PATH=$PWD/.devbundle/lib; .devbundle/bin/test_cuda
 set -euo pipefail
@@ -53,9 +56,12 @@ for binary in "$@"; do
   done < <(ldd "$binary")
 done
 
+if [ "${DEVBUNDLE_XZ:-0}" = 1 ]; then
+  tar -C "$dir" -cJf "$dir/bundle.tar.xz" bin lib
+  rm -rf "$dir/bin" "$dir/lib"
+fi
 size_kib=$(du -sk "$dir" | cut -f1)
-echo "bundle $dir: $(ls "$dir/bin" | tr '\n' ' ')+ $(ls "$dir/lib" | wc -l) libraries, $((size_kib / 1024)) MiB"
-ls "$dir/lib"
+echo "bundle $dir: $(ls "$dir") $((size_kib / 1024)) MiB"
 if [ "$size_kib" -gt $((max_mib * 1024)) ]; then
   echo "the bundle is larger than $max_mib MiB: link fewer libraries (-Wl,--as-needed, static archives)" >&2
   exit 1

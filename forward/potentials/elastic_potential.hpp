@@ -44,6 +44,7 @@ public:
     const VectorXd& mu() const { return m_mu; }
     const VectorXd& lambda() const { return m_lambda; }
     const std::vector<MaterialModel>& models() const { return m_models; }
+    const FESpace& space() const { return m_space; }
 
     /// @brief #E by dim*dim first Piola-Kirchhoff stress per element (row-major flattening).
     MatrixXd element_stresses(const VectorXd& x) const;

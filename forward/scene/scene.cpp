@@ -610,13 +610,38 @@ namespace {
 
 } // namespace
 
+void select_device(Scene& scene, const std::string& name, const std::string& field)
+{
+    if (name == "cpu") {
+        scene.device = DeviceType::CPU;
+        return;
+    }
+    if (name != "gpu")
+        throw InputError(field, "expected \"cpu\" or \"gpu\", got \"" + name + "\"");
+    const auto refuse = [&](const std::string& what) {
+        throw InputError(field,
+            "\"gpu\" does not support " + what
+                + " yet (issue 17: the GPU path has elasticity, inertia, "
+                  "gravity, tractions and Dirichlet conditions); use \"cpu\"");
+    };
+    if (scene.contact.enabled || !scene.obstacles.empty())
+        refuse("contact or obstacles");
+    if (scene.periodic.enabled)
+        refuse("periodic cells");
+    if (scene.mass == MassType::CONSISTENT)
+        refuse("the consistent mass (\"mass\": \"lumped\" is supported)");
+    if (scene.time.adaptive.enabled)
+        refuse("adaptive time stepping (time.adaptive)");
+    scene.device = DeviceType::GPU;
+}
+
 Scene parse_scene(const nlohmann::json& document, const std::string& base_directory, const std::string& source)
 {
     Scene scene;
     scene.source = source;
     const JsonField root(document, "");
     root.require_object({ "dimension", "bodies", "gravity", "dirichlet", "neumann", "time", "mass", "solver", "output",
-        "description", "contact", "obstacles", "friction", "periodic" });
+        "description", "contact", "obstacles", "friction", "periodic", "device" });
     if (root.has("description"))
         root["description"].string();
 
@@ -844,6 +869,8 @@ Scene parse_scene(const nlohmann::json& document, const std::string& base_direct
     }
     if (root.has("periodic"))
         parse_periodic(root["periodic"], scene);
+    if (root.has("device"))
+        select_device(scene, root["device"].string(), "device");
     return scene;
 }
 

@@ -20,6 +20,8 @@ namespace diffipc {
 
 enum class IntegratorType { STATIC, IMPLICIT_EULER, BDF2, NEWMARK };
 enum class MassType { LUMPED, CONSISTENT };
+/// Where the Newton solves run: "device": "cpu" (default) or "gpu" (forward/simulation/device_solver.hpp).
+enum class DeviceType { CPU, GPU };
 enum class LinearSolverType { CHOLMOD, LDLT };
 
 std::string to_string(IntegratorType type);
@@ -175,6 +177,7 @@ struct Scene {
     std::vector<NeumannSpec> neumann;
     TimeSpec time;
     MassType mass = MassType::LUMPED;
+    DeviceType device = DeviceType::CPU;
     SolverSpec solver;
     ContactSpec contact;
     FrictionSpec friction;
@@ -183,6 +186,13 @@ struct Scene {
     PeriodicSpec periodic;
     std::string source; ///< file name, or "<dict>"
 };
+
+/// @brief Sets where the scene's Newton solves run: "cpu" or "gpu" (the scene key "device",
+/// or the CLI's --device). The GPU path has elasticity, inertia, gravity, tractions and
+/// Dirichlet conditions; a scene with anything else (contact, obstacles, periodic cells, the
+/// consistent mass, adaptive time stepping) is refused.
+/// @throws InputError naming `field` for another name or a scene the GPU path cannot run
+void select_device(Scene& scene, const std::string& name, const std::string& field);
 
 /// @brief Reads and validates a scene file; relative mesh paths are resolved
 /// against the scene file's directory.

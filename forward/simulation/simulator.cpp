@@ -277,6 +277,9 @@ Simulator::Simulator(Scene scene, const SimulationParameters& parameters)
         }
     }
     m_integrator->initialize(x0, v0, a0);
+    if (m_scene.device == DeviceType::GPU)
+        m_device = std::make_unique<DeviceSolver>(
+            *m_elastic, m_integrator->dynamic() ? m_inertia.get() : nullptr, m_constrained);
     m_trajectory.initial_time = 0;
     m_trajectory.initial_positions = x0;
     m_trajectory.initial_velocities = v0;
@@ -684,6 +687,9 @@ StepStatus Simulator::step()
             given = m_overrides.macro_gradient.row(index - 1).transpose();
         result = m_periodic->solve(
             x, record.macro_gradient, t_next, settings, w * m_force_scale, step_scale, given.size() ? &given : nullptr);
+    } else if (m_device) {
+        result = m_device->solve(
+            x, inertial_target, w, m_external->force(), target, w * m_force_scale, step_scale, settings);
     } else {
         result = newton.solve(x, target, m_constrained, w * m_force_scale, step_scale);
     }

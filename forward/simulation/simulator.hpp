@@ -9,6 +9,7 @@
 #include "forward/potentials/elastic_potential.hpp"
 #include "forward/potentials/inertia_potential.hpp"
 #include "forward/scene/scene.hpp"
+#include "forward/simulation/device_solver.hpp"
 #include "forward/simulation/parameters.hpp"
 #include "forward/simulation/step_record.hpp"
 #include "forward/solver/linear_solver.hpp"
@@ -260,6 +261,8 @@ private:
     SparseAssembler m_assembler;
     std::unique_ptr<LinearSolver> m_linear;
     std::unique_ptr<TimeIntegrator> m_integrator;
+    /// The GPU path's solver (scene "device": "gpu"), else null.
+    std::unique_ptr<DeviceSolver> m_device;
 
     struct DirichletDof {
         Index dof;

@@ -172,6 +172,19 @@ std::vector<Malformed> malformed_cases()
             "output.vtu_encoding: expected a string" },
         { "output_misspelled_vtu_key", [](json& s) { s["output"]["vtu_encode"] = "ascii"; }, "vtu_encode" },
         { "mass_unknown", [](json& s) { s["mass"] = "heavy"; }, "mass" },
+        { "device_unknown", [](json& s) { s["device"] = "tpu"; }, "device: expected \"cpu\" or \"gpu\", got \"tpu\"" },
+        { "device_gpu_with_contact",
+            [](json& s) {
+                s["device"] = "gpu";
+                s["contact"] = { { "dhat", 1e-3 } };
+            },
+            "device: \"gpu\" does not support contact" },
+        { "device_gpu_with_consistent_mass",
+            [](json& s) {
+                s["device"] = "gpu";
+                s["mass"] = "consistent";
+            },
+            "device: \"gpu\" does not support the consistent mass" },
         { "duplicate_body_name", [](json& s) { s["bodies"].push_back(s["bodies"][0]); }, "bodies[1].name" },
         { "region_max_below_min",
             [](json& s) {
@@ -239,6 +252,35 @@ TEST(Scene, InvalidJsonTextNamesTheSource)
     }
     // NaN is not JSON: rejected at parse time.
     EXPECT_THROW(parse_scene_text("{\"dimension\": NaN}", ".", "nan.json"), InputError);
+}
+
+TEST(Scene, DeviceIsCpuUnlessTheSceneSaysGpu)
+{
+    EXPECT_EQ(parse_scene(valid_scene(), ".", "<test>").device, DeviceType::CPU);
+    json s = valid_scene();
+    s["device"] = "gpu";
+    EXPECT_EQ(parse_scene(s, ".", "<test>").device, DeviceType::GPU); // parsing needs no GPU
+    Scene scene = parse_scene(valid_scene(), ".", "<test>");
+    select_device(scene, "gpu", "--device");
+    EXPECT_EQ(scene.device, DeviceType::GPU);
+    select_device(scene, "cpu", "--device");
+    EXPECT_EQ(scene.device, DeviceType::CPU);
+}
+
+TEST(Scene, GpuSceneWithoutAUsableGpuIsAnErrorNamingTheDevice)
+{
+    json s = test::box_scene(2, { 1, 0.2 }, { 4, 1 });
+    s["device"] = "gpu";
+    std::string why;
+    if (DeviceSolver::available(&why))
+        GTEST_SKIP() << "a GPU is usable here; tests/cuda/simulation runs the GPU path";
+    try {
+        Simulator sim(test::make_scene(s));
+        FAIL() << "a GPU scene ran without a GPU";
+    } catch (const InputError& e) {
+        EXPECT_NE(std::string(e.what()).find("device: \"gpu\""), std::string::npos) << e.what();
+        EXPECT_NE(std::string(e.what()).find(why), std::string::npos) << e.what();
+    }
 }
 
 TEST(Scene, MissingFileIsReported) { EXPECT_THROW(load_scene("/nonexistent/scene.json"), InputError); }

@@ -1,0 +1,112 @@
+// `diffipc bench --suite gpu`: the same elastic boxes stepped by the CPU solver (all usable
+// cores) and by the GPU path (scene "device": "gpu"), side by side in one run; per step and per
+// phase, and the largest difference of the final states. Prints figures; asserts nothing
+// (docs/performance.md).
+
+#include "cli/bench.hpp"
+#include "cli/bench_scenes.hpp"
+
+#include "forward/common/threads.hpp"
+#include "forward/scene/scene.hpp"
+#include "forward/simulation/device_solver.hpp"
+#include "forward/simulation/simulator.hpp"
+
+#include <cstdio>
+#include <string>
+
+namespace diffipc {
+
+namespace {
+
+    struct Run {
+        int steps = 0, iterations = 0;
+        double wall = 0;
+        PhaseTimes phases;
+        StepStatus status = StepStatus::CONVERGED;
+        VectorXd x;
+    };
+
+    /// Steps 2.. of the scene (the first is a warm-up: the CPU's symbolic analysis, the GPU's
+    /// module loading and allocations), on `device`.
+    Run measure(nlohmann::json scene, const std::string& device, const std::string& name)
+    {
+        scene["device"] = device;
+        Simulator sim(parse_scene(scene, ".", name));
+        Run r;
+        if ((r.status = sim.step()) != StepStatus::CONVERGED)
+            return r;
+        const Trajectory warm = sim.trajectory();
+        while (sim.steps_done() < sim.scene().time.steps)
+            if ((r.status = sim.step()) != StepStatus::CONVERGED)
+                break;
+        const Trajectory& t = sim.trajectory();
+        r.steps = int(t.steps.size() - warm.steps.size());
+        r.iterations = t.newton_iterations - warm.newton_iterations;
+        r.wall = t.wall_time - warm.wall_time;
+        r.phases = t.phases - warm.phases;
+        r.x = sim.positions();
+        return r;
+    }
+
+    void print(const char* device, const Run& r)
+    {
+        const PhaseTimes& p = r.phases;
+        const double per = r.steps > 0 ? 1.0 / r.steps : 0.0;
+        std::printf("  %-4s %-9s %2d steps, %5.1f Newton it/step, %9.4f s/step: assembly %.4f, factorization %.4f, "
+                    "solve %.4f, line search %.4f\n",
+            device, to_string(r.status).c_str(), r.steps, r.steps ? double(r.iterations) / r.steps : 0.0, r.wall * per,
+            p.assembly * per, p.factorization * per, p.solve * per, p.line_search * per);
+    }
+
+} // namespace
+
+int run_gpu_bench(const BenchOptions& options)
+{
+    std::string why;
+    if (!DeviceSolver::available(&why)) {
+        std::printf("bench --suite gpu: no usable GPU: %s\n", why.c_str());
+        return 1;
+    }
+    const bool full = options.size == "full";
+    const auto wanted = [&](const std::string& s) {
+        return options.scenes.empty() || ("," + options.scenes + ",").find("," + s + ",") != std::string::npos;
+    };
+    struct Box {
+        std::string key, name;
+        std::vector<int> cells;
+    };
+    // 6 tetrahedra per cube: 50,400, 202,752 and 998,400 tetrahedra (small: 2,160 and 5,880).
+    std::vector<Box> boxes = full
+        ? std::vector<Box> { { "50k", "3d-box-50k", { 40, 14, 15 } }, { "200k", "3d-box-200k", { 64, 22, 24 } },
+              { "1m", "3d-box-1m", { 80, 40, 52 } } }
+        : std::vector<Box> { { "50k", "3d-box-2k", { 12, 5, 6 } }, { "200k", "3d-box-6k", { 20, 7, 7 } } };
+    ensure_threads_configured();
+    std::printf("diffipc bench --suite gpu (%s): the CPU path (%s) against the GPU path (%s); %d steps per scene, "
+                "the first a warm-up\n",
+        options.size.c_str(), describe(thread_config()).c_str(), DeviceSolver::describe_device().c_str(),
+        options.steps);
+    int failures = 0;
+    for (const Box& b : boxes) {
+        if (!wanted(b.key))
+            continue;
+        const nlohmann::json scene = beam(3, "neo_hookean", b.cells, { 4.0, 1.4, 1.5 }, options.steps);
+        const Simulator probe(parse_scene(scene, ".", b.name));
+        std::printf("\n%s: %ld vertices, %ld tetrahedra, %ld dofs\n", b.name.c_str(), long(probe.mesh().num_vertices()),
+            long(probe.mesh().num_elements()), long(probe.mesh().num_dofs()));
+        const Run cpu = measure(scene, "cpu", b.name);
+        print("cpu", cpu);
+        const Run gpu = measure(scene, "gpu", b.name);
+        print("gpu", gpu);
+        if (cpu.steps > 0 && gpu.steps > 0) {
+            const VectorXd X = probe.positions();
+            std::printf("  GPU / CPU: %.1fx faster per step; final states differ by %.2e m (largest displacement "
+                        "%.3e m)\n",
+                (cpu.wall / cpu.steps) / (gpu.wall / gpu.steps), (cpu.x - gpu.x).lpNorm<Eigen::Infinity>(),
+                (cpu.x - X).lpNorm<Eigen::Infinity>());
+        }
+        failures += cpu.status != StepStatus::CONVERGED || gpu.status != StepStatus::CONVERGED;
+    }
+    return failures == 0 ? 0 : 2;
+}
+
+} // namespace diffipc

@@ -1,0 +1,690 @@
+#include "cuda/solver/device_newton.hpp"
+
+#include "cuda/common/device.hpp"
+#include "cuda/elastic/material.cuh"
+#include "cuda/solver/inversion_bound.cuh"
+
+#include <cuda_runtime.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <limits>
+#include <memory>
+#include <stdexcept>
+#include <string>
+#include <utility>
+
+namespace diffipc::gpu {
+
+namespace {
+
+    constexpr int THREADS = 256;
+    constexpr double EPS = std::numeric_limits<double>::epsilon();
+    // NewtonSolver's constants (forward/solver/newton.cpp).
+    constexpr double ROUNDOFF_STEP = 128 * EPS;
+    constexpr double ENERGY_RESOLUTION = 1e-10;
+
+    int grid(size_t n) { return int((n + THREADS - 1) / THREADS); }
+
+    void check_launch(const char* what) { check_cuda(cudaGetLastError(), what); }
+
+    // ---- Deterministic reductions of several quantities in one pass ----
+    //
+    // The order is reduction.hpp's fixed tree (it depends only on n): B = min(ceil(n / 256), 256)
+    // blocks, thread t of block b combines the terms k = b 256 + t + m (256 B) in increasing m, each
+    // block halves its 256 values pairwise, one block then reduces the B block values the same way.
+    // Sums therefore have a fixed rounding; maxima and minima propagate NaN (a NaN term makes the
+    // result NaN, unlike fmax), so a non-finite vector cannot hide behind a max-norm.
+
+    enum ReduceOp : int { SUM = 0, MAX = 1, MIN = 2 };
+
+    template <int N> struct Ops {
+        int op[N];
+    };
+
+    __device__ inline double reduce_identity(int op) { return op == SUM ? 0.0 : op == MAX ? -INFINITY : INFINITY; }
+
+    __device__ inline double combine(int op, double a, double b)
+    {
+        if (op == SUM)
+            return a + b;
+        if (op == MAX)
+            return (b > a || b != b) ? b : a;
+        return (b < a || b != b) ? b : a;
+    }
+
+    template <int N> __device__ void block_tree(double (&s)[N][THREADS], const Ops<N>& ops)
+    {
+        for (int h = THREADS / 2; h > 0; h /= 2) {
+            __syncthreads();
+            if (threadIdx.x < h)
+                for (int q = 0; q < N; ++q)
+                    s[q][threadIdx.x] = combine(ops.op[q], s[q][threadIdx.x], s[q][threadIdx.x + h]);
+        }
+        __syncthreads();
+    }
+
+    template <int N, typename Term> __global__ void reduce_partials(Term term, size_t n, Ops<N> ops, double* partials)
+    {
+        __shared__ double s[N][THREADS];
+        double acc[N];
+        for (int q = 0; q < N; ++q)
+            acc[q] = reduce_identity(ops.op[q]);
+        const size_t stride = size_t(gridDim.x) * THREADS;
+        for (size_t k = size_t(blockIdx.x) * THREADS + threadIdx.x; k < n; k += stride) {
+            double v[N];
+            term(k, v);
+            for (int q = 0; q < N; ++q)
+                acc[q] = combine(ops.op[q], acc[q], v[q]);
+        }
+        for (int q = 0; q < N; ++q)
+            s[q][threadIdx.x] = acc[q];
+        block_tree<N>(s, ops);
+        if (threadIdx.x == 0)
+            for (int q = 0; q < N; ++q)
+                partials[q * THREADS + blockIdx.x] = s[q][0];
+    }
+
+    template <int N> __global__ void reduce_final(const double* partials, int blocks, Ops<N> ops, double* result)
+    {
+        __shared__ double s[N][THREADS];
+        for (int q = 0; q < N; ++q)
+            s[q][threadIdx.x]
+                = int(threadIdx.x) < blocks ? partials[q * THREADS + threadIdx.x] : reduce_identity(ops.op[q]);
+        block_tree<N>(s, ops);
+        if (threadIdx.x == 0)
+            for (int q = 0; q < N; ++q)
+                result[q] = s[q][0];
+    }
+
+    /// d_result[q] = the reduction (ops.op[q]) over k < n of term(k)[q]. Asynchronous.
+    /// @param d_partials device scratch of N * THREADS doubles
+    template <int N, typename Term>
+    void reduce(const Term& term, size_t n, const Ops<N>& ops, double* d_partials, double* d_result)
+    {
+        const int blocks = int(std::max<size_t>(1, std::min<size_t>((n + THREADS - 1) / THREADS, THREADS)));
+        reduce_partials<N><<<blocks, THREADS>>>(term, n, ops, d_partials);
+        check_launch("launch of a Newton reduction");
+        reduce_final<N><<<1, THREADS>>>(d_partials, blocks, ops, d_result);
+        check_launch("launch of a Newton reduction");
+    }
+
+    constexpr int MAX_REDUCED = 5; // the most quantities one reduction computes (partials: MAX_REDUCED * THREADS)
+
+    // ---- Reduction terms ----
+
+    /// Per dof, at the iterate: writes pD = target - x on constrained dofs (0 on free ones) and gives
+    /// [ |g| on free dofs (max), g^2 on free dofs (sum), |pD| (max), g not finite (max) ].
+    struct GradientTerm {
+        const double *g, *x, *target;
+        const unsigned char* fixed;
+        double* pD;
+        __device__ void operator()(size_t k, double* v) const
+        {
+            const double gk = g[k];
+            const bool f = fixed[k] != 0;
+            const double d = f ? target[k] - x[k] : 0.0;
+            pD[k] = d;
+            v[0] = f ? 0.0 : fabs(gk);
+            v[1] = f ? 0.0 : gk * gk;
+            v[2] = fabs(d);
+            v[3] = isfinite(gk) ? 0.0 : 1.0;
+        }
+    };
+    const Ops<4> GRADIENT_OPS { { MAX, SUM, MAX, MAX } };
+
+    /// Per dof: [ |g| on free dofs (max), g not finite (max) ].
+    struct ResidualTerm {
+        const double* g;
+        const unsigned char* fixed;
+        __device__ void operator()(size_t k, double* v) const
+        {
+            v[0] = fixed[k] ? 0.0 : fabs(g[k]);
+            v[1] = isfinite(g[k]) ? 0.0 : 1.0;
+        }
+    };
+    const Ops<2> RESIDUAL_OPS { { MAX, MAX } };
+
+    /// Per dof: [ g p (sum: the slope), |p| (max), |p| on free dofs (max), |x| (max), p not finite (max) ].
+    struct DirectionTerm {
+        const double *g, *p, *x;
+        const unsigned char* fixed;
+        __device__ void operator()(size_t k, double* v) const
+        {
+            const double pk = p[k];
+            v[0] = g[k] * pk;
+            v[1] = fabs(pk);
+            v[2] = fixed[k] ? 0.0 : fabs(pk);
+            v[3] = fabs(x[k]);
+            v[4] = isfinite(pk) ? 0.0 : 1.0;
+        }
+    };
+    const Ops<5> DIRECTION_OPS { { SUM, MAX, MAX, MAX, MAX } };
+
+    /// Per element: [ its inversion bound along p (min) ] (inversion_bound.cuh).
+    template <int dim> struct StepBoundTerm {
+        const int* elements; // (dim+1) * #E, vertex a of element e at a #E + e
+        int ne;
+        const double *x, *p;
+        double keep;
+        __device__ void operator()(size_t e, double* v) const
+        {
+            double xe[(dim + 1) * dim], pe[(dim + 1) * dim];
+            for (int a = 0; a <= dim; ++a) {
+                const size_t vtx = size_t(elements[size_t(a) * size_t(ne) + e]);
+                for (int i = 0; i < dim; ++i) {
+                    xe[a * dim + i] = x[vtx * dim + i];
+                    pe[a * dim + i] = p[vtx * dim + i];
+                }
+            }
+            v[0] = element_step_bound<dim>(xe, pe, keep);
+        }
+    };
+    const Ops<1> BOUND_OPS { { MIN } };
+
+    /// Per dof at y: [ (y - xt) m (y - xt) (sum; 0 when static), f (y - x_ref) (sum) ].
+    struct EnergyTerm {
+        const double *y, *xt, *mass, *f, *reference;
+        bool dynamic;
+        __device__ void operator()(size_t k, double* v) const
+        {
+            if (dynamic) {
+                const double d = y[k] - xt[k];
+                v[0] = d * (mass[k] * d);
+            } else {
+                v[0] = 0.0;
+            }
+            v[1] = f[k] * (y[k] - reference[k]);
+        }
+    };
+    const Ops<2> ENERGY_OPS { { SUM, SUM } };
+
+    // ---- Vector kernels ----
+
+    /// g = M (x - xt) - w f (the inertial and external terms; the elastic one is gathered on top).
+    __global__ void inertia_force_gradient(size_t n, bool dynamic, const double* __restrict__ x,
+        const double* __restrict__ xt, const double* __restrict__ mass, const double* __restrict__ f, double w,
+        double* __restrict__ g)
+    {
+        const size_t k = size_t(blockIdx.x) * blockDim.x + threadIdx.x;
+        if (k >= n)
+            return;
+        g[k] = (dynamic ? mass[k] * (x[k] - xt[k]) : 0.0) - w * f[k];
+    }
+
+    /// The lumped mass on the diagonal of each vertex's diagonal block.
+    __global__ void add_mass_diagonal(size_t n, int dim, const int* __restrict__ diagonal_slots,
+        const double* __restrict__ mass, double* __restrict__ values)
+    {
+        const size_t k = size_t(blockIdx.x) * blockDim.x + threadIdx.x;
+        if (k >= n)
+            return;
+        const int v = int(k / size_t(dim)), i = int(k % size_t(dim));
+        values[size_t(diagonal_slots[v]) * size_t(dim * dim) + size_t(i * dim + i)] += mass[k];
+    }
+
+    /// rhs = -g - coupling (coupling = H pD while lifting, else null).
+    __global__ void newton_rhs(
+        size_t n, const double* __restrict__ g, const double* __restrict__ coupling, double* __restrict__ rhs)
+    {
+        const size_t k = size_t(blockIdx.x) * blockDim.x + threadIdx.x;
+        if (k >= n)
+            return;
+        rhs[k] = coupling ? -g[k] - coupling[k] : -g[k];
+    }
+
+    /// p = pD on the constrained dofs (PCG leaves them 0).
+    __global__ void set_prescribed(
+        size_t n, const unsigned char* __restrict__ fixed, const double* __restrict__ pD, double* __restrict__ p)
+    {
+        const size_t k = size_t(blockIdx.x) * blockDim.x + threadIdx.x;
+        if (k >= n)
+            return;
+        if (fixed[k])
+            p[k] = pD[k];
+    }
+
+    /// y = x + alpha p
+    __global__ void step(
+        size_t n, const double* __restrict__ x, double alpha, const double* __restrict__ p, double* __restrict__ y)
+    {
+        const size_t k = size_t(blockIdx.x) * blockDim.x + threadIdx.x;
+        if (k >= n)
+            return;
+        y[k] = x[k] + alpha * p[k];
+    }
+
+    /// y_D = target_D
+    __global__ void snap_to_target(
+        size_t n, const unsigned char* __restrict__ fixed, const double* __restrict__ target, double* __restrict__ y)
+    {
+        const size_t k = size_t(blockIdx.x) * blockDim.x + threadIdx.x;
+        if (k >= n)
+            return;
+        if (fixed[k])
+            y[k] = target[k];
+    }
+
+    /// p = -scale g on free dofs, 0 on constrained ones.
+    __global__ void gradient_direction(size_t n, const unsigned char* __restrict__ fixed, const double* __restrict__ g,
+        double scale, double* __restrict__ p)
+    {
+        const size_t k = size_t(blockIdx.x) * blockDim.x + threadIdx.x;
+        if (k >= n)
+            return;
+        p[k] = fixed[k] ? 0.0 : -scale * g[k];
+    }
+
+    using Clock = std::chrono::steady_clock;
+
+    /// Adds the time since `start` to `total`, after the GPU has finished the work queued so far.
+    void phase_end(Clock::time_point start, double& total)
+    {
+        check_cuda(cudaDeviceSynchronize(), "synchronization at the end of a Newton phase");
+        total += std::chrono::duration<double>(Clock::now() - start).count();
+    }
+
+    // Device scalar slots.
+    constexpr int S_GRADIENT = 0; // 4
+    constexpr int S_DIRECTION = 4; // 5
+    constexpr int S_BOUND = 9; // 1
+    constexpr int S_ENERGY = 10; // 2
+    constexpr int S_RESIDUAL = 12; // 2
+    constexpr int NUM_SCALARS = 14;
+
+} // namespace
+
+struct DeviceNewton::Impl {
+    size_t n = 0;
+    int dim = 0, ne = 0, nv = 0;
+    bool dynamic = false;
+    double material_scale = 0;
+    DeviceArray<double> mass, x, trial, xt, f, target, reference, g, g_trial, p, pD, rhs, coupling;
+    DeviceArray<double> partials, scalars;
+    DeviceArray<unsigned char> fixed;
+    DeviceArray<int> elements, diagonal_slots;
+    DeviceBsrMatrix H;
+    DevicePCG pcg;
+
+    int kernel_grid() const { return grid(n); }
+
+    /// Energy terms at y: the inertia 1/2 (y - xt)^T M (y - xt), Psi(y) and the work f^T (y - x_ref).
+    struct Energy {
+        double total = 0, inertia = 0, elastic = 0, work = 0;
+    };
+    Energy energy(const DeviceElasticMesh& mesh, const double* y, double w)
+    {
+        reduce<2>(EnergyTerm { y, xt.data(), mass.data(), f.data(), reference.data(), dynamic }, n, ENERGY_OPS,
+            partials.data(), scalars.data() + S_ENERGY);
+        Energy e;
+        e.elastic = mesh.energy_device(y);
+        double s[2];
+        detail::copy_device_to_host(s, scalars.data() + S_ENERGY, sizeof(s));
+        e.inertia = 0.5 * s[0];
+        e.work = s[1];
+        // The CPU Problem's sum, term by term in the order the simulator adds them.
+        e.total = (dynamic ? e.inertia : 0.0) + w * e.elastic + w * -e.work;
+        return e;
+    }
+
+    /// g = dE/dx at y.
+    void gradient(const DeviceElasticMesh& mesh, const double* y, double w, double* out)
+    {
+        inertia_force_gradient<<<kernel_grid(), THREADS>>>(n, dynamic, y, xt.data(), mass.data(), f.data(), w, out);
+        check_launch("launch of the inertial gradient");
+        mesh.add_gradient_device(y, w, out);
+    }
+
+    /// The inversion bound along p at y (min over the elements, 1 if none).
+    double step_bound(const double* y, const double* dir, double keep)
+    {
+        if (dim == 2)
+            reduce<1>(StepBoundTerm<2> { elements.data(), ne, y, dir, keep }, size_t(ne), BOUND_OPS, partials.data(),
+                scalars.data() + S_BOUND);
+        else
+            reduce<1>(StepBoundTerm<3> { elements.data(), ne, y, dir, keep }, size_t(ne), BOUND_OPS, partials.data(),
+                scalars.data() + S_BOUND);
+        double bound = 1;
+        detail::copy_device_to_host(&bound, scalars.data() + S_BOUND, sizeof(double));
+        return bound;
+    }
+
+    /// [max |g_free|, g not finite] at g_trial.
+    void residual_of(const double* gv, double* out)
+    {
+        reduce<2>(ResidualTerm { gv, fixed.data() }, n, RESIDUAL_OPS, partials.data(), scalars.data() + S_RESIDUAL);
+        detail::copy_device_to_host(out, scalars.data() + S_RESIDUAL, 2 * sizeof(double));
+    }
+
+    /// [slope g.p, |p|_inf, |p_free|_inf, |x|_inf, p not finite].
+    void direction_scalars(double* out)
+    {
+        reduce<5>(DirectionTerm { g.data(), p.data(), x.data(), fixed.data() }, n, DIRECTION_OPS, partials.data(),
+            scalars.data() + S_DIRECTION);
+        detail::copy_device_to_host(out, scalars.data() + S_DIRECTION, 5 * sizeof(double));
+    }
+};
+
+DeviceNewton::DeviceNewton(const DeviceElasticMesh& mesh, const std::vector<double>& lumped_mass)
+    : m_mesh(mesh)
+    , m_impl(nullptr)
+{
+    const size_t n = size_t(mesh.num_dofs());
+    if (n == 0)
+        throw std::invalid_argument("DeviceNewton: the mesh has no dofs (upload it first)");
+    if (!lumped_mass.empty() && lumped_mass.size() != n)
+        throw std::invalid_argument("DeviceNewton: lumped_mass has " + std::to_string(lumped_mass.size())
+            + " entries, expected #dofs = " + std::to_string(n) + " (or none for a static solve)");
+    for (size_t k = 0; k < lumped_mass.size(); ++k)
+        if (!(lumped_mass[k] > 0) || !std::isfinite(lumped_mass[k]))
+            throw std::invalid_argument("DeviceNewton: lumped_mass[" + std::to_string(k)
+                + "] = " + std::to_string(lumped_mass[k]) + " is not a positive finite mass");
+
+    // The element vertices, from the pattern's vertex incidences (codes e n + a), structure of arrays.
+    const ElementBsrPattern& pattern = mesh.pattern();
+    const int dim = mesh.dim(), nv = mesh.num_vertices(), ne = mesh.num_elements(), nper = dim + 1;
+    std::vector<int> elements(size_t(ne) * size_t(nper), -1);
+    for (int v = 0; v < nv; ++v)
+        for (int c = pattern.vertex_offsets[size_t(v)]; c < pattern.vertex_offsets[size_t(v) + 1]; ++c) {
+            const int code = pattern.vertex_codes[size_t(c)];
+            elements[size_t(code % nper) * size_t(ne) + size_t(code / nper)] = v;
+        }
+    std::vector<int> diagonal(size_t(nv), -1);
+    for (int v = 0; v < nv; ++v)
+        for (int k = pattern.row_offsets[size_t(v)]; k < pattern.row_offsets[size_t(v) + 1]; ++k)
+            if (pattern.col_indices[size_t(k)] == v)
+                diagonal[size_t(v)] = k;
+    for (int v = 0; v < nv; ++v)
+        if (diagonal[size_t(v)] < 0)
+            throw std::logic_error(
+                "DeviceNewton: the Hessian pattern has no diagonal block for vertex " + std::to_string(v));
+
+    auto impl = std::make_unique<Impl>();
+    impl->n = n;
+    impl->dim = dim;
+    impl->ne = ne;
+    impl->nv = nv;
+    impl->dynamic = !lumped_mass.empty();
+    if (impl->dynamic)
+        impl->mass.upload(lumped_mass);
+    impl->elements.upload(elements);
+    impl->diagonal_slots.upload(diagonal);
+    for (auto* v : { &impl->x, &impl->trial, &impl->xt, &impl->f, &impl->target, &impl->reference, &impl->g,
+             &impl->g_trial, &impl->p, &impl->pD, &impl->rhs, &impl->coupling })
+        v->resize(n);
+    impl->reference.set_zero();
+    impl->fixed.resize(n);
+    impl->fixed.set_zero();
+    impl->partials.resize(size_t(MAX_REDUCED) * THREADS);
+    impl->scalars.resize(NUM_SCALARS);
+    impl->H = mesh.make_hessian_matrix();
+    m_impl = impl.release();
+}
+
+DeviceNewton::~DeviceNewton() { delete m_impl; }
+
+void DeviceNewton::set_constrained(const std::vector<char>& constrained)
+{
+    if (constrained.size() != m_impl->n)
+        throw std::invalid_argument("DeviceNewton::set_constrained: " + std::to_string(constrained.size())
+            + " flags, expected #dofs = " + std::to_string(m_impl->n));
+    std::vector<unsigned char> flags(constrained.size());
+    for (size_t k = 0; k < flags.size(); ++k)
+        flags[k] = constrained[k] ? 1 : 0;
+    m_impl->fixed.upload(flags);
+    m_impl->pcg.set_fixed_dofs(constrained);
+}
+
+void DeviceNewton::set_force_reference(const std::vector<double>& reference)
+{
+    if (reference.empty()) {
+        m_impl->reference.set_zero();
+        return;
+    }
+    if (reference.size() != m_impl->n)
+        throw std::invalid_argument("DeviceNewton::set_force_reference: " + std::to_string(reference.size())
+            + " entries, expected #dofs = " + std::to_string(m_impl->n));
+    m_impl->reference.upload(reference);
+}
+
+void DeviceNewton::set_material_scale(const std::vector<int>& models, const std::vector<double>& mu)
+{
+    const size_t ne = size_t(m_mesh.num_elements());
+    if (models.size() != ne || mu.size() != ne)
+        throw std::invalid_argument(
+            "DeviceNewton::set_material_scale: expected one model and one mu per element (" + std::to_string(ne) + ")");
+    const std::vector<double>& volumes = m_mesh.rest_volumes();
+    double scale = 0;
+    for (size_t e = 0; e < ne; ++e)
+        if (models[e] == int(MaterialModel::NEO_HOOKEAN) || models[e] == int(MaterialModel::STABLE_NEO_HOOKEAN))
+            scale += volumes[e] * mu[e] * m_mesh.dim();
+    m_impl->material_scale = scale;
+}
+
+double DeviceNewton::material_scale() const { return m_impl->material_scale; }
+
+DeviceNewtonResult DeviceNewton::solve(std::vector<double>& x_host, const std::vector<double>& inertial_target,
+    double weight, const std::vector<double>& force, const std::vector<double>& target_host, double force_scale,
+    double step_scale, const DeviceNewtonSettings& settings)
+{
+    Impl& m = *m_impl;
+    const size_t n = m.n;
+    auto check_size = [n](const std::vector<double>& v, const char* name) {
+        if (v.size() != n)
+            throw std::invalid_argument(std::string("DeviceNewton::solve: ") + name + " has " + std::to_string(v.size())
+                + " entries, expected #dofs = " + std::to_string(n));
+    };
+    check_size(x_host, "x");
+    check_size(force, "force");
+    check_size(target_host, "target");
+    if (m.dynamic)
+        check_size(inertial_target, "inertial_target");
+    for (const double s : { weight, force_scale, step_scale })
+        if (!(s > 0) || !std::isfinite(s))
+            throw std::invalid_argument("DeviceNewton::solve: weight, force_scale and step_scale must be positive "
+                                        "and finite");
+    if (!(settings.residual_tolerance >= 0) || settings.max_iterations < 0 || settings.line_search_max_halvings < 0
+        || !(settings.forcing_max > 0) || !(settings.forcing_min > 0) || settings.forcing_min > settings.forcing_max
+        || !(settings.inversion_keep >= 0 && settings.inversion_keep < 1) || settings.pcg_max_iterations < 0)
+        throw std::invalid_argument("DeviceNewton::solve: invalid settings (tolerances >= 0, 0 < forcing_min <= "
+                                    "forcing_max, 0 <= inversion_keep < 1, counts >= 0)");
+
+    const double w = weight;
+    m.x.upload(x_host);
+    if (m.dynamic)
+        m.xt.upload(inertial_target);
+    m.f.upload(force);
+    m.target.upload(target_host);
+    const int G = m.kernel_grid();
+    const unsigned char* fixed = m.fixed.data();
+
+    DeviceNewtonResult result;
+    auto finish = [&](DeviceStepStatus status) {
+        result.status = status;
+        if (status == DeviceStepStatus::CONVERGED)
+            detail::copy_device_to_host(x_host.data(), m.x.data(), n * sizeof(double));
+        return result;
+    };
+
+    Impl::Energy start_energy;
+    {
+        const auto t = Clock::now();
+        start_energy = m.energy(m_mesh, m.x.data(), w);
+        phase_end(t, result.line_search_time);
+    }
+    double energy = start_energy.total;
+    if (!std::isfinite(energy))
+        return finish(DeviceStepStatus::INVALID_INITIAL_STATE);
+    // Round-off of energy differences scales with the terms, not with their (possibly cancelling) sum.
+    const double magnitude = (m.dynamic ? std::abs(start_energy.inertia) : 0.0)
+        + w * (std::abs(start_energy.elastic) + m.material_scale) + w * std::abs(start_energy.work);
+    double reference_gradient_norm = 0; // |g_free,0|_2 of the forcing (DeviceNewtonSettings)
+
+    for (int it = 0;; ++it) {
+        double gs[4];
+        {
+            const auto t = Clock::now();
+            m.gradient(m_mesh, m.x.data(), w, m.g.data());
+            reduce<4>(GradientTerm { m.g.data(), m.x.data(), m.target.data(), fixed, m.pD.data() }, n, GRADIENT_OPS,
+                m.partials.data(), m.scalars.data() + S_GRADIENT);
+            detail::copy_device_to_host(gs, m.scalars.data() + S_GRADIENT, sizeof(gs));
+            phase_end(t, result.assembly_time);
+        }
+        if (gs[3] != 0)
+            return finish(DeviceStepStatus::NON_FINITE);
+        const double gmax = gs[0], gnorm = std::sqrt(gs[1]), dmax = gs[2];
+        const bool lifting = dmax > 0;
+        result.residual = gmax / force_scale;
+        if (!std::isfinite(result.residual))
+            return finish(DeviceStepStatus::NON_FINITE);
+        if (!lifting && result.residual <= settings.residual_tolerance)
+            return finish(DeviceStepStatus::CONVERGED);
+        if (it >= settings.max_iterations)
+            return finish(DeviceStepStatus::NEWTON_EXHAUSTED);
+
+        // The search matrix M + w H_Psi (projected) and the right-hand side -(g + H pD).
+        {
+            const auto t = Clock::now();
+            m.H.set_zero();
+            m_mesh.add_hessian_device(m.x.data(), w, /*project=*/true, m.H);
+            if (m.dynamic) {
+                add_mass_diagonal<<<G, THREADS>>>(
+                    n, m.dim, m.diagonal_slots.data(), m.mass.data(), m.H.device_values());
+                check_launch("launch of the mass diagonal");
+            }
+            if (lifting)
+                m.H.multiply(m.pD.data(), m.coupling.data());
+            newton_rhs<<<G, THREADS>>>(n, m.g.data(), lifting ? m.coupling.data() : nullptr, m.rhs.data());
+            check_launch("launch of the Newton right-hand side");
+            phase_end(t, result.assembly_time);
+        }
+        // Inexact Newton (Eisenstat-Walker): the linear solve is as accurate as the progress so far warrants.
+        reference_gradient_norm = std::max(reference_gradient_norm, gnorm);
+        double forcing = settings.forcing_max;
+        if (reference_gradient_norm > 0 && std::isfinite(gnorm))
+            forcing = std::min(forcing, std::sqrt(gnorm / reference_gradient_norm));
+        forcing = std::max(forcing, settings.forcing_min);
+        {
+            const auto t = Clock::now();
+            m.pcg.settings() = PcgSettings { forcing, settings.pcg_max_iterations };
+            const PcgResult pcg = m.pcg.solve_device(m.H, m.rhs.data(), m.p.data());
+            result.pcg_iterations += pcg.iterations;
+            result.pcg_capped += !pcg.converged && !pcg.breakdown;
+            if (pcg.breakdown && pcg.iterations == 0) {
+                phase_end(t, result.solve_time);
+                return finish(DeviceStepStatus::LINEAR_BREAKDOWN);
+            }
+            set_prescribed<<<G, THREADS>>>(n, fixed, m.pD.data(), m.p.data());
+            check_launch("launch of the prescribed step");
+            phase_end(t, result.solve_time);
+        }
+        double ds[5];
+        m.direction_scalars(ds);
+        if (ds[4] != 0)
+            return finish(DeviceStepStatus::LINEAR_BREAKDOWN);
+        double slope = ds[0], pmax = ds[1];
+
+        if (!lifting && pmax <= ROUNDOFF_STEP * ds[3]) {
+            // The remaining correction is within a few hundred ulps of the largest position, below what
+            // the energy resolves: still taken while it halves the residual (NewtonSolver's rule).
+            const auto t = Clock::now();
+            step<<<G, THREADS>>>(n, m.x.data(), 1.0, m.p.data(), m.trial.data());
+            check_launch("launch of a Newton step");
+            bool improves = m.step_bound(m.x.data(), m.p.data(), settings.inversion_keep) >= 1.0;
+            const double trial_energy = improves ? m.energy(m_mesh, m.trial.data(), w).total : INFINITY;
+            improves = improves && std::isfinite(trial_energy);
+            double rs[2] = { 0, 0 };
+            if (improves) {
+                m.gradient(m_mesh, m.trial.data(), w, m.g_trial.data());
+                m.residual_of(m.g_trial.data(), rs);
+                improves = rs[1] == 0 && rs[0] < 0.5 * gmax;
+            }
+            phase_end(t, result.line_search_time);
+            if (!improves) {
+                result.roundoff_limited = true;
+                return finish(DeviceStepStatus::CONVERGED);
+            }
+            std::swap(m.x, m.trial);
+            energy = trial_energy;
+            result.newton_step = pmax / step_scale;
+            result.iterations = it + 1;
+            if (result.iterations >= settings.max_iterations && rs[0] / force_scale > settings.residual_tolerance) {
+                // Out of iterations inside the round-off regime: converged as far as it gets.
+                result.residual = rs[0] / force_scale;
+                result.roundoff_limited = true;
+                return finish(DeviceStepStatus::CONVERGED);
+            }
+            continue;
+        }
+        if (!lifting && !(slope < 0)) {
+            // Not a descent direction (PCG on a nearly singular matrix): the negative gradient, scaled to
+            // the rejected step's length.
+            const double scale = gmax > 0 && pmax > 0 ? pmax / gmax : 1.0;
+            gradient_direction<<<G, THREADS>>>(n, fixed, m.g.data(), scale, m.p.data());
+            check_launch("launch of the gradient direction");
+            m.direction_scalars(ds);
+            slope = ds[0];
+            pmax = ds[1];
+            ++result.gradient_steps;
+        }
+
+        const auto t_ls = Clock::now();
+        double alpha = std::min(1.0, m.step_bound(m.x.data(), m.p.data(), settings.inversion_keep));
+        bool accepted = false;
+        double new_energy = energy;
+        // Differences below this are round-off in the energy sum.
+        const double roundoff = std::max(1e-13 * std::abs(energy), 16 * EPS * magnitude);
+        // Near the solution the predicted decrease can drop below what the energy sum resolves; there a
+        // full step is judged by the free-dof gradient instead.
+        const bool unresolvable = !lifting
+            && std::abs(alpha * slope) < std::max(ENERGY_RESOLUTION * std::abs(energy), 1e3 * EPS * magnitude);
+        for (int h = 0; h <= settings.line_search_max_halvings && alpha > 0; ++h, alpha *= 0.5) {
+            step<<<G, THREADS>>>(n, m.x.data(), alpha, m.p.data(), m.trial.data());
+            check_launch("launch of a Newton step");
+            new_energy = m.energy(m_mesh, m.trial.data(), w).total;
+            if (!std::isfinite(new_energy))
+                continue;
+            if (lifting || new_energy <= energy + settings.armijo * alpha * slope + roundoff) {
+                accepted = true;
+                result.line_search_cuts += h;
+                break;
+            }
+            if (unresolvable && h == 0) {
+                m.gradient(m_mesh, m.trial.data(), w, m.g_trial.data());
+                double rs[2];
+                m.residual_of(m.g_trial.data(), rs);
+                if (rs[1] == 0 && rs[0] < 0.5 * gmax) {
+                    accepted = true;
+                    result.line_search_cuts += h;
+                    result.roundoff_limited = true;
+                    break;
+                }
+            }
+        }
+        if (!accepted) {
+            phase_end(t_ls, result.line_search_time);
+            return finish(DeviceStepStatus::LINE_SEARCH_EXHAUSTED);
+        }
+        result.newton_step = alpha * pmax / step_scale;
+        std::swap(m.x, m.trial); // x = the accepted trial; trial = the old x, no longer needed
+        if (lifting && alpha >= 1.0) {
+            // x_D + (target - x_D) need not round to target: snap so lifting ends exactly, unless the
+            // snapped state is invalid (then the rounding stays for one more iteration).
+            detail::copy_device_to_device(m.trial.data(), m.x.data(), n * sizeof(double));
+            snap_to_target<<<G, THREADS>>>(n, fixed, m.target.data(), m.x.data());
+            check_launch("launch of the lifting snap");
+            energy = m.energy(m_mesh, m.x.data(), w).total;
+            if (!std::isfinite(energy)) {
+                std::swap(m.x, m.trial);
+                energy = new_energy;
+            }
+        } else {
+            energy = new_energy;
+        }
+        phase_end(t_ls, result.line_search_time);
+        result.iterations = it + 1;
+    }
+}
+
+} // namespace diffipc::gpu

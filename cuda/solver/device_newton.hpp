@@ -1,0 +1,154 @@
+#pragma once
+/// @file device_newton.hpp
+/// One time step's Newton solve on the GPU: the device twin of NewtonSolver
+/// (forward/solver/newton.hpp) for scenes of elastic bodies with inertia, external forces and
+/// Dirichlet conditions (no contact yet). The mesh, its material data, the Hessian's pattern and
+/// every work vector stay on the device; per solve, the start x, the inertial target, the force
+/// and the prescribed targets are copied up and the converged x copied back (the step record).
+///
+/// Incremental potential (docs/math.md), the CPU's:
+///   E(x) = 1/2 (x - xt)^T M (x - xt) + w [Psi(x) - f^T x]
+/// with M the lumped mass (diagonal, per dof), xt the inertial target, w = c h^2 the potential
+/// weight (1 for static solves, which have no M), Psi the elastic energy (DeviceElasticMesh).
+///
+/// Algorithm (as NewtonSolver::solve, without contact, load control or step extension):
+///  - residual max |g_free| / force_scale; converged when <= residual_tolerance and no lifting
+///    remains;
+///  - lifting: constrained dofs move toward `target` by steps p_D = target - x_D, free rows of the
+///    Newton system see -(g_F + H_FD p_D); a lifting step is bounded (inversion) but not
+///    Armijo-tested; a full lifting step snaps the constrained dofs to target exactly;
+///  - the search matrix M + w H_Psi with each element's dP/dF projected to PSD, solved by
+///    block-Jacobi PCG (device_pcg.hpp) to an inexact-Newton forcing tolerance;
+///  - step bound: the largest alpha <= 1 at which no element has lost more than
+///    1 - inversion_keep of its volume (the CPU's inversion_free_step, same polynomial roots),
+///    then Armijo backtracking by halving, with the CPU's round-off allowance;
+///  - round-off regime: a step below 128 eps |x|_inf is taken only while it halves the residual.
+/// Statuses mirror StepStatus (forward/solver/status.hpp); a failed solve leaves the host x as
+/// it was given (the caller's committed state is untouched).
+///
+/// Differences from the CPU solver: the search matrix is always the projected one (the CPU's
+/// adaptive_projection, which tries the true Hessian once a full step was taken, is not done);
+/// no step extension, load control, max_displacement or step_tolerance; the Newton system is
+/// solved inexactly by PCG (forcing above) instead of by Cholesky. A PCG run that stops at its
+/// iteration cap, or on a breakdown after at least one iteration, still gives a descent direction
+/// and is used; a breakdown before any iteration (the search matrix is not positive definite on
+/// the free dofs) is LINEAR_BREAKDOWN. As on the CPU, a direction that does not descend falls
+/// back to the negative gradient scaled to the rejected step's length.
+///
+/// Round-off allowance of the line search (as NewtonSolver): max(1e-13 |E|, 16 eps magnitude)
+/// with magnitude the CPU Problem's energy_magnitude at the start x:
+///   |1/2 (x - xt)^T M (x - xt)| + w (|Psi(x)| + material_scale) + w |f^T (x - x_ref)|,
+/// where material_scale = sum over neo-Hookean and stable neo-Hookean elements of |e| mu_e dim
+/// (ElasticPotential::value_scale's term; set_material_scale(), 0 until set) and x_ref the force
+/// reference (set_force_reference(), 0 until set; the CPU's ExternalForcePotential measures the
+/// work from the rest positions, so set it to them to reproduce the CPU's energy values).
+///
+/// Determinism: every sum is a fixed-order tree (as cuda/linalg/reduction.hpp), maxima and minima
+/// are order-independent, the gradient and Hessian gathers and the PCG are deterministic: two
+/// solves of the same input give the same bits.
+///
+/// Layouts: all vectors #dofs = #V * dim doubles, flattened vertex-major (xyzxyz), SI units.
+
+#include "cuda/elastic/device_elastic_mesh.hpp"
+#include "cuda/linalg/bsr_matrix.hpp"
+#include "cuda/linalg/device_array.hpp"
+#include "cuda/linalg/device_pcg.hpp"
+
+#include <vector>
+
+namespace diffipc::gpu {
+
+/// The StepStatus values a device solve can end with (same names as forward/solver/status.hpp).
+enum class DeviceStepStatus {
+    CONVERGED,
+    NEWTON_EXHAUSTED,
+    LINE_SEARCH_EXHAUSTED,
+    LINEAR_BREAKDOWN,
+    NON_FINITE,
+    INVALID_INITIAL_STATE
+};
+
+struct DeviceNewtonSettings {
+    double residual_tolerance = 1e-8; ///< on max |g_free| / force_scale
+    int max_iterations = 100;
+    int line_search_max_halvings = 40;
+    double armijo = 1e-4;
+    /// Fraction of its volume an element must keep along a step (the CPU's 0.1).
+    double inversion_keep = 0.1;
+    /// Inexact Newton: PCG's relative tolerance is min(forcing_max, sqrt(|g_free|_2 / |g_free,0|_2))
+    /// (Eisenstat-Walker's choice), never looser than forcing_max and never tighter than forcing_min.
+    /// |g_free,0|_2 is the largest free-gradient norm of the solve so far: the start's, unless lifting
+    /// raised the gradient (a prescribed motion that starts from equilibrium), so that the linear
+    /// solves tighten as the residual falls from its peak rather than from the start's.
+    double forcing_max = 0.5;
+    double forcing_min = 1e-12;
+    int pcg_max_iterations = 20000;
+};
+
+struct DeviceNewtonResult {
+    DeviceStepStatus status = DeviceStepStatus::NEWTON_EXHAUSTED;
+    int iterations = 0; ///< Newton steps taken
+    double residual = 0; ///< max |free-dof gradient| / force_scale at the last iterate
+    double newton_step = 0; ///< max |last step| / step_scale
+    int line_search_cuts = 0; ///< halvings of accepted steps after the inversion bound
+    int pcg_iterations = 0; ///< summed over the Newton iterations
+    int pcg_capped = 0; ///< PCG solves that stopped at pcg_max_iterations (their iterate was used)
+    int gradient_steps = 0; ///< iterations that fell back to the negative gradient
+    bool roundoff_limited = false;
+    /// Wall time (s) per phase, measured with device synchronization at phase ends.
+    double assembly_time = 0, solve_time = 0, line_search_time = 0;
+};
+
+class DeviceNewton {
+public:
+    /// @param mesh         an uploaded DeviceElasticMesh (must outlive the solver)
+    /// @param lumped_mass  #dofs masses (kg, the vertex's lumped mass repeated per component);
+    ///                     empty: static, no inertial term
+    /// @throws std::invalid_argument on a size mismatch or a non-positive, non-finite mass
+    DeviceNewton(const DeviceElasticMesh& mesh, const std::vector<double>& lumped_mass);
+    ~DeviceNewton();
+    DeviceNewton(const DeviceNewton&) = delete;
+    DeviceNewton& operator=(const DeviceNewton&) = delete;
+
+    /// @brief Sets the constrained (Dirichlet) dofs: #dofs flags, nonzero = constrained (none until set).
+    /// @throws std::invalid_argument on a size mismatch
+    void set_constrained(const std::vector<char>& constrained);
+
+    /// @brief The point from which the external work f^T (x - x_ref) is measured (#dofs, m; empty: 0).
+    /// It shifts E by a constant, so only the line search's round-off allowance sees it; the CPU's
+    /// ExternalForcePotential uses the rest positions.
+    /// @throws std::invalid_argument on a size mismatch
+    void set_force_reference(const std::vector<double>& reference);
+
+    /// @brief Sets material_scale (file comment) from the mesh's elements: sum over the elements
+    /// whose model is neo-Hookean or stable neo-Hookean of rest volume * mu * dim (J).
+    /// @param models #E model codes, @param mu #E Lame parameters (Pa), as given to the mesh's upload
+    /// @throws std::invalid_argument on a size mismatch
+    void set_material_scale(const std::vector<int>& models, const std::vector<double>& mu);
+    /// material_scale (J), 0 until set.
+    double material_scale() const;
+
+    /// @brief Minimizes E over the free dofs after lifting the constrained dofs to `target`.
+    /// @param x                in: start (feasible: no inverted element); out: last iterate if
+    ///                         CONVERGED, unchanged otherwise
+    /// @param inertial_target  xt, #dofs (ignored, and may be empty, when static)
+    /// @param weight           w = c h^2 (> 0)
+    /// @param force            f (N), #dofs
+    /// @param target           #dofs, the constrained dofs' values at the end of the step
+    /// @param force_scale      residual = max |g_free| / force_scale (> 0)
+    /// @param step_scale       newton_step = max |alpha p| / step_scale (> 0)
+    /// @throws std::invalid_argument on a size mismatch, a weight or scale that is not positive and
+    ///         finite, or invalid settings (checked before any GPU work)
+    DeviceNewtonResult solve(std::vector<double>& x, const std::vector<double>& inertial_target, double weight,
+        const std::vector<double>& force, const std::vector<double>& target, double force_scale, double step_scale,
+        const DeviceNewtonSettings& settings);
+
+    const DeviceElasticMesh& mesh() const { return m_mesh; }
+
+private:
+    struct Impl;
+    const DeviceElasticMesh& m_mesh;
+    Impl* m_impl;
+};
+
+} // namespace diffipc::gpu

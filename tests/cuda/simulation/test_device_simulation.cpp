@@ -1,0 +1,138 @@
+// The GPU path of a whole run (scene "device": "gpu", forward/simulation/device_solver.hpp)
+// against the CPU path: the same scenes through Simulator, step by step. Skipped without a GPU.
+
+#include "cuda/common/device.hpp"
+#include "tests/forward/test_utils.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdio>
+
+using namespace diffipc;
+using nlohmann::json;
+
+namespace {
+
+#define REQUIRE_GPU()                                                                                                  \
+    if (!gpu::cuda_device_available())                                                                                 \
+    GTEST_SKIP() << gpu::cuda_device_description()
+
+/// Tolerance of the comparison: both solvers stop at residual_tolerance 1e-10 of the force
+/// scale; their states then differ by at most about that share of the step's displacement,
+/// summed over the steps (the implicit schemes do not amplify it). Asserted: 1e-6 of the
+/// largest displacement of the run; the measured differences are printed.
+constexpr double RELATIVE_TOLERANCE = 1e-6;
+
+struct Comparison {
+    double worst_difference = 0; ///< max over steps and dofs of |x_gpu - x_cpu| (m)
+    double largest_displacement = 0; ///< max over steps and dofs of |x_cpu - X| (m)
+};
+
+Comparison run_both(json s, const std::string& name)
+{
+    s["device"] = "cpu";
+    Simulator cpu(test::make_scene(s));
+    cpu.run();
+    s["device"] = "gpu";
+    Simulator gpu(test::make_scene(s));
+    gpu.run();
+    const Trajectory &a = cpu.trajectory(), &b = gpu.trajectory();
+    EXPECT_EQ(a.final_status, StepStatus::CONVERGED) << name << ": " << a.failure_message;
+    EXPECT_EQ(b.final_status, StepStatus::CONVERGED) << name << ": " << b.failure_message;
+    EXPECT_EQ(a.committed(), b.committed()) << name;
+    Comparison c;
+    const VectorXd& X = a.initial_positions;
+    int gpu_iterations = 0, cpu_iterations = 0;
+    for (int k = 1; k <= std::min(a.committed(), b.committed()); ++k) {
+        const VectorXd& xa = a.step(k).positions;
+        const VectorXd& xb = b.step(k).positions;
+        c.worst_difference = std::max(c.worst_difference, (xa - xb).lpNorm<Eigen::Infinity>());
+        c.largest_displacement = std::max(c.largest_displacement, (xa - X).lpNorm<Eigen::Infinity>());
+        EXPECT_LE(b.step(k).residual, s["solver"]["residual_tolerance"].get<double>()) << name << " step " << k;
+        gpu_iterations += b.step(k).newton_iterations;
+        cpu_iterations += a.step(k).newton_iterations;
+    }
+    std::printf("  %-44s %2d steps: max |x_gpu - x_cpu| = %.2e m = %.2e of the largest displacement %.3e m; "
+                "Newton iterations CPU %d, GPU %d\n",
+        name.c_str(), a.committed(), c.worst_difference, c.worst_difference / c.largest_displacement,
+        c.largest_displacement, cpu_iterations, gpu_iterations);
+    EXPECT_GT(c.largest_displacement, 0) << name;
+    EXPECT_LE(c.worst_difference, RELATIVE_TOLERANCE * c.largest_displacement) << name;
+    return c;
+}
+
+/// A cantilever under gravity, clamped at x = 0 (2D: 1 x 0.2 m, 3D: 1 x 0.2 x 0.2 m).
+json cantilever(int dim, const std::string& model, const std::string& integrator, int steps)
+{
+    json s = dim == 2 ? test::box_scene(2, { 1.0, 0.2 }, { 20, 4 }, model, 1e6, 0.3)
+                      : test::box_scene(3, { 1.0, 0.2, 0.2 }, { 10, 2, 2 }, model, 1e6, 0.3);
+    std::vector<double> lo(size_t(dim), -1.0), hi(size_t(dim), 1.0), zero(size_t(dim), 0.0);
+    hi[0] = 0.0;
+    s["dirichlet"] = { { { "body", 0 }, { "region", test::region(lo, hi) }, { "displacement", zero } } };
+    s["gravity"] = dim == 2 ? json { 0, -9.81 } : json { 0, -9.81, 0 };
+    s["time"] = { { "integrator", integrator }, { "dt", 0.01 }, { "steps", steps } };
+    s["solver"] = { { "residual_tolerance", 1e-10 } };
+    return s;
+}
+
+TEST(DeviceSimulation, CantileverEveryIntegratorAndDimension)
+{
+    REQUIRE_GPU();
+    for (int dim : { 2, 3 })
+        for (const char* integrator : { "implicit_euler", "bdf2", "newmark", "static" })
+            run_both(cantilever(dim, "neo_hookean", integrator, integrator == std::string("static") ? 2 : 8),
+                std::to_string(dim) + "D " + integrator);
+}
+
+TEST(DeviceSimulation, EveryMaterialUnderATraction)
+{
+    REQUIRE_GPU();
+    for (const char* model : { "linear", "stvk", "neo_hookean", "stable_neo_hookean" })
+        for (int dim : { 2, 3 }) {
+            json s = cantilever(dim, model, "implicit_euler", 5);
+            std::vector<double> lo(size_t(dim), -1.0), hi(size_t(dim), 2.0);
+            lo[0] = hi[0] = 1.0;
+            json traction = dim == 2 ? json { "2e4*t", "-1e4*t" } : json { "2e4*t", "-1e4*t", "5e3*t" };
+            s["neumann"] = { { { "body", 0 }, { "region", test::region(lo, hi) }, { "traction", traction } } };
+            run_both(s, std::to_string(dim) + "D " + model + " traction");
+        }
+}
+
+TEST(DeviceSimulation, PrescribedStretchLiftsTheConstrainedDofs)
+{
+    REQUIRE_GPU();
+    // Static: the free end is pulled 20% by a prescribed displacement (lifting in every step).
+    for (int dim : { 2, 3 }) {
+        json s = cantilever(dim, "stable_neo_hookean", "static", 3);
+        s.erase("gravity");
+        std::vector<double> lo(size_t(dim), -1.0), hi(size_t(dim), 2.0);
+        lo[0] = hi[0] = 1.0;
+        json pull = json::array({ "0.2*t/3" });
+        for (int a = 1; a < dim; ++a)
+            pull.push_back(nullptr);
+        s["dirichlet"].push_back({ { "body", 0 }, { "region", test::region(lo, hi) }, { "displacement", pull } });
+        run_both(s, std::to_string(dim) + "D prescribed stretch");
+    }
+}
+
+TEST(DeviceSimulation, FailedStepReportsTheCpuStatusAndKeepsTheCommittedState)
+{
+    REQUIRE_GPU();
+    json s = cantilever(3, "neo_hookean", "implicit_euler", 3);
+    s["solver"]["max_iterations"] = 1; // one Newton iteration cannot converge this step
+    s["device"] = "cpu";
+    Simulator cpu(test::make_scene(s));
+    cpu.run();
+    s["device"] = "gpu";
+    Simulator gpu(test::make_scene(s));
+    const VectorXd before = gpu.positions();
+    const StepStatus status = gpu.step();
+    EXPECT_EQ(cpu.trajectory().final_status, StepStatus::NEWTON_EXHAUSTED);
+    EXPECT_EQ(status, cpu.trajectory().final_status);
+    EXPECT_EQ(gpu.trajectory().committed(), 0);
+    EXPECT_EQ(gpu.current_step(), 0);
+    EXPECT_EQ((gpu.positions() - before).lpNorm<Eigen::Infinity>(), 0.0); // untouched, bit for bit
+}
+
+} // namespace
