@@ -125,6 +125,11 @@ struct AdjointStepSystem {
     std::vector<Coupling> couplings;
     int step = -1; ///< the step whose system is factorized (-1: none)
     int substep = 0; ///< and its sub-step (0: the step's own problem)
+    /// The GPU path (scene "device": "gpu"): the system is solved on the device (Simulator::device_solver),
+    /// factorized on the CPU only if that fails; `weight` is the step's w for it.
+    bool on_device = false;
+    bool factorized = false;
+    double weight = 0;
     SparseMatrixd reduced; ///< a periodic cell's P^T H P (lower triangle, constraints applied)
 
     explicit AdjointStepSystem(const Simulator& sim)
@@ -227,6 +232,8 @@ struct AdjointSweep::Impl {
     /// Assembles and factorizes the adjoint system of step k (j = 0) or of its sub-step j at x,
     /// unless the shared system holds it.
     void factorize(int k, int j, const VectorXd& x);
+    /// Factorizes the assembled system of step k on the CPU (the GPU path's fallback).
+    void factorize_on_cpu(int k);
 };
 
 void AdjointSweep::Impl::factorize(int k, int j, const VectorXd& x)
@@ -269,13 +276,24 @@ void AdjointSweep::Impl::factorize(int k, int j, const VectorXd& x)
     });
     a.assembler.apply_constraints(constrained);
     ta.add_to(st.assembly_time);
+    a.factorized = false;
+    a.on_device = sim.device_solver() && j == 0;
+    a.weight = problem.weight(&sim.elastic());
+    if (!a.on_device)
+        factorize_on_cpu(k);
+    a.step = k;
+    a.substep = j;
+}
+
+void AdjointSweep::Impl::factorize_on_cpu(int k)
+{
+    AdjointStepSystem& a = *system;
     Timer tf;
     if (!a.linear.factorize(a.assembler.matrix(), true))
         throw AdjointError("no gradient: the adjoint system of step " + std::to_string(k)
             + " is singular (true Hessian at the converged state)");
     tf.add_to(st.factorization_time);
-    a.step = k;
-    a.substep = j;
+    a.factorized = true;
 }
 
 AdjointSweep::AdjointSweep(Simulator& sim, const ParameterRequest& request)
@@ -445,7 +463,14 @@ void AdjointSweep::Impl::sweep_state(int k, int j, const VectorXd& x, double tim
                         if (cell->prescribed(i, jj))
                             grad.macro(k - 1, i * d + jj) += cell->map().length() * xq[cell->map().macro_dof(i, jj)];
             }
-        } else {
+        } else if (system->on_device
+            && (system->factorized || !sim.device_solver()->solve_adjoint(x, system->weight, rhs, lambda))) {
+            // The device's PCG did not converge (a true Hessian that is not positive definite):
+            // the CPU's factorization with its LDL^T fallback.
+            if (!system->factorized)
+                factorize_on_cpu(k);
+            lambda = system->linear.solve(rhs);
+        } else if (!system->on_device) {
             lambda = system->linear.solve(rhs);
         }
         ts.add_to(st.solve_time);

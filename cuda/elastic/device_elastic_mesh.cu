@@ -191,7 +191,6 @@ void DeviceElasticMesh::upload(int dim, const std::vector<double>& rest_position
     // The element Hessian buffer (L^2 doubles per element) is allocated on first use.
     m_element_gradient.resize(0);
     m_element_hessian.resize(0);
-    m_hessian = make_hessian_matrix();
 }
 
 void DeviceElasticMesh::set_lame_parameters(const std::vector<double>& mu, const std::vector<double>& lambda)
@@ -275,39 +274,6 @@ void DeviceElasticMesh::add_hessian_device(const double* d_x, double weight, boo
             m_slot_codes.data(), m_element_hessian.data(), H.device_values());
     }
     check_launch("launch of the Hessian gather");
-}
-
-void DeviceElasticMesh::check_x(size_t n) const
-{
-    if (n != size_t(num_dofs()))
-        throw std::invalid_argument("DeviceElasticMesh: x has " + std::to_string(n)
-            + " entries, expected #V * dim = " + std::to_string(num_dofs()));
-}
-
-double DeviceElasticMesh::energy(const std::vector<double>& x) const
-{
-    check_x(x.size());
-    m_x.upload(x);
-    return energy_device(m_x.data());
-}
-
-std::vector<double> DeviceElasticMesh::gradient(const std::vector<double>& x, double weight) const
-{
-    check_x(x.size());
-    m_x.upload(x);
-    m_g.resize(x.size());
-    m_g.set_zero();
-    add_gradient_device(m_x.data(), weight, m_g.data());
-    return m_g.download();
-}
-
-const DeviceBsrMatrix& DeviceElasticMesh::hessian_bsr(const std::vector<double>& x, bool project, double weight) const
-{
-    check_x(x.size());
-    m_x.upload(x);
-    m_hessian.set_zero();
-    add_hessian_device(m_x.data(), weight, project, m_hessian);
-    return m_hessian;
 }
 
 } // namespace diffipc::gpu

@@ -21,6 +21,7 @@
 /// per vertex (per block) over a precomputed incidence list in increasing element order, as the
 /// CPU's VertexScatter does. No atomics: repeated evaluations are bitwise equal.
 
+#include "cuda/common/device_potential.hpp"
 #include "cuda/linalg/bsr_matrix.hpp"
 #include "cuda/linalg/bsr_pattern.hpp"
 #include "cuda/linalg/device_array.hpp"
@@ -29,7 +30,7 @@
 
 namespace diffipc::gpu {
 
-class DeviceElasticMesh {
+class DeviceElasticMesh : public DevicePotential {
 public:
     /// @brief Precomputes the rest data (Dm^{-1} as shape gradients, rest volumes), the Hessian's
     /// BSR pattern and the incidence lists, and copies everything to the GPU.
@@ -48,39 +49,31 @@ public:
     int dim() const { return m_dim; }
     int num_vertices() const { return m_num_vertices; }
     int num_elements() const { return m_num_elements; }
-    int num_dofs() const { return m_num_vertices * m_dim; }
+    int num_dofs() const override { return m_num_vertices * m_dim; }
     /// Rest volume (area in 2D) of each element, as computed at upload (#E, m^dim).
     const std::vector<double>& rest_volumes() const { return m_rest_volumes_host; }
 
     /// @name Device-resident evaluation: d_x and d_g are num_dofs() doubles in GPU memory.
     /// @{
     /// @brief Psi(x) (J); +inf if a neo-Hookean element is inverted. Copies one double back.
-    double energy_device(const double* d_x) const;
+    double energy_device(const double* d_x) const override;
     /// @brief d_g += weight * dPsi/dx (N). Asynchronous.
-    void add_gradient_device(const double* d_x, double weight, double* d_g) const;
+    void add_gradient_device(const double* d_x, double weight, double* d_g) const override;
     /// @brief H += weight * d^2Psi/dx^2, each element's dP/dF made positive semi-definite first if
     /// `project` (the CPU's per-element projection). Asynchronous.
     /// @param H a matrix from make_hessian_matrix() (this mesh's pattern)
-    void add_hessian_device(const double* d_x, double weight, bool project, DeviceBsrMatrix& H) const;
+    void add_hessian_device(const double* d_x, double weight, bool project, DeviceBsrMatrix& H) const override;
     /// @}
 
     /// @brief A zero matrix on this mesh's Hessian pattern, to assemble into.
-    DeviceBsrMatrix make_hessian_matrix() const;
+    DeviceBsrMatrix make_hessian_matrix() const override;
     /// The pattern and incidence lists (host copy).
     const ElementBsrPattern& pattern() const { return m_pattern; }
 
-    /// @name Host convenience: x is copied to the GPU first.
-    /// @{
-    double energy(const std::vector<double>& x) const;
-    /// @brief weight * dPsi/dx, num_dofs() doubles.
-    std::vector<double> gradient(const std::vector<double>& x, double weight = 1.0) const;
-    /// @brief Assembles weight * the (projected) Hessian into a matrix this object holds, and
-    /// returns it (valid until the next call).
-    const DeviceBsrMatrix& hessian_bsr(const std::vector<double>& x, bool project, double weight = 1.0) const;
-    /// @}
+    // Host conveniences energy(x), gradient(x), hessian_bsr(x): DevicePotential.
 
 private:
-    void check_x(size_t n) const;
+    const char* potential_name() const override { return "DeviceElasticMesh"; }
 
     int m_dim = 0, m_num_vertices = 0, m_num_elements = 0;
     std::vector<double> m_rest_volumes_host;
@@ -94,8 +87,6 @@ private:
     DeviceArray<int> m_vertex_offsets, m_vertex_codes, m_slot_offsets, m_slot_codes;
     // Scratch: per-element energies, gradients (L * #E) and Hessians (L^2 * #E), reduction partials.
     mutable DeviceArray<double> m_element_energy, m_element_gradient, m_element_hessian, m_partials, m_scalar;
-    mutable DeviceArray<double> m_x, m_g;
-    mutable DeviceBsrMatrix m_hessian;
 };
 
 } // namespace diffipc::gpu

@@ -464,6 +464,31 @@ void DeviceNewton::set_material_scale(const std::vector<int>& models, const std:
 
 double DeviceNewton::material_scale() const { return m_impl->material_scale; }
 
+PcgResult DeviceNewton::solve_true_hessian(const std::vector<double>& x_host, double weight,
+    const std::vector<double>& b_host, std::vector<double>& y_host, double relative_tolerance, int max_iterations)
+{
+    Impl& m = *m_impl;
+    const size_t n = m.n;
+    if (x_host.size() != n || b_host.size() != n)
+        throw std::invalid_argument("DeviceNewton::solve_true_hessian: x and b need #dofs = " + std::to_string(n)
+            + " entries, got " + std::to_string(x_host.size()) + " and " + std::to_string(b_host.size()));
+    if (!(weight > 0) || !std::isfinite(weight) || !(relative_tolerance > 0) || max_iterations < 0)
+        throw std::invalid_argument("DeviceNewton::solve_true_hessian: weight and tolerance must be positive");
+    m.x.upload(x_host);
+    m.rhs.upload(b_host);
+    m.H.set_zero();
+    m_mesh.add_hessian_device(m.x.data(), weight, /*project=*/false, m.H);
+    if (m.dynamic) {
+        add_mass_diagonal<<<m.kernel_grid(), THREADS>>>(
+            n, m.dim, m.diagonal_slots.data(), m.mass.data(), m.H.device_values());
+        check_launch("launch of the mass diagonal");
+    }
+    m.pcg.settings() = PcgSettings { relative_tolerance, max_iterations };
+    const PcgResult r = m.pcg.solve_device(m.H, m.rhs.data(), m.p.data());
+    y_host = m.p.download();
+    return r;
+}
+
 DeviceNewtonResult DeviceNewton::solve(std::vector<double>& x_host, const std::vector<double>& inertial_target,
     double weight, const std::vector<double>& force, const std::vector<double>& target_host, double force_scale,
     double step_scale, const DeviceNewtonSettings& settings)

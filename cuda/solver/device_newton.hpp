@@ -58,14 +58,16 @@
 
 namespace diffipc::gpu {
 
-/// The StepStatus values a device solve can end with (same names as forward/solver/status.hpp).
+/// The StepStatus values a device solve can end with: the same names and numbers as
+/// forward/solver/status.hpp's StepStatus (stable: they are written to HDF5), so that
+/// StepStatus(int(s)) converts.
 enum class DeviceStepStatus {
-    CONVERGED,
-    NEWTON_EXHAUSTED,
-    LINE_SEARCH_EXHAUSTED,
-    LINEAR_BREAKDOWN,
-    NON_FINITE,
-    INVALID_INITIAL_STATE
+    CONVERGED = 0,
+    INVALID_INITIAL_STATE = 1,
+    LINEAR_BREAKDOWN = 3,
+    LINE_SEARCH_EXHAUSTED = 4,
+    NEWTON_EXHAUSTED = 5,
+    NON_FINITE = 7
 };
 
 struct DeviceNewtonSettings {
@@ -142,6 +144,18 @@ public:
     DeviceNewtonResult solve(std::vector<double>& x, const std::vector<double>& inertial_target, double weight,
         const std::vector<double>& force, const std::vector<double>& target, double force_scale, double step_scale,
         const DeviceNewtonSettings& settings);
+
+    /// @brief Solves the adjoint system of a converged step on the device: (M + w H_Psi(x)) y = b on
+    /// the free dofs, H_Psi the true (unprojected) Hessian at x, M the lumped mass of a dynamic solver
+    /// (none for a static one); y = 0 on the constrained dofs. Block-Jacobi PCG from y = 0.
+    /// @param x       #dofs, the converged state
+    /// @param weight  w of the step (> 0)
+    /// @param b       #dofs right-hand side (its constrained entries are ignored)
+    /// @param y       out: #dofs solution (valid when converged)
+    /// @return the PCG's result: a breakdown means the true Hessian is not positive definite on the
+    ///         free dofs, and the caller must solve otherwise (the CPU's LDL^T)
+    PcgResult solve_true_hessian(const std::vector<double>& x, double weight, const std::vector<double>& b,
+        std::vector<double>& y, double relative_tolerance, int max_iterations);
 
     const DeviceElasticMesh& mesh() const { return m_mesh; }
 

@@ -45,6 +45,12 @@ public:
     NewtonResult solve(VectorXd& x, const VectorXd& inertial_target, double weight, const VectorXd& force,
         const VectorXd& target, double force_scale, double step_scale, const NewtonSettings& settings);
 
+    /// @brief The adjoint system of a converged step on the device (adjoint/adjoint.cpp):
+    /// (M + w H) y = b on the free dofs, H the true elastic Hessian at x; y = 0 on constrained dofs.
+    /// @return false if PCG did not converge (a true Hessian that is not positive definite, or the
+    ///         iteration cap): the caller then factorizes on the CPU
+    bool solve_adjoint(const VectorXd& x, double weight, const VectorXd& b, VectorXd& y, int* iterations = nullptr);
+
     /// PCG iterations of the last solve() (all its Newton iterations).
     int last_pcg_iterations() const { return m_last_pcg_iterations; }
 

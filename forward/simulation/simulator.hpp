@@ -43,6 +43,8 @@ public:
     const Problem& problem() const { return m_problem; }
     const ElasticPotential& elastic() const { return *m_elastic; }
     const InertiaPotential& inertia() const { return *m_inertia; }
+    /// The GPU path's solver (scene "device": "gpu"), or nullptr on the CPU path.
+    DeviceSolver* device_solver() const { return m_device.get(); }
     /// The barrier potential, or nullptr when the scene has no contact.
     const ContactPotential* contact() const { return m_contact.get(); }
     /// The friction potential, or nullptr when no coefficient is positive.

@@ -87,8 +87,11 @@ TEST(BodyForce, GradientsMatchDifferencesAndWholeRuns)
     json sliding = scene;
     sliding["bodies"][1]["initial_velocity"] = { 0.02, -0.5 };
     sliding["friction"] = { { "coefficient", 0.3 }, { "eps_v", 0.01 } };
+    // Difference step 1e-4: the sliding runs' convergence noise (residual 1e-11) moves J by about
+    // 1e-10 J between runs, which a step of 1e-5 turns into errors of 5e-6 .. 1.4e-5 on d/dmu (and
+    // 1.6e-4 at 1e-6); at 1e-4 the truncation is below 1e-6 (measured on this scene, 2026-11-28).
     test::check_through_adjoint(
-        sliding, peak, { Block::REST_POSITIONS, Block::DENSITY, Block::INITIAL_VELOCITY, Block::FRICTION }, 1e-5, 1e-5);
+        sliding, peak, { Block::REST_POSITIONS, Block::DENSITY, Block::INITIAL_VELOCITY, Block::FRICTION }, 1e-4, 1e-5);
 }
 
 TEST(BodyForce, ProblemFileErrorsNameTheField)

@@ -45,24 +45,7 @@ namespace {
 constexpr double TOLERANCE = 1e-10; ///< residual tolerance of both solvers
 constexpr double X_TOLERANCE = 1e-6; ///< of the displacement scale
 
-StepStatus cpu_status(gpu::DeviceStepStatus s)
-{
-    switch (s) {
-    case gpu::DeviceStepStatus::CONVERGED:
-        return StepStatus::CONVERGED;
-    case gpu::DeviceStepStatus::NEWTON_EXHAUSTED:
-        return StepStatus::NEWTON_EXHAUSTED;
-    case gpu::DeviceStepStatus::LINE_SEARCH_EXHAUSTED:
-        return StepStatus::LINE_SEARCH_EXHAUSTED;
-    case gpu::DeviceStepStatus::LINEAR_BREAKDOWN:
-        return StepStatus::LINEAR_BREAKDOWN;
-    case gpu::DeviceStepStatus::NON_FINITE:
-        return StepStatus::NON_FINITE;
-    case gpu::DeviceStepStatus::INVALID_INITIAL_STATE:
-        return StepStatus::INVALID_INITIAL_STATE;
-    }
-    return StepStatus::CCD_UNRESOLVED;
-}
+StepStatus cpu_status(gpu::DeviceStepStatus s) { return StepStatus(int(s)); }
 
 std::vector<double> to_std(const VectorXd& v) { return std::vector<double>(v.data(), v.data() + v.size()); }
 VectorXd to_eigen(const std::vector<double>& v) { return Eigen::Map<const VectorXd>(v.data(), Index(v.size())); }
@@ -574,3 +557,19 @@ TEST(DeviceNewton, DISABLED_TimingsOfA200kTetBeam)
     std::printf("step 0: max |x_gpu - x_cpu| = %.3e m of a displacement scale %.3e m\n",
         (first_step - cpu.x).lpNorm<Eigen::Infinity>(), scale);
 }
+
+namespace {
+
+TEST(DeviceNewtonHost, StatusesHaveStepStatusNumbers)
+{
+    // DeviceSolver converts by the number (forward/simulation/device_solver.cpp).
+    using D = gpu::DeviceStepStatus;
+    EXPECT_EQ(int(D::CONVERGED), int(StepStatus::CONVERGED));
+    EXPECT_EQ(int(D::INVALID_INITIAL_STATE), int(StepStatus::INVALID_INITIAL_STATE));
+    EXPECT_EQ(int(D::LINEAR_BREAKDOWN), int(StepStatus::LINEAR_BREAKDOWN));
+    EXPECT_EQ(int(D::LINE_SEARCH_EXHAUSTED), int(StepStatus::LINE_SEARCH_EXHAUSTED));
+    EXPECT_EQ(int(D::NEWTON_EXHAUSTED), int(StepStatus::NEWTON_EXHAUSTED));
+    EXPECT_EQ(int(D::NON_FINITE), int(StepStatus::NON_FINITE));
+}
+
+} // namespace
