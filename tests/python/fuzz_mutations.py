@@ -34,7 +34,7 @@ ENUMS = ["linear", "stvk", "neo_hookean", "stable_neo_hookean", "static", "impli
          "global", "all", "stride", "none", "stress_norm", "elastic_energy", "compliance", "volume",
          "kinetic_energy", "markers", "center_of_mass", "boundary_smoothness", "shape", "E", "nu", "density", "mu",
          "lambda", "initial_velocity", "initial_displacement", "prescribed", "friction", "Static", "NEO_HOOKEAN",
-         " linear", "bdf2 ", "", "box", "file", "annulus", "torus", "plane", "mesh"]
+         " linear", "bdf2 ", "", "box", "file", "annulus", "torus", "plane", "mesh", "cpu", "gpu", "GPU"]
 
 EXPRESSIONS = ["1/0", "sqrt(-1)", "log(0)", "t^1000", "10^400", "1e308*10", "-1e308*10", "", " ", "(((", "sin(",
                "t +", "t*", "x*y*z*t", "_pi", "_e", "nan", "inf", "1e999", "t?1:0", "t>0?1/0:0", "a=1", "t=1",
@@ -49,7 +49,7 @@ WEIRD = ["", "abc", "NaN", "nan", "Infinity", "-Infinity", "inf", "1e999", "0x1p
          -(10 ** 30), 123456789012345678901234567890, 1.7976931348623157e308, 2.2250738585072014e-308]
 
 ENUM_GROUPS = [["linear", "stvk", "neo_hookean", "stable_neo_hookean"], ["static", "implicit_euler", "bdf2", "newmark"],
-               ["lumped", "consistent"], ["cholmod", "ldlt"], ["adaptive", "always"], ["strict", "permissive"],
+               ["lumped", "consistent"], ["cpu", "gpu"], ["cholmod", "ldlt"], ["adaptive", "always"], ["strict", "permissive"],
                ["final", "sum", "trapezoid"], ["von_mises", "frobenius"], ["cauchy", "first_piola"],
                ["body", "element", "vertex", "group", "global"], ["stride", "none"],
                ["stress_norm", "elastic_energy", "compliance", "volume", "kinetic_energy", "markers",
