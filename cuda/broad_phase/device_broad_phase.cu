@@ -1,4 +1,5 @@
 #include "cuda/broad_phase/device_broad_phase.hpp"
+#include "cuda/common/device_event.hpp"
 
 #include "cuda/broad_phase/candidate_filter.cuh"
 #include "cuda/broad_phase/lbvh.cuh"
@@ -217,26 +218,6 @@ namespace {
         return bits;
     }
 
-    /// A CUDA event destroyed with its owner.
-    class Event {
-    public:
-        Event() { check_cuda(cudaEventCreate(&m_event), "cudaEventCreate"); }
-        ~Event() { cudaEventDestroy(m_event); }
-        Event(const Event&) = delete;
-        Event& operator=(const Event&) = delete;
-        void record() { check_cuda(cudaEventRecord(m_event), "cudaEventRecord"); }
-        void synchronize(const char* what) { check_cuda(cudaEventSynchronize(m_event), what); }
-        float ms_since(const Event& from) const
-        {
-            float ms = 0;
-            check_cuda(cudaEventElapsedTime(&ms, from.m_event, m_event), "cudaEventElapsedTime");
-            return ms;
-        }
-
-    private:
-        cudaEvent_t m_event = nullptr;
-    };
-
     /// The device buffers of one tree, kept between calls.
     struct Tree {
         DeviceArray<std::uint64_t> codes, sorted_codes;
@@ -288,7 +269,7 @@ struct DeviceBroadPhase::Impl {
     DeviceArray<unsigned char> temp;
     DeviceArray<double> host_x_t0, host_x_t1; ///< uploads of the host variant
 
-    Event start, boxes_done, build_done, query_done, sort_done;
+    DeviceEvent start, boxes_done, build_done, query_done, sort_done;
     BroadPhaseTiming timing;
 
     void ensure_temp(std::size_t bytes)

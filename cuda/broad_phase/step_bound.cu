@@ -1,4 +1,5 @@
 #include "cuda/broad_phase/step_bound.hpp"
+#include "cuda/common/device_event.hpp"
 
 #include "cuda/broad_phase/point_plane_ccd.cuh"
 #include "cuda/ccd/ccd.cuh"
@@ -165,25 +166,6 @@ namespace {
         check_launch("the step bound's CCD kernel");
     }
 
-    class Event {
-    public:
-        Event() { check_cuda(cudaEventCreate(&m_event), "cudaEventCreate"); }
-        ~Event() { cudaEventDestroy(m_event); }
-        Event(const Event&) = delete;
-        Event& operator=(const Event&) = delete;
-        void record() { check_cuda(cudaEventRecord(m_event), "cudaEventRecord"); }
-        void synchronize(const char* what) { check_cuda(cudaEventSynchronize(m_event), what); }
-        float ms_since(const Event& from) const
-        {
-            float ms = 0;
-            check_cuda(cudaEventElapsedTime(&ms, from.m_event, m_event), "cudaEventElapsedTime");
-            return ms;
-        }
-
-    private:
-        cudaEvent_t m_event = nullptr;
-    };
-
     CCDSettings ccd_settings(const StepBoundSettings& s)
     {
         CCDSettings c;
@@ -223,7 +205,7 @@ struct DeviceStepBound::Impl {
     DeviceArray<Outcome> outcome;
     DeviceCandidates candidates;
 
-    Event start, broad_phase_done, finished;
+    DeviceEvent start, broad_phase_done, finished;
 };
 
 DeviceStepBound::DeviceStepBound(

@@ -1,6 +1,8 @@
 #include "cuda/ccd/ccd.cuh"
 
 #include "cuda/common/device.hpp"
+#include "cuda/common/device_event.hpp"
+#include "cuda/linalg/device_array.hpp"
 #include "forward/common/error.hpp" // header-only, standard library only: the CPU CCD's InputError
 
 #include <cuda_runtime.h>
@@ -25,42 +27,6 @@ namespace gpu {
                 return;
             const std::size_t stride = 6 * std::size_t(ccd_vertex_count(KIND));
             results[q] = ccd_query(KIND, vertices + q * stride, settings);
-        }
-
-        /// A device allocation freed on scope exit.
-        template <typename T> class ScopedDeviceBuffer {
-        public:
-            explicit ScopedDeviceBuffer(std::size_t n, const char* what)
-            {
-                check_cuda(cudaMalloc(reinterpret_cast<void**>(&m_data), n * sizeof(T)), what);
-            }
-            ~ScopedDeviceBuffer() { cudaFree(m_data); }
-            ScopedDeviceBuffer(const ScopedDeviceBuffer&) = delete;
-            ScopedDeviceBuffer& operator=(const ScopedDeviceBuffer&) = delete;
-            T* get() const { return m_data; }
-
-        private:
-            T* m_data = nullptr;
-        };
-
-        /// A CUDA event destroyed on scope exit.
-        class ScopedEvent {
-        public:
-            ScopedEvent() { check_cuda(cudaEventCreate(&m_event), "cudaEventCreate"); }
-            ~ScopedEvent() { cudaEventDestroy(m_event); }
-            ScopedEvent(const ScopedEvent&) = delete;
-            ScopedEvent& operator=(const ScopedEvent&) = delete;
-            cudaEvent_t get() const { return m_event; }
-
-        private:
-            cudaEvent_t m_event = nullptr;
-        };
-
-        float elapsed_ms(const ScopedEvent& from, const ScopedEvent& to)
-        {
-            float ms = 0;
-            check_cuda(cudaEventElapsedTime(&ms, from.get(), to.get()), "cudaEventElapsedTime");
-            return ms;
         }
 
     } // namespace
@@ -95,42 +61,42 @@ namespace gpu {
         require_cuda_device("the GPU CCD (gpu::ccd_batch)");
 
         const std::size_t n_doubles = n_queries * 6 * std::size_t(ccd_vertex_count(kind));
-        ScopedDeviceBuffer<double> d_vertices(n_doubles, "cudaMalloc of the CCD queries");
-        ScopedDeviceBuffer<CCDResult> d_results(n_queries, "cudaMalloc of the CCD results");
-        ScopedEvent start, launched, finished, copied;
+        DeviceArray<double> d_vertices;
+        DeviceArray<CCDResult> d_results;
+        d_results.resize(n_queries);
+        DeviceEvent start, launched, finished, copied;
 
-        check_cuda(cudaEventRecord(start.get()), "cudaEventRecord");
-        check_cuda(cudaMemcpy(d_vertices.get(), vertices, n_doubles * sizeof(double), cudaMemcpyHostToDevice),
-            "cudaMemcpy of the CCD queries to the device");
-        check_cuda(cudaEventRecord(launched.get()), "cudaEventRecord");
+        start.record();
+        d_vertices.upload(vertices, n_doubles);
+        launched.record();
         const unsigned blocks = unsigned((n_queries + THREADS_PER_BLOCK - 1) / THREADS_PER_BLOCK);
         switch (kind) {
         case CCDKind::POINT_TRIANGLE:
             ccd_kernel<CCDKind::POINT_TRIANGLE>
-                <<<blocks, THREADS_PER_BLOCK>>>(d_vertices.get(), n_queries, settings, d_results.get());
+                <<<blocks, THREADS_PER_BLOCK>>>(d_vertices.data(), n_queries, settings, d_results.data());
             break;
         case CCDKind::EDGE_EDGE:
             ccd_kernel<CCDKind::EDGE_EDGE>
-                <<<blocks, THREADS_PER_BLOCK>>>(d_vertices.get(), n_queries, settings, d_results.get());
+                <<<blocks, THREADS_PER_BLOCK>>>(d_vertices.data(), n_queries, settings, d_results.data());
             break;
         case CCDKind::POINT_EDGE:
             ccd_kernel<CCDKind::POINT_EDGE>
-                <<<blocks, THREADS_PER_BLOCK>>>(d_vertices.get(), n_queries, settings, d_results.get());
+                <<<blocks, THREADS_PER_BLOCK>>>(d_vertices.data(), n_queries, settings, d_results.data());
             break;
         case CCDKind::POINT_POINT:
             ccd_kernel<CCDKind::POINT_POINT>
-                <<<blocks, THREADS_PER_BLOCK>>>(d_vertices.get(), n_queries, settings, d_results.get());
+                <<<blocks, THREADS_PER_BLOCK>>>(d_vertices.data(), n_queries, settings, d_results.data());
             break;
         }
         check_cuda(cudaGetLastError(), "the CCD kernel's launch");
-        check_cuda(cudaEventRecord(finished.get()), "cudaEventRecord");
-        check_cuda(cudaMemcpy(results.data(), d_results.get(), n_queries * sizeof(CCDResult), cudaMemcpyDeviceToHost),
+        finished.record();
+        check_cuda(cudaMemcpy(results.data(), d_results.data(), n_queries * sizeof(CCDResult), cudaMemcpyDeviceToHost),
             "the CCD kernel, or cudaMemcpy of its results to the host");
-        check_cuda(cudaEventRecord(copied.get()), "cudaEventRecord");
-        check_cuda(cudaEventSynchronize(copied.get()), "cudaEventSynchronize");
+        copied.record();
+        copied.synchronize("cudaEventSynchronize");
         if (timing) {
-            timing->kernel_ms = elapsed_ms(launched, finished);
-            timing->total_ms = elapsed_ms(start, copied);
+            timing->kernel_ms = finished.ms_since(launched);
+            timing->total_ms = copied.ms_since(start);
         }
         return results;
     }

@@ -6,6 +6,7 @@
 #include "forward/contact/contact_potential.hpp"
 #include "forward/solver/sparse_assembler.hpp"
 #include "tests/cuda/elastic_test_utils.hpp"
+#include "tests/forward/contact/contact_scenes.hpp"
 #include "tests/forward/test_utils.hpp"
 
 #include <Eigen/SparseCore>
@@ -101,23 +102,8 @@ inline ContactScene boxes_on_plane(int cells, double angle, double jiggle, const
 /// Two 2D rings within 0.5 mm of a plane and of each other (vertex-edge and vertex-plane pairs).
 inline ContactScene rings_on_plane(double jiggle, const nlohmann::json& contact)
 {
-    nlohmann::json s;
-    s["dimension"] = 2;
-    nlohmann::json ring = { { "mesh",
-                                { { "annulus",
-                                    { { "center", { 0, 0.3 } }, { "inner_radius", 0.2 }, { "outer_radius", 0.2995 },
-                                        { "segments", 24 }, { "layers", 1 } } } } },
-        { "material", { { "model", "neo_hookean" }, { "E", 1e5 }, { "nu", 0.3 }, { "density", 1000 } } } };
-    nlohmann::json ring2 = ring;
-    ring2["mesh"]["annulus"]["center"] = { 0.5995, 0.3 };
-    ring["name"] = "a";
-    ring2["name"] = "b";
-    s["bodies"] = { ring, ring2 };
-    s["obstacles"] = { { { "plane", { { "point", { 0, 0 } }, { "normal", { 0, 1 } } } } } };
-    s["contact"] = contact;
-    s["time"] = { { "integrator", "implicit_euler" }, { "dt", 0.01 }, { "steps", 1 } };
     ContactScene scene;
-    scene.sim = std::make_unique<Simulator>(make_scene(s));
+    scene.sim = std::make_unique<Simulator>(make_scene(test::rings_on_plane(contact)));
     scene.x = scene.sim->positions() + jiggle * random_vector(scene.sim->positions().size(), 7);
     return scene;
 }
