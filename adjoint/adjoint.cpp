@@ -125,8 +125,8 @@ struct AdjointStepSystem {
     std::vector<Coupling> couplings;
     int step = -1; ///< the step whose system is factorized (-1: none)
     int substep = 0; ///< and its sub-step (0: the step's own problem)
-    /// The GPU path (scene "device": "gpu"): the system is solved on the device (Simulator::device_solver),
-    /// factorized on the CPU only if that fails; `weight` is the step's w for it.
+    /// The GPU path (scene "device": "gpu") without contact: the system is solved on the device
+    /// (Simulator::device_solver), factorized on the CPU only if that fails; `weight` is the step's w for it.
     bool on_device = false;
     bool factorized = false;
     double weight = 0;
@@ -277,7 +277,9 @@ void AdjointSweep::Impl::factorize(int k, int j, const VectorXd& x)
     a.assembler.apply_constraints(constrained);
     ta.add_to(st.assembly_time);
     a.factorized = false;
-    a.on_device = sim.device_solver() && j == 0;
+    // The device solves the elastic system only (DeviceNewton::solve_true_hessian): a contact scene's
+    // adjoint systems, with the barrier's Hessian, are factorized on the CPU.
+    a.on_device = sim.device_solver() && j == 0 && !sim.contact();
     a.weight = problem.weight(&sim.elastic());
     if (!a.on_device)
         factorize_on_cpu(k);

@@ -1,6 +1,7 @@
-// `diffipc bench --suite gpu`: the same elastic boxes stepped by the CPU solver (all usable
-// cores) and by the GPU path (scene "device": "gpu"), side by side in one run; per step and per
-// phase, and the largest difference of the final states. Prints figures; asserts nothing
+// `diffipc bench --suite gpu`: the same elastic boxes and contact scenes (a slab dropped on a
+// clamped base) stepped by the CPU solver (all usable cores) and by the GPU path (scene "device":
+// "gpu"), side by side in one run; per step and per phase, and the largest difference of the final
+// states. Prints figures; asserts nothing
 // (docs/performance.md).
 
 #include "cli/bench.hpp"
@@ -24,6 +25,8 @@ namespace {
         PhaseTimes phases;
         StepStatus status = StepStatus::CONVERGED;
         VectorXd x;
+        DeviceSolver::ContactProfile contact; // GPU runs with contact: after the warm-up
+        long pcg_iterations = 0;
     };
 
     /// Steps 2.. of the scene (the first is a warm-up: the CPU's symbolic analysis, the GPU's
@@ -36,6 +39,10 @@ namespace {
         if ((r.status = sim.step()) != StepStatus::CONVERGED)
             return r;
         const Trajectory warm = sim.trajectory();
+        const DeviceSolver* solver = sim.device_solver();
+        const DeviceSolver::ContactProfile warm_contact
+            = solver ? solver->contact_profile() : DeviceSolver::ContactProfile {};
+        const long warm_pcg = solver ? solver->total_pcg_iterations() : 0;
         while (sim.steps_done() < sim.scene().time.steps)
             if ((r.status = sim.step()) != StepStatus::CONVERGED)
                 break;
@@ -45,6 +52,15 @@ namespace {
         r.wall = t.wall_time - warm.wall_time;
         r.phases = t.phases - warm.phases;
         r.x = sim.positions();
+        if (solver) {
+            const DeviceSolver::ContactProfile c = solver->contact_profile();
+            r.contact.active_sets = c.active_sets - warm_contact.active_sets;
+            r.contact.energies = c.energies - warm_contact.energies;
+            r.contact.active_set_count = c.active_set_count - warm_contact.active_set_count;
+            r.contact.energy_count = c.energy_count - warm_contact.energy_count;
+            r.contact.max_active = c.max_active;
+            r.pcg_iterations = solver->total_pcg_iterations() - warm_pcg;
+        }
         return r;
     }
 
@@ -56,6 +72,17 @@ namespace {
                     "solve %.4f, line search %.4f\n",
             device, to_string(r.status).c_str(), r.steps, r.steps ? double(r.iterations) / r.steps : 0.0, r.wall * per,
             p.assembly * per, p.factorization * per, p.solve * per, p.line_search * per);
+        if (p.broad_phase + p.ccd + p.barrier > 0)
+            std::printf("       of which contact: broad phase %.4f, CCD %.4f, barrier %.4f s/step\n", p.broad_phase * per,
+                p.ccd * per, p.barrier * per);
+        if (r.pcg_iterations > 0)
+            std::printf("       PCG %.0f iterations/step\n", double(r.pcg_iterations) * per);
+        const DeviceSolver::ContactProfile& c = r.contact;
+        if (c.active_set_count > 0)
+            std::printf("       of the barrier: %.1f active-set rebuilds/step (%.2f ms each, up to %d pairs), %.1f "
+                        "energies/step (%.2f ms each)\n",
+                double(c.active_set_count) * per, 1e3 * c.active_sets / double(c.active_set_count), c.max_active,
+                double(c.energy_count) * per, c.energy_count ? 1e3 * c.energies / double(c.energy_count) : 0.0);
     }
 
 } // namespace
@@ -86,16 +113,14 @@ int run_gpu_bench(const BenchOptions& options)
         options.size.c_str(), describe(thread_config()).c_str(), DeviceSolver::describe_device().c_str(),
         options.steps);
     int failures = 0;
-    for (const Box& b : boxes) {
-        if (!wanted(b.key))
-            continue;
-        const nlohmann::json scene = beam(3, "neo_hookean", b.cells, { 4.0, 1.4, 1.5 }, options.steps);
-        const Simulator probe(parse_scene(scene, ".", b.name));
-        std::printf("\n%s: %ld vertices, %ld tetrahedra, %ld dofs\n", b.name.c_str(), long(probe.mesh().num_vertices()),
+    // One scene on both paths, side by side.
+    const auto compare = [&](const nlohmann::json& scene, const std::string& name) {
+        const Simulator probe(parse_scene(scene, ".", name));
+        std::printf("\n%s: %ld vertices, %ld tetrahedra, %ld dofs\n", name.c_str(), long(probe.mesh().num_vertices()),
             long(probe.mesh().num_elements()), long(probe.mesh().num_dofs()));
-        const Run cpu = measure(scene, "cpu", b.name);
+        const Run cpu = measure(scene, "cpu", name);
         print("cpu", cpu);
-        const Run gpu = measure(scene, "gpu", b.name);
+        const Run gpu = measure(scene, "gpu", name);
         print("gpu", gpu);
         if (cpu.steps > 0 && gpu.steps > 0) {
             const VectorXd X = probe.positions();
@@ -105,7 +130,25 @@ int run_gpu_bench(const BenchOptions& options)
                 (cpu.x - X).lpNorm<Eigen::Infinity>());
         }
         failures += cpu.status != StepStatus::CONVERGED || gpu.status != StepStatus::CONVERGED;
-    }
+    };
+    for (const Box& b : boxes)
+        if (wanted(b.key))
+            compare(beam(3, "neo_hookean", b.cells, { 4.0, 1.4, 1.5 }, options.steps), b.name);
+    // The contact scene: a slab dropped on a clamped base (contact from the first step), frictionless.
+    struct Slabs {
+        std::string key, name;
+        std::vector<int> base, slab;
+    };
+    // 6 tetrahedra per cube: 52,704, 198,000 and 966,000 tetrahedra (small: 2,208 and 6,048).
+    const std::vector<Slabs> slabs = full
+        ? std::vector<Slabs> { { "contact-50k", "contact-slabs-50k", { 36, 4, 36 }, { 30, 4, 30 } },
+              { "contact-200k", "contact-slabs-200k", { 60, 5, 60 }, { 50, 6, 50 } },
+              { "contact-1m", "contact-slabs-1m", { 100, 8, 100 }, { 90, 10, 90 } } }
+        : std::vector<Slabs> { { "contact-50k", "contact-slabs-2k", { 8, 2, 8 }, { 8, 2, 8 } },
+              { "contact-200k", "contact-slabs-6k", { 14, 2, 14 }, { 12, 3, 12 } } };
+    for (const Slabs& s : slabs)
+        if (wanted(s.key))
+            compare(contact_slabs(s.base, s.slab, options.steps, 0.0), s.name);
     return failures == 0 ? 0 : 2;
 }
 

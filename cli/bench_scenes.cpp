@@ -28,7 +28,13 @@ nlohmann::json beam(int dim, const std::string& model, std::vector<int> cells, s
 /// A ~20k-tet contact scene: a soft slab dropped on a clamped one.
 nlohmann::json contact_slabs(bool full, int steps, double friction)
 {
-    const int n = full ? 1 : 0;
+    // full: 24 x 3 x 24 and 20 x 4 x 20 cubes, 6 tets each: 10,368 + 9,600 = 19,968 tetrahedra.
+    return full ? contact_slabs({ 24, 3, 24 }, { 20, 4, 20 }, steps, friction)
+                : contact_slabs({ 8, 2, 8 }, { 6, 2, 6 }, steps, friction);
+}
+
+nlohmann::json contact_slabs(std::vector<int> base_cells, std::vector<int> slab_cells, int steps, double friction)
+{
     auto slab = [](const std::string& name, std::vector<double> lo, std::vector<double> hi, std::vector<int> cells,
                     std::vector<double> v) {
         return nlohmann::json { { "name", name },
@@ -38,11 +44,8 @@ nlohmann::json contact_slabs(bool full, int steps, double friction)
     };
     nlohmann::json s;
     s["dimension"] = 3;
-    // full: 24 x 3 x 24 and 20 x 4 x 20 cubes, 6 tets each: 10,368 + 9,600 = 19,968 tetrahedra.
-    s["bodies"] = { slab("base", { -0.6, -0.15, -0.6 }, { 0.6, 0.0, 0.6 },
-                        n ? std::vector<int> { 24, 3, 24 } : std::vector<int> { 8, 2, 8 }, { 0, 0, 0 }),
-        slab("slab", { -0.5, 0.002, -0.5 }, { 0.5, 0.202, 0.5 },
-            n ? std::vector<int> { 20, 4, 20 } : std::vector<int> { 6, 2, 6 }, { 0, -1, 0 }) };
+    s["bodies"] = { slab("base", { -0.6, -0.15, -0.6 }, { 0.6, 0.0, 0.6 }, base_cells, { 0, 0, 0 }),
+        slab("slab", { -0.5, 0.002, -0.5 }, { 0.5, 0.202, 0.5 }, slab_cells, { 0, -1, 0 }) };
     s["gravity"] = { 0, -9.81, 0 };
     s["dirichlet"] = { { { "body", "base" }, { "region", { { "min", { -1, -1, -1 } }, { "max", { 1, -0.15, 1 } } } },
         { "displacement", { 0, 0, 0 } } } };

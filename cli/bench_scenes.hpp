@@ -17,4 +17,8 @@ nlohmann::json beam(int dim, const std::string& model, std::vector<int> cells, s
 /// @param friction coefficient of both slabs (0: frictionless)
 nlohmann::json contact_slabs(bool full, int steps, double friction);
 
+/// @brief contact_slabs' scene with other resolutions: a slab of 1 x 0.2 x 1 m (`slab_cells` cubes, 6 tets
+/// each) dropped at 1 m/s from 2 mm onto a clamped base of 1.2 x 0.15 x 1.2 m (`base_cells`).
+nlohmann::json contact_slabs(std::vector<int> base_cells, std::vector<int> slab_cells, int steps, double friction);
+
 } // namespace diffipc

@@ -79,22 +79,35 @@ void SumOperator::bind(const DeviceBsrMatrix& A, const DeviceBsrMatrix& C)
         throw std::invalid_argument("SumOperator: A has " + std::to_string(A.num_block_rows()) + " block rows of size "
             + std::to_string(A.block_size()) + ", C " + std::to_string(C.num_block_rows()) + " of size "
             + std::to_string(C.block_size()));
+    const bool same_a = m_A == &A && m_a_blocks == A.num_blocks() && m_num_block_rows == A.num_block_rows();
     m_A = &A;
     m_C = &C;
     m_block_size = A.block_size();
     m_num_block_rows = A.num_block_rows();
+    m_union_built = false;
     const int rows = m_num_block_rows;
-    const std::vector<int>&ao = A.row_offsets(), &ac = A.col_indices();
-    const std::vector<int>&co = C.row_offsets(), &cc = C.col_indices();
-
+    const std::vector<int>& co = C.row_offsets();
     std::vector<int> c_rows;
     for (int r = 0; r < rows; ++r)
         if (co[size_t(r) + 1] > co[size_t(r)])
             c_rows.push_back(r);
     m_c_rows.upload(c_rows);
-    m_a_diagonal.upload(diagonal_slots(A));
+    if (!same_a) {
+        m_a_diagonal.upload(diagonal_slots(A));
+        m_a_blocks = A.num_blocks();
+    }
     m_c_diagonal.upload(diagonal_slots(C));
+}
 
+void SumOperator::build_union() const
+{
+    if (!m_A)
+        throw std::logic_error("SumOperator: bind() first");
+    if (m_union_built)
+        return;
+    const int rows = m_num_block_rows;
+    const std::vector<int>&ao = m_A->row_offsets(), &ac = m_A->col_indices();
+    const std::vector<int>&co = m_C->row_offsets(), &cc = m_C->col_indices();
     // The union pattern, row by row: a merge of two increasing column lists.
     m_row_offsets.assign(size_t(rows) + 1, 0);
     m_col_indices.clear();
@@ -125,6 +138,7 @@ void SumOperator::bind(const DeviceBsrMatrix& A, const DeviceBsrMatrix& C)
     }
     m_a_slot.upload(a_slot);
     m_c_slot.upload(c_slot);
+    m_union_built = true;
 }
 
 void SumOperator::multiply(const double* d_x, double* d_y, const unsigned char* d_fixed) const
@@ -160,8 +174,7 @@ void SumOperator::diagonal_blocks(double* d_out) const
 
 DeviceBsrMatrix SumOperator::make_sum_matrix() const
 {
-    if (!m_A)
-        throw std::logic_error("SumOperator::make_sum_matrix: bind() first");
+    build_union();
     DeviceBsrMatrix S;
     S.set_pattern(m_block_size, m_row_offsets, m_col_indices);
     return S;
@@ -169,8 +182,7 @@ DeviceBsrMatrix SumOperator::make_sum_matrix() const
 
 void SumOperator::assemble_sum(DeviceBsrMatrix& S) const
 {
-    if (!m_A)
-        throw std::logic_error("SumOperator::assemble_sum: bind() first");
+    build_union();
     if (S.block_size() != m_block_size || S.row_offsets() != m_row_offsets || S.col_indices() != m_col_indices)
         throw std::invalid_argument(
             "SumOperator::assemble_sum: S does not have the union pattern (make it with make_sum_matrix())");

@@ -12,10 +12,14 @@
 ///   so today's DevicePCG solves with it unchanged (its block-Jacobi diagonal then includes the
 ///   contact diagonal blocks). Costs one pass over A's values per Newton iteration, and an
 ///   O(#blocks of A) merge on the host per pair list.
-/// - multiply() and diagonal_blocks(): the product y = A x + C x and the block diagonal of
-///   A + C without forming S: what a DevicePCG that takes an operator (a product and the block
-///   diagonal for its preconditioner) instead of a DeviceBsrMatrix would call; no union pattern
-///   needed, and each product reads C's few rows only.
+/// - as a DeviceLinearOperator (cuda/linalg/linear_operator.hpp), which DevicePCG solves with:
+///   multiply() and diagonal_blocks() give the product y = A x + C x and the block diagonal of
+///   A + C without forming S; no union pattern needed, and each product reads C's few rows only.
+///   This is what DeviceNewton uses.
+///
+/// bind() costs O(#block rows + #blocks of C) on the host when only C changed (A's diagonal slots
+/// are kept while A is the same matrix with the same number of blocks); the union pattern is
+/// built on first use by make_sum_matrix(), assemble_sum() or sum_row_offsets().
 ///
 /// Determinism: (A x)_r is summed by A's product as always, then (C x)_r over C's blocks in
 /// column order is added; S's entries are a + c (or the one that exists). Both are fixed orders:
@@ -23,29 +27,29 @@
 
 #include "cuda/linalg/bsr_matrix.hpp"
 #include "cuda/linalg/device_array.hpp"
+#include "cuda/linalg/linear_operator.hpp"
 
 #include <vector>
 
 namespace diffipc::gpu {
 
-class SumOperator {
+class SumOperator : public DeviceLinearOperator {
 public:
     /// @brief Binds A and C (kept by reference: they must outlive this object's use, and C must be
-    /// bound again whenever its pattern changes). Builds the union pattern and the slot maps on the
-    /// host, and uploads them.
+    /// bound again whenever its pattern changes, A whenever its pattern changes). Finds the diagonal
+    /// slots and C's nonempty rows on the host and uploads them.
     /// @throws std::invalid_argument if the block sizes or the numbers of block rows differ
     void bind(const DeviceBsrMatrix& A, const DeviceBsrMatrix& C);
 
-    int size() const { return m_num_block_rows * m_block_size; }
-    int block_size() const { return m_block_size; }
-    int num_block_rows() const { return m_num_block_rows; }
+    int block_size() const override { return m_block_size; }
+    int num_block_rows() const override { return m_num_block_rows; }
 
     /// @brief d_y = (A + C) d_x, or with d_fixed (size() bytes, nonzero = fixed) P (A + C) P d_x as
     /// DeviceBsrMatrix::multiply. Asynchronous.
-    void multiply(const double* d_x, double* d_y, const unsigned char* d_fixed = nullptr) const;
+    void multiply(const double* d_x, double* d_y, const unsigned char* d_fixed = nullptr) const override;
     /// @brief d_out = the diagonal blocks of A + C, #block rows * b^2 doubles (block r row-major at
     /// r b^2). Asynchronous.
-    void diagonal_blocks(double* d_out) const;
+    void diagonal_blocks(double* d_out) const override;
 
     /// @brief A zero matrix on the union pattern of A and C.
     DeviceBsrMatrix make_sum_matrix() const;
@@ -53,20 +57,33 @@ public:
     /// @throws std::invalid_argument if S does not have the union pattern
     void assemble_sum(DeviceBsrMatrix& S) const;
     /// The union pattern (host copy): #block rows + 1 offsets and block columns.
-    const std::vector<int>& sum_row_offsets() const { return m_row_offsets; }
-    const std::vector<int>& sum_col_indices() const { return m_col_indices; }
+    const std::vector<int>& sum_row_offsets() const
+    {
+        build_union();
+        return m_row_offsets;
+    }
+    const std::vector<int>& sum_col_indices() const
+    {
+        build_union();
+        return m_col_indices;
+    }
 
     /// @brief y = (A + C) x with host vectors (size() each); synchronizes.
     std::vector<double> multiply(const std::vector<double>& x) const;
 
 private:
+    /// The union pattern and the slot maps (once per bind()).
+    void build_union() const;
+
     const DeviceBsrMatrix* m_A = nullptr;
     const DeviceBsrMatrix* m_C = nullptr;
     int m_block_size = 0, m_num_block_rows = 0;
-    std::vector<int> m_row_offsets, m_col_indices; // union pattern
+    int m_a_blocks = -1; // A's number of blocks when its diagonal slots were found
+    mutable bool m_union_built = false;
+    mutable std::vector<int> m_row_offsets, m_col_indices; // union pattern
     DeviceArray<int> m_c_rows; // block rows of C with blocks
     DeviceArray<int> m_a_diagonal, m_c_diagonal; // per block row: slot of its diagonal block, or -1
-    DeviceArray<int> m_a_slot, m_c_slot; // per union slot: the slot in A / C, or -1
+    mutable DeviceArray<int> m_a_slot, m_c_slot; // per union slot: the slot in A / C, or -1
 };
 
 } // namespace diffipc::gpu

@@ -51,6 +51,24 @@ namespace {
         y[row] = acc;
     }
 
+    /// out[r b^2 + q] = entry q of block (r, r), or 0 if the row has none.
+    template <int B>
+    __global__ void bsr_diagonal_blocks(int block_rows, const int* __restrict__ row_offsets,
+        const int* __restrict__ cols, const double* __restrict__ values, double* __restrict__ out)
+    {
+        const int br = blockIdx.x * blockDim.x + threadIdx.x;
+        if (br >= block_rows)
+            return;
+        int slot = -1;
+        for (int k = row_offsets[br]; k < row_offsets[br + 1]; ++k)
+            if (cols[k] == br) {
+                slot = k;
+                break;
+            }
+        for (int q = 0; q < B * B; ++q)
+            out[size_t(br) * (B * B) + q] = slot >= 0 ? values[size_t(slot) * (B * B) + q] : 0.0;
+    }
+
 } // namespace
 
 void DeviceBsrMatrix::set_pattern(
@@ -105,6 +123,22 @@ void DeviceBsrMatrix::multiply(const double* d_x, double* d_y, const unsigned ch
         bsr_multiply<3><<<blocks, THREADS>>>(
             rows, m_d_row_offsets.data(), m_d_col_indices.data(), m_d_values.data(), d_x, d_y, d_fixed);
     check_cuda(cudaGetLastError(), "launch of the BSR matrix-vector product");
+}
+
+void DeviceBsrMatrix::diagonal_blocks(double* d_out) const
+{
+    const int rows = m_num_block_rows;
+    if (rows == 0)
+        return;
+    constexpr int THREADS = 256;
+    const int blocks = (rows + THREADS - 1) / THREADS;
+    if (m_block_size == 2)
+        bsr_diagonal_blocks<2><<<blocks, THREADS>>>(
+            rows, m_d_row_offsets.data(), m_d_col_indices.data(), m_d_values.data(), d_out);
+    else
+        bsr_diagonal_blocks<3><<<blocks, THREADS>>>(
+            rows, m_d_row_offsets.data(), m_d_col_indices.data(), m_d_values.data(), d_out);
+    check_cuda(cudaGetLastError(), "launch of the BSR diagonal blocks");
 }
 
 std::vector<double> DeviceBsrMatrix::multiply(const std::vector<double>& x) const

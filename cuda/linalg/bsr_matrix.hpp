@@ -11,6 +11,7 @@
 /// (r b + i, col_indices[k] b + j). Both triangles are stored.
 
 #include "cuda/linalg/device_array.hpp"
+#include "cuda/linalg/linear_operator.hpp"
 
 #include <vector>
 
@@ -29,7 +30,7 @@ struct HostBsrMatrix {
     double coeff(int row, int col) const;
 };
 
-class DeviceBsrMatrix {
+class DeviceBsrMatrix : public DeviceLinearOperator {
 public:
     /// @brief Sets the pattern (copied to the device) and zeroes the values.
     /// @param block_size  b, 2 or 3
@@ -40,11 +41,14 @@ public:
     HostBsrMatrix download() const;
     void set_zero();
 
-    int block_size() const { return m_block_size; }
-    int num_block_rows() const { return m_num_block_rows; }
+    int block_size() const override { return m_block_size; }
+    int num_block_rows() const override { return m_num_block_rows; }
     int num_blocks() const { return int(m_col_indices.size()); }
     /// Rows (= columns) of the scalar matrix, #block rows * b.
     int size() const { return m_num_block_rows * m_block_size; }
+    DeviceBsrMatrix() = default;
+    DeviceBsrMatrix(DeviceBsrMatrix&&) = default;
+    DeviceBsrMatrix& operator=(DeviceBsrMatrix&&) = default;
 
     /// Device pointers to the pattern and the values (layout above).
     const int* device_row_offsets() const { return m_d_row_offsets.data(); }
@@ -58,7 +62,9 @@ public:
     /// @brief d_y = A d_x, or with d_fixed (size() bytes, nonzero = fixed dof) d_y = P A P d_x where P
     /// zeroes the fixed dofs. Each row's sum runs over its blocks in increasing column order: the
     /// result does not depend on the scheduling. Asynchronous (default stream).
-    void multiply(const double* d_x, double* d_y, const unsigned char* d_fixed = nullptr) const;
+    void multiply(const double* d_x, double* d_y, const unsigned char* d_fixed = nullptr) const override;
+    /// @brief d_out = the diagonal blocks (DeviceLinearOperator). Asynchronous.
+    void diagonal_blocks(double* d_out) const override;
     /// @brief y = A x with host vectors (size() each); synchronizes.
     std::vector<double> multiply(const std::vector<double>& x) const;
 

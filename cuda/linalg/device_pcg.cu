@@ -21,25 +21,20 @@ namespace {
 
     void check_launch(const char* what) { check_cuda(cudaGetLastError(), what); }
 
-    /// Per block row: the inverse of its diagonal block with the fixed rows and columns made
-    /// identity ones; a block without a Cholesky factorization gets its inverted diagonal.
+    /// Per block row: the inverse of its diagonal block (blocks: #block rows * B^2, dense) with the
+    /// fixed rows and columns made identity ones; a block without a Cholesky factorization gets its
+    /// inverted diagonal.
     template <int B>
-    __global__ void invert_diagonal_blocks(int block_rows, const int* __restrict__ row_offsets,
-        const int* __restrict__ cols, const double* __restrict__ values, const unsigned char* __restrict__ fixed,
+    __global__ void invert_diagonal_blocks(
+        int block_rows, const double* __restrict__ blocks, const unsigned char* __restrict__ fixed,
         double* __restrict__ inverses)
     {
         const int br = blockIdx.x * blockDim.x + threadIdx.x;
         if (br >= block_rows)
             return;
         double D[B * B];
-        for (int k = 0; k < B * B; ++k)
-            D[k] = 0;
-        for (int k = row_offsets[br]; k < row_offsets[br + 1]; ++k)
-            if (cols[k] == br) {
-                for (int q = 0; q < B * B; ++q)
-                    D[q] = values[size_t(k) * (B * B) + q];
-                break;
-            }
+        for (int q = 0; q < B * B; ++q)
+            D[q] = blocks[size_t(br) * (B * B) + q];
         if (fixed)
             for (int i = 0; i < B; ++i)
                 if (fixed[br * B + i])
@@ -143,11 +138,12 @@ void DevicePCG::prepare(int n, int block_size, int num_block_rows)
     for (auto* v : { &m_r, &m_z, &m_p, &m_q })
         v->resize(size_t(n));
     m_inverse_diagonal.resize(size_t(num_block_rows) * size_t(block_size * block_size));
+    m_diagonal.resize(size_t(num_block_rows) * size_t(block_size * block_size));
     m_partials.resize(2 * REDUCTION_PARTIALS);
     m_scalars.resize(NUM_SCALARS);
 }
 
-PcgResult DevicePCG::solve_device(const DeviceBsrMatrix& A, const double* d_b, double* d_x)
+PcgResult DevicePCG::solve_device(const DeviceLinearOperator& A, const double* d_b, double* d_x)
 {
     if (!(m_settings.relative_tolerance > 0) || m_settings.max_iterations < 0)
         throw std::invalid_argument("DevicePCG: relative_tolerance must be > 0 and max_iterations >= 0");
@@ -162,12 +158,11 @@ PcgResult DevicePCG::solve_device(const DeviceBsrMatrix& A, const double* d_b, d
     double *r = m_r.data(), *z = m_z.data(), *p = m_p.data(), *q = m_q.data(), *s = m_scalars.data();
     double* partials = m_partials.data();
 
+    A.diagonal_blocks(m_diagonal.data());
     if (B == 2)
-        invert_diagonal_blocks<2><<<grid(rows), THREADS>>>(
-            rows, A.device_row_offsets(), A.device_col_indices(), A.device_values(), fixed, m_inverse_diagonal.data());
+        invert_diagonal_blocks<2><<<grid(rows), THREADS>>>(rows, m_diagonal.data(), fixed, m_inverse_diagonal.data());
     else
-        invert_diagonal_blocks<3><<<grid(rows), THREADS>>>(
-            rows, A.device_row_offsets(), A.device_col_indices(), A.device_values(), fixed, m_inverse_diagonal.data());
+        invert_diagonal_blocks<3><<<grid(rows), THREADS>>>(rows, m_diagonal.data(), fixed, m_inverse_diagonal.data());
     check_launch("launch of the block-Jacobi setup");
     auto precondition = [&]() {
         if (B == 2)

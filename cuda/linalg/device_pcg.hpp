@@ -1,7 +1,8 @@
 #pragma once
 /// @file device_pcg.hpp
-/// Preconditioned conjugate gradients on the GPU for a symmetric positive definite BSR
-/// matrix (bsr_matrix.hpp), with a block-Jacobi preconditioner (the inverted b by b
+/// Preconditioned conjugate gradients on the GPU for a symmetric positive definite matrix given
+/// as a DeviceLinearOperator (linear_operator.hpp: a BSR matrix, bsr_matrix.hpp, or the sum of the
+/// elastic and contact matrices, cuda/contact/sum_operator.hpp), with a block-Jacobi preconditioner (the inverted b by b
 /// diagonal blocks) and Dirichlet-fixed dofs.
 ///
 /// Fixed dofs are eliminated: with P the diagonal 0/1 matrix that zeroes them, the solve is
@@ -20,6 +21,7 @@
 
 #include "cuda/linalg/bsr_matrix.hpp"
 #include "cuda/linalg/device_array.hpp"
+#include "cuda/linalg/linear_operator.hpp"
 
 #include <vector>
 
@@ -62,7 +64,7 @@ public:
     /// @param A   symmetric positive definite on the free dofs, b by b blocks (device)
     /// @param d_b right-hand side, A.size() doubles on the device
     /// @param d_x out: solution, A.size() doubles on the device (fixed entries 0)
-    PcgResult solve_device(const DeviceBsrMatrix& A, const double* d_b, double* d_x);
+    PcgResult solve_device(const DeviceLinearOperator& A, const double* d_b, double* d_x);
     /// @brief The same with host vectors (b and x: A.size() doubles, flattened vertex-major).
     PcgResult solve(const DeviceBsrMatrix& A, const std::vector<double>& b, std::vector<double>& x);
 
@@ -71,7 +73,7 @@ private:
 
     PcgSettings m_settings;
     DeviceArray<unsigned char> m_fixed; // empty: no fixed dofs
-    DeviceArray<double> m_r, m_z, m_p, m_q, m_inverse_diagonal, m_partials, m_scalars;
+    DeviceArray<double> m_r, m_z, m_p, m_q, m_diagonal, m_inverse_diagonal, m_partials, m_scalars;
 };
 
 } // namespace diffipc::gpu

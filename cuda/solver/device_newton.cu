@@ -1,6 +1,7 @@
 #include "cuda/solver/device_newton.hpp"
 
 #include "cuda/common/device.hpp"
+#include "cuda/contact/sum_operator.hpp"
 #include "cuda/elastic/material.cuh"
 #include "cuda/solver/inversion_bound.cuh"
 
@@ -200,6 +201,19 @@ namespace {
     };
     const Ops<2> ENERGY_OPS { { SUM, SUM } };
 
+    /// Per dof: [ gB gE (sum), gB gB (sum) ] on the free dofs.
+    struct BalanceTerm {
+        const double *gb, *ge;
+        const unsigned char* fixed;
+        __device__ void operator()(size_t k, double* v) const
+        {
+            const bool f = fixed[k] != 0;
+            v[0] = f ? 0.0 : gb[k] * ge[k];
+            v[1] = f ? 0.0 : gb[k] * gb[k];
+        }
+    };
+    const Ops<2> BALANCE_OPS { { SUM, SUM } };
+
     // ---- Vector kernels ----
 
     /// g = M (x - xt) - w f (the inertial and external terms; the elastic one is gathered on top).
@@ -255,6 +269,15 @@ namespace {
         y[k] = x[k] + alpha * p[k];
     }
 
+    /// y = a x
+    __global__ void scale_into(size_t n, double a, const double* __restrict__ x, double* __restrict__ y)
+    {
+        const size_t k = size_t(blockIdx.x) * blockDim.x + threadIdx.x;
+        if (k >= n)
+            return;
+        y[k] = a * x[k];
+    }
+
     /// y_D = target_D
     __global__ void snap_to_target(
         size_t n, const unsigned char* __restrict__ fixed, const double* __restrict__ target, double* __restrict__ y)
@@ -291,7 +314,8 @@ namespace {
     constexpr int S_BOUND = 9; // 1
     constexpr int S_ENERGY = 10; // 2
     constexpr int S_RESIDUAL = 12; // 2
-    constexpr int NUM_SCALARS = 14;
+    constexpr int S_BALANCE = 14; // 2
+    constexpr int NUM_SCALARS = 16;
 
 } // namespace
 
@@ -306,34 +330,96 @@ struct DeviceNewton::Impl {
     DeviceArray<int> elements, diagonal_slots;
     DeviceBsrMatrix H;
     DevicePCG pcg;
+    DeviceContact* contact = nullptr;
+    SumOperator sum; // H + the contact Hessian
+    bool active_current = false; // the contact's active set was built at x's current contents
+    DeviceArray<double> gb; // the barrier gradient (balancing)
+    double w = 1; // the weight of the solve in progress (or of balance_at)
 
     int kernel_grid() const { return grid(n); }
 
-    /// Energy terms at y: the inertia 1/2 (y - xt)^T M (y - xt), Psi(y) and the work f^T (y - x_ref).
+    /// Energy terms at y: the inertia 1/2 (y - xt)^T M (y - xt), Psi(y), the barrier B(y) and the
+    /// work f^T (y - x_ref). on_segment: y lies on the last contact step bound's segment.
     struct Energy {
-        double total = 0, inertia = 0, elastic = 0, work = 0;
+        double total = 0, inertia = 0, elastic = 0, contact = 0, work = 0;
     };
-    Energy energy(const DeviceElasticMesh& mesh, const double* y, double w)
+    Energy energy(const DeviceElasticMesh& mesh, const double* y, double w, bool on_segment = false)
     {
         reduce<2>(EnergyTerm { y, xt.data(), mass.data(), f.data(), reference.data(), dynamic }, n, ENERGY_OPS,
             partials.data(), scalars.data() + S_ENERGY);
         Energy e;
         e.elastic = mesh.energy_device(y);
+        if (contact)
+            e.contact = contact->energy(y, on_segment);
         double s[2];
         detail::copy_device_to_host(s, scalars.data() + S_ENERGY, sizeof(s));
         e.inertia = 0.5 * s[0];
         e.work = s[1];
         // The CPU Problem's sum, term by term in the order the simulator adds them.
-        e.total = (dynamic ? e.inertia : 0.0) + w * e.elastic + w * -e.work;
+        e.total = (dynamic ? e.inertia : 0.0) + w * e.elastic + (contact ? w * e.contact : 0.0) + w * -e.work;
         return e;
     }
 
-    /// g = dE/dx at y.
-    void gradient(const DeviceElasticMesh& mesh, const double* y, double w, double* out)
+    /// The Newton matrix: H, plus the contact Hessian (SumOperator) in a contact scene.
+    const DeviceLinearOperator& system(const DeviceContact* with_contact) const
+    {
+        if (with_contact)
+            return sum;
+        return H;
+    }
+
+    /// Builds the contact's active set at the iterate x (if there is contact and it is not current).
+    void activate_at_x()
+    {
+        if (contact && !active_current) {
+            contact->update_active(x.data());
+            active_current = true;
+        }
+    }
+
+    /// The step bound along dir at y: min(1, inversion bound, CCD bound); `unresolved` if the CCD
+    /// could not certify any step (the CPU's step_unresolved()).
+    double max_step(const double* y, const double* dir, double keep, bool& unresolved)
+    {
+        double alpha = std::min(1.0, step_bound(y, dir, keep));
+        unresolved = false;
+        if (contact) {
+            const StepBoundResult r = contact->max_step(y, dir);
+            alpha = std::min(alpha, r.alpha);
+            unresolved = r.unresolved;
+        }
+        return alpha;
+    }
+
+    /// The balancing products at x with weight w (the active set at x must be current).
+    ContactBalance balance(const DeviceElasticMesh& mesh, double w)
+    {
+        ContactBalance b;
+        if (!contact)
+            return b;
+        b.active = contact->num_active();
+        // gE: the gradient without the barrier (g_trial is free between iterations).
+        gradient(mesh, x.data(), w, g_trial.data(), /*with_contact=*/false);
+        gb.resize(n);
+        gb.set_zero();
+        contact->add_barrier_gradient(x.data(), 1.0, gb.data());
+        reduce<2>(BalanceTerm { gb.data(), g_trial.data(), fixed.data() }, n, BALANCE_OPS, partials.data(),
+            scalars.data() + S_BALANCE);
+        double out[2];
+        detail::copy_device_to_host(out, scalars.data() + S_BALANCE, sizeof(out));
+        b.gb_ge = out[0];
+        b.gb_gb = out[1];
+        return b;
+    }
+
+    /// g = dE/dx at y (the contact's active set must have been built at y).
+    void gradient(const DeviceElasticMesh& mesh, const double* y, double w, double* out, bool with_contact = true)
     {
         inertia_force_gradient<<<kernel_grid(), THREADS>>>(n, dynamic, y, xt.data(), mass.data(), f.data(), w, out);
         check_launch("launch of the inertial gradient");
         mesh.add_gradient_device(y, w, out);
+        if (contact && with_contact)
+            contact->add_gradient(y, w, out);
     }
 
     /// The inversion bound along p at y (min over the elements, 1 if none).
@@ -377,9 +463,9 @@ DeviceNewton::DeviceNewton(const DeviceElasticMesh& mesh, const std::vector<doub
         throw std::invalid_argument("DeviceNewton: lumped_mass has " + std::to_string(lumped_mass.size())
             + " entries, expected #dofs = " + std::to_string(n) + " (or none for a static solve)");
     for (size_t k = 0; k < lumped_mass.size(); ++k)
-        if (!(lumped_mass[k] > 0) || !std::isfinite(lumped_mass[k]))
+        if (!(lumped_mass[k] >= 0) || !std::isfinite(lumped_mass[k]))
             throw std::invalid_argument("DeviceNewton: lumped_mass[" + std::to_string(k)
-                + "] = " + std::to_string(lumped_mass[k]) + " is not a positive finite mass");
+                + "] = " + std::to_string(lumped_mass[k]) + " is not a finite mass >= 0");
 
     // The element vertices, from the pattern's vertex incidences (codes e n + a), structure of arrays.
     const ElementBsrPattern& pattern = mesh.pattern();
@@ -511,9 +597,10 @@ DeviceNewtonResult DeviceNewton::solve(std::vector<double>& x_host, const std::v
                                         "and finite");
     if (!(settings.residual_tolerance >= 0) || settings.max_iterations < 0 || settings.line_search_max_halvings < 0
         || !(settings.forcing_max > 0) || !(settings.forcing_min > 0) || settings.forcing_min > settings.forcing_max
-        || !(settings.inversion_keep >= 0 && settings.inversion_keep < 1) || settings.pcg_max_iterations < 0)
+        || !(settings.inversion_keep >= 0 && settings.inversion_keep < 1) || settings.pcg_max_iterations < 0
+        || !(settings.max_displacement >= 0))
         throw std::invalid_argument("DeviceNewton::solve: invalid settings (tolerances >= 0, 0 < forcing_min <= "
-                                    "forcing_max, 0 <= inversion_keep < 1, counts >= 0)");
+                                    "forcing_max, 0 <= inversion_keep < 1, counts >= 0, max_displacement >= 0)");
 
     const double w = weight;
     m.x.upload(x_host);
@@ -521,6 +608,9 @@ DeviceNewtonResult DeviceNewton::solve(std::vector<double>& x_host, const std::v
         m.xt.upload(inertial_target);
     m.f.upload(force);
     m.target.upload(target_host);
+    m.contact = m_contact;
+    m.active_current = false;
+    m.w = weight;
     const int G = m.kernel_grid();
     const unsigned char* fixed = m.fixed.data();
 
@@ -543,13 +633,27 @@ DeviceNewtonResult DeviceNewton::solve(std::vector<double>& x_host, const std::v
         return finish(DeviceStepStatus::INVALID_INITIAL_STATE);
     // Round-off of energy differences scales with the terms, not with their (possibly cancelling) sum.
     const double magnitude = (m.dynamic ? std::abs(start_energy.inertia) : 0.0)
-        + w * (std::abs(start_energy.elastic) + m.material_scale) + w * std::abs(start_energy.work);
+        + w * (std::abs(start_energy.elastic) + m.material_scale) + w * std::abs(start_energy.contact)
+        + w * std::abs(start_energy.work);
+    // After each accepted iterate: the hook (adaptive kappa) sees the active set at the new x.
+    const auto end_iteration = [&]() {
+        if (!m_contact || !m_end_iteration)
+            return;
+        m.activate_at_x();
+        if (m_end_iteration()) {
+            ++result.kappa_updates;
+            energy = m.energy(m_mesh, m.x.data(), w).total;
+        }
+    };
     double reference_gradient_norm = 0; // |g_free,0|_2 of the forcing (DeviceNewtonSettings)
+    bool full_step_taken = false;
+    int true_hessian_pause = 0;
 
     for (int it = 0;; ++it) {
         double gs[4];
         {
             const auto t = Clock::now();
+            m.activate_at_x();
             m.gradient(m_mesh, m.x.data(), w, m.g.data());
             reduce<4>(GradientTerm { m.g.data(), m.x.data(), m.target.data(), fixed, m.pD.data() }, n, GRADIENT_OPS,
                 m.partials.data(), m.scalars.data() + S_GRADIENT);
@@ -568,44 +672,71 @@ DeviceNewtonResult DeviceNewton::solve(std::vector<double>& x_host, const std::v
         if (it >= settings.max_iterations)
             return finish(DeviceStepStatus::NEWTON_EXHAUSTED);
 
-        // The search matrix M + w H_Psi (projected) and the right-hand side -(g + H pD).
-        {
-            const auto t = Clock::now();
-            m.H.set_zero();
-            m_mesh.add_hessian_device(m.x.data(), w, /*project=*/true, m.H);
-            if (m.dynamic) {
-                add_mass_diagonal<<<G, THREADS>>>(
-                    n, m.dim, m.diagonal_slots.data(), m.mass.data(), m.H.device_values());
-                check_launch("launch of the mass diagonal");
-            }
-            if (lifting)
-                m.H.multiply(m.pD.data(), m.coupling.data());
-            newton_rhs<<<G, THREADS>>>(n, m.g.data(), lifting ? m.coupling.data() : nullptr, m.rhs.data());
-            check_launch("launch of the Newton right-hand side");
-            phase_end(t, result.assembly_time);
-        }
         // Inexact Newton (Eisenstat-Walker): the linear solve is as accurate as the progress so far warrants.
         reference_gradient_norm = std::max(reference_gradient_norm, gnorm);
         double forcing = settings.forcing_max;
         if (reference_gradient_norm > 0 && std::isfinite(gnorm))
             forcing = std::min(forcing, std::sqrt(gnorm / reference_gradient_norm));
         forcing = std::max(forcing, settings.forcing_min);
-        {
-            const auto t = Clock::now();
-            m.pcg.settings() = PcgSettings { forcing, settings.pcg_max_iterations };
-            const PcgResult pcg = m.pcg.solve_device(m.H, m.rhs.data(), m.p.data());
-            result.pcg_iterations += pcg.iterations;
-            result.pcg_capped += !pcg.converged && !pcg.breakdown;
-            if (pcg.breakdown && pcg.iterations == 0) {
-                phase_end(t, result.solve_time);
-                return finish(DeviceStepStatus::LINEAR_BREAKDOWN);
-            }
-            set_prescribed<<<G, THREADS>>>(n, fixed, m.pD.data(), m.p.data());
-            check_launch("launch of the prescribed step");
-            phase_end(t, result.solve_time);
-        }
+        // Projected Newton converges linearly where elements (or contact pairs) are strongly compressed;
+        // once a full step has been accepted, the true Hessian is tried (NewtonSolver's adaptive
+        // projection): kept if PCG meets no negative curvature and its step descends, otherwise the
+        // projected matrix is used and the true one skipped for the next two iterations.
+        const bool try_true = settings.adaptive_projection && full_step_taken && !lifting && true_hessian_pause == 0;
+        if (true_hessian_pause > 0)
+            --true_hessian_pause;
         double ds[5];
-        m.direction_scalars(ds);
+        for (int attempt = try_true ? 0 : 1; attempt < 2; ++attempt) {
+            const bool project = attempt == 1;
+            // The search matrix M + w (H_Psi + H_B) and the right-hand side -(g + H pD).
+            {
+                const auto t = Clock::now();
+                m.H.set_zero();
+                m_mesh.add_hessian_device(m.x.data(), w, project, m.H);
+                if (m.dynamic) {
+                    add_mass_diagonal<<<G, THREADS>>>(
+                        n, m.dim, m.diagonal_slots.data(), m.mass.data(), m.H.device_values());
+                    check_launch("launch of the mass diagonal");
+                }
+                if (m_contact) {
+                    m_contact->assemble_hessian(m.x.data(), w, project);
+                    m.sum.bind(m.H, m_contact->hessian());
+                }
+                if (lifting)
+                    m.system(m_contact).multiply(m.pD.data(), m.coupling.data(), nullptr);
+                newton_rhs<<<G, THREADS>>>(n, m.g.data(), lifting ? m.coupling.data() : nullptr, m.rhs.data());
+                check_launch("launch of the Newton right-hand side");
+                phase_end(t, result.assembly_time);
+            }
+            PcgResult pcg;
+            {
+                const auto t = Clock::now();
+                m.pcg.settings() = PcgSettings { forcing, settings.pcg_max_iterations };
+                pcg = m.pcg.solve_device(m.system(m_contact), m.rhs.data(), m.p.data());
+                result.pcg_iterations += pcg.iterations;
+                result.pcg_capped += !pcg.converged && !pcg.breakdown;
+                set_prescribed<<<G, THREADS>>>(n, fixed, m.pD.data(), m.p.data());
+                check_launch("launch of the prescribed step");
+                phase_end(t, result.solve_time);
+            }
+            if (!project) {
+                // The true Hessian: kept only without negative curvature and with a finite descent step.
+                bool kept = !pcg.breakdown;
+                if (kept) {
+                    m.direction_scalars(ds);
+                    kept = ds[4] == 0 && ds[0] < 0;
+                }
+                if (kept) {
+                    ++result.true_hessian_steps;
+                    break;
+                }
+                true_hessian_pause = 2;
+                continue;
+            }
+            if (pcg.breakdown && pcg.iterations == 0)
+                return finish(DeviceStepStatus::LINEAR_BREAKDOWN);
+            m.direction_scalars(ds);
+        }
         if (ds[4] != 0)
             return finish(DeviceStepStatus::LINEAR_BREAKDOWN);
         double slope = ds[0], pmax = ds[1];
@@ -616,11 +747,16 @@ DeviceNewtonResult DeviceNewton::solve(std::vector<double>& x_host, const std::v
             const auto t = Clock::now();
             step<<<G, THREADS>>>(n, m.x.data(), 1.0, m.p.data(), m.trial.data());
             check_launch("launch of a Newton step");
-            bool improves = m.step_bound(m.x.data(), m.p.data(), settings.inversion_keep) >= 1.0;
-            const double trial_energy = improves ? m.energy(m_mesh, m.trial.data(), w).total : INFINITY;
+            bool unresolved = false;
+            bool improves = m.max_step(m.x.data(), m.p.data(), settings.inversion_keep, unresolved) >= 1.0;
+            const double trial_energy = improves ? m.energy(m_mesh, m.trial.data(), w, true).total : INFINITY;
             improves = improves && std::isfinite(trial_energy);
             double rs[2] = { 0, 0 };
             if (improves) {
+                if (m_contact) {
+                    m_contact->update_active(m.trial.data());
+                    m.active_current = false;
+                }
                 m.gradient(m_mesh, m.trial.data(), w, m.g_trial.data());
                 m.residual_of(m.g_trial.data(), rs);
                 improves = rs[1] == 0 && rs[0] < 0.5 * gmax;
@@ -631,8 +767,10 @@ DeviceNewtonResult DeviceNewton::solve(std::vector<double>& x_host, const std::v
                 return finish(DeviceStepStatus::CONVERGED);
             }
             std::swap(m.x, m.trial);
+            m.active_current = m_contact != nullptr; // built at the trial, now x
             energy = trial_energy;
             result.newton_step = pmax / step_scale;
+            end_iteration();
             result.iterations = it + 1;
             if (result.iterations >= settings.max_iterations && rs[0] / force_scale > settings.residual_tolerance) {
                 // Out of iterations inside the round-off regime: converged as far as it gets.
@@ -655,8 +793,23 @@ DeviceNewtonResult DeviceNewton::solve(std::vector<double>& x_host, const std::v
         }
 
         const auto t_ls = Clock::now();
-        double alpha = std::min(1.0, m.step_bound(m.x.data(), m.p.data(), settings.inversion_keep));
+        double alpha;
+        bool unresolved = false;
+        const double length = ds[2]; // of the free dofs' step: lifting moves prescribed dofs as far as it must
+        if (settings.max_displacement > 0 && length > settings.max_displacement) {
+            const double cap = settings.max_displacement / length;
+            scale_into<<<G, THREADS>>>(n, cap, m.p.data(), m.trial.data()); // the capped step
+            check_launch("launch of the capped step");
+            alpha = cap * m.max_step(m.x.data(), m.trial.data(), settings.inversion_keep, unresolved);
+        } else {
+            alpha = m.max_step(m.x.data(), m.p.data(), settings.inversion_keep, unresolved);
+        }
+        if (!(alpha > 0) && unresolved) {
+            phase_end(t_ls, result.line_search_time);
+            return finish(DeviceStepStatus::CCD_UNRESOLVED);
+        }
         bool accepted = false;
+        bool active_at_trial = false; // the active set was built at the accepted trial
         double new_energy = energy;
         // Differences below this are round-off in the energy sum.
         const double roundoff = std::max(1e-13 * std::abs(energy), 16 * EPS * magnitude);
@@ -667,7 +820,7 @@ DeviceNewtonResult DeviceNewton::solve(std::vector<double>& x_host, const std::v
         for (int h = 0; h <= settings.line_search_max_halvings && alpha > 0; ++h, alpha *= 0.5) {
             step<<<G, THREADS>>>(n, m.x.data(), alpha, m.p.data(), m.trial.data());
             check_launch("launch of a Newton step");
-            new_energy = m.energy(m_mesh, m.trial.data(), w).total;
+            new_energy = m.energy(m_mesh, m.trial.data(), w, true).total;
             if (!std::isfinite(new_energy))
                 continue;
             if (lifting || new_energy <= energy + settings.armijo * alpha * slope + roundoff) {
@@ -676,11 +829,16 @@ DeviceNewtonResult DeviceNewton::solve(std::vector<double>& x_host, const std::v
                 break;
             }
             if (unresolvable && h == 0) {
+                if (m_contact) {
+                    m_contact->update_active(m.trial.data());
+                    m.active_current = false;
+                }
                 m.gradient(m_mesh, m.trial.data(), w, m.g_trial.data());
                 double rs[2];
                 m.residual_of(m.g_trial.data(), rs);
                 if (rs[1] == 0 && rs[0] < 0.5 * gmax) {
                     accepted = true;
+                    active_at_trial = m_contact != nullptr;
                     result.line_search_cuts += h;
                     result.roundoff_limited = true;
                     break;
@@ -691,14 +849,17 @@ DeviceNewtonResult DeviceNewton::solve(std::vector<double>& x_host, const std::v
             phase_end(t_ls, result.line_search_time);
             return finish(DeviceStepStatus::LINE_SEARCH_EXHAUSTED);
         }
+        full_step_taken = alpha >= 1.0;
         result.newton_step = alpha * pmax / step_scale;
         std::swap(m.x, m.trial); // x = the accepted trial; trial = the old x, no longer needed
+        m.active_current = active_at_trial;
         if (lifting && alpha >= 1.0) {
             // x_D + (target - x_D) need not round to target: snap so lifting ends exactly, unless the
             // snapped state is invalid (then the rounding stays for one more iteration).
             detail::copy_device_to_device(m.trial.data(), m.x.data(), n * sizeof(double));
             snap_to_target<<<G, THREADS>>>(n, fixed, m.target.data(), m.x.data());
             check_launch("launch of the lifting snap");
+            m.active_current = false;
             energy = m.energy(m_mesh, m.x.data(), w).total;
             if (!std::isfinite(energy)) {
                 std::swap(m.x, m.trial);
@@ -707,9 +868,46 @@ DeviceNewtonResult DeviceNewton::solve(std::vector<double>& x_host, const std::v
         } else {
             energy = new_energy;
         }
+        end_iteration();
         phase_end(t_ls, result.line_search_time);
         result.iterations = it + 1;
     }
+}
+
+} // namespace diffipc::gpu
+
+namespace diffipc::gpu {
+
+void DeviceNewton::set_contact(DeviceContact* contact)
+{
+    if (contact && size_t(contact->num_dofs()) != m_impl->n)
+        throw std::invalid_argument("DeviceNewton::set_contact: the contact has " + std::to_string(contact->num_dofs())
+            + " dofs, the mesh " + std::to_string(m_impl->n));
+    m_contact = contact;
+    m_impl->contact = contact;
+    m_impl->active_current = false;
+}
+
+ContactBalance DeviceNewton::current_balance() { return m_impl->balance(m_mesh, m_impl->w); }
+
+ContactBalance DeviceNewton::balance_at(const std::vector<double>& x, const std::vector<double>& inertial_target,
+    double weight, const std::vector<double>& force)
+{
+    Impl& m = *m_impl;
+    if (x.size() != m.n || force.size() != m.n || (m.dynamic && inertial_target.size() != m.n))
+        throw std::invalid_argument("DeviceNewton::balance_at: x, inertial_target and force need #dofs = "
+            + std::to_string(m.n) + " entries");
+    if (!m_contact)
+        return {};
+    m.contact = m_contact;
+    m.x.upload(x);
+    if (m.dynamic)
+        m.xt.upload(inertial_target);
+    m.f.upload(force);
+    m.w = weight;
+    m.active_current = false;
+    m.activate_at_x();
+    return m.balance(m_mesh, weight);
 }
 
 } // namespace diffipc::gpu

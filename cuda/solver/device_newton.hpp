@@ -1,15 +1,24 @@
 #pragma once
 /// @file device_newton.hpp
 /// One time step's Newton solve on the GPU: the device twin of NewtonSolver
-/// (forward/solver/newton.hpp) for scenes of elastic bodies with inertia, external forces and
-/// Dirichlet conditions (no contact yet). The mesh, its material data, the Hessian's pattern and
+/// (forward/solver/newton.hpp) for scenes of elastic bodies with inertia, external forces,
+/// Dirichlet conditions and (set_contact()) IPC barrier contact without friction. The mesh, its material data, the Hessian's pattern and
 /// every work vector stay on the device; per solve, the start x, the inertial target, the force
 /// and the prescribed targets are copied up and the converged x copied back (the step record).
 ///
 /// Incremental potential (docs/math.md), the CPU's:
-///   E(x) = 1/2 (x - xt)^T M (x - xt) + w [Psi(x) - f^T x]
+///   E(x) = 1/2 (x - xt)^T M (x - xt) + w [Psi(x) + B(x) - f^T x]
 /// with M the lumped mass (diagonal, per dof), xt the inertial target, w = c h^2 the potential
-/// weight (1 for static solves, which have no M), Psi the elastic energy (DeviceElasticMesh).
+/// weight (1 for static solves, which have no M), Psi the elastic energy (DeviceElasticMesh) and
+/// B the contact barrier kappa sum_k m_k b_k (DeviceContact; 0 without contact).
+///
+/// Contact (as the CPU's ContactPotential inside NewtonSolver): the active set is rebuilt at each
+/// iterate (DeviceContact::update_active) for the gradient and the search matrix, whose contact
+/// part (per-pair PSD projection) is added to the elastic one by a SumOperator; every step is
+/// bounded by the CCD step bound as well as by the inversion bound (a bound that is not > 0 with
+/// unresolved CCD is CCD_UNRESOLVED); trial energies on the step's segment reuse its swept
+/// candidates. After each accepted iterate the end-of-iteration hook (set_end_iteration: the
+/// adaptive stiffness, which the caller owns) may change kappa; the energy is then re-evaluated.
 ///
 /// Algorithm (as NewtonSolver::solve, without contact, load control or step extension):
 ///  - residual max |g_free| / force_scale; converged when <= residual_tolerance and no lifting
@@ -26,9 +35,9 @@
 /// Statuses mirror StepStatus (forward/solver/status.hpp); a failed solve leaves the host x as
 /// it was given (the caller's committed state is untouched).
 ///
-/// Differences from the CPU solver: the search matrix is always the projected one (the CPU's
-/// adaptive_projection, which tries the true Hessian once a full step was taken, is not done);
-/// no step extension, load control, max_displacement or step_tolerance; the Newton system is
+/// Differences from the CPU solver: adaptive_projection keeps the true Hessian when PCG meets no
+/// negative curvature and its step descends (the CPU: when Cholesky succeeds); no step extension,
+/// load control or step_tolerance; the Newton system is
 /// solved inexactly by PCG (forcing above) instead of by Cholesky. A PCG run that stops at its
 /// iteration cap, or on a breakdown after at least one iteration, still gives a descent direction
 /// and is used; a breakdown before any iteration (the search matrix is not positive definite on
@@ -37,7 +46,7 @@
 ///
 /// Round-off allowance of the line search (as NewtonSolver): max(1e-13 |E|, 16 eps magnitude)
 /// with magnitude the CPU Problem's energy_magnitude at the start x:
-///   |1/2 (x - xt)^T M (x - xt)| + w (|Psi(x)| + material_scale) + w |f^T (x - x_ref)|,
+///   |1/2 (x - xt)^T M (x - xt)| + w (|Psi(x)| + material_scale) + w |B(x)| + w |f^T (x - x_ref)|,
 /// where material_scale = sum over neo-Hookean and stable neo-Hookean elements of |e| mu_e dim
 /// (ElasticPotential::value_scale's term; set_material_scale(), 0 until set) and x_ref the force
 /// reference (set_force_reference(), 0 until set; the CPU's ExternalForcePotential measures the
@@ -49,11 +58,13 @@
 ///
 /// Layouts: all vectors #dofs = #V * dim doubles, flattened vertex-major (xyzxyz), SI units.
 
+#include "cuda/contact/device_contact.hpp"
 #include "cuda/elastic/device_elastic_mesh.hpp"
 #include "cuda/linalg/bsr_matrix.hpp"
 #include "cuda/linalg/device_array.hpp"
 #include "cuda/linalg/device_pcg.hpp"
 
+#include <functional>
 #include <vector>
 
 namespace diffipc::gpu {
@@ -64,6 +75,7 @@ namespace diffipc::gpu {
 enum class DeviceStepStatus {
     CONVERGED = 0,
     INVALID_INITIAL_STATE = 1,
+    CCD_UNRESOLVED = 2,
     LINEAR_BREAKDOWN = 3,
     LINE_SEARCH_EXHAUSTED = 4,
     NEWTON_EXHAUSTED = 5,
@@ -85,6 +97,21 @@ struct DeviceNewtonSettings {
     double forcing_max = 0.5;
     double forcing_min = 1e-12;
     int pcg_max_iterations = 20000;
+    /// The longest step (m) of a free dof one iteration may take (NewtonSettings::max_displacement;
+    /// 0: no cap). The line search starts from the capped step.
+    double max_displacement = 0;
+    /// NewtonSettings::adaptive_projection: after a full step, try the true Hessian (kept if PCG meets
+    /// no negative curvature and its step descends; else the projected one, and the true one is
+    /// skipped for two iterations).
+    bool adaptive_projection = true;
+};
+
+/// The adaptive stiffness' balancing products at a state (Simulator::balancing_kappa): with gE the
+/// gradient of E without the barrier and gB the barrier's gradient without kappa, both zero on the
+/// constrained dofs: gB . gE and gB . gB; and the number of active contact pairs there.
+struct ContactBalance {
+    double gb_ge = 0, gb_gb = 0;
+    int active = 0;
 };
 
 struct DeviceNewtonResult {
@@ -99,14 +126,17 @@ struct DeviceNewtonResult {
     bool roundoff_limited = false;
     /// Wall time (s) per phase, measured with device synchronization at phase ends.
     double assembly_time = 0, solve_time = 0, line_search_time = 0;
+    int kappa_updates = 0; ///< end-of-iteration hooks that changed kappa
+    int true_hessian_steps = 0; ///< iterations that used the true Hessian (adaptive_projection)
 };
 
 class DeviceNewton {
 public:
     /// @param mesh         an uploaded DeviceElasticMesh (must outlive the solver)
-    /// @param lumped_mass  #dofs masses (kg, the vertex's lumped mass repeated per component);
+    /// @param lumped_mass  #dofs masses (kg, the vertex's lumped mass repeated per component; 0 for
+    ///                     the massless vertices of obstacles and plane points, which are constrained);
     ///                     empty: static, no inertial term
-    /// @throws std::invalid_argument on a size mismatch or a non-positive, non-finite mass
+    /// @throws std::invalid_argument on a size mismatch or a negative or non-finite mass
     DeviceNewton(const DeviceElasticMesh& mesh, const std::vector<double>& lumped_mass);
     ~DeviceNewton();
     DeviceNewton(const DeviceNewton&) = delete;
@@ -157,12 +187,34 @@ public:
     PcgResult solve_true_hessian(const std::vector<double>& x, double weight, const std::vector<double>& b,
         std::vector<double>& y, double relative_tolerance, int max_iterations);
 
+    /// @brief Adds the contact barrier (nullptr: none). The contact object must outlive its use; its
+    /// kappa is read at every evaluation.
+    /// @throws std::invalid_argument if its dofs differ from the mesh's
+    void set_contact(DeviceContact* contact);
+    DeviceContact* contact() const { return m_contact; }
+
+    /// @brief The end-of-iteration hook (ContactPotential::end_iteration's role; empty: none): called
+    /// after each accepted iterate, with the active set already built at it (DeviceContact's
+    /// num_active(), min_active_gap_squared()); current_balance() may be called from it. Returns true
+    /// if it changed kappa.
+    void set_end_iteration(std::function<bool()> hook) { m_end_iteration = std::move(hook); }
+
+    /// @brief The balancing products at the solve's current iterate (only from the hook).
+    ContactBalance current_balance();
+    /// @brief The balancing products at a host state, before a solve (the step's start: the CPU's
+    /// update_kappa_for_step); builds the active set there.
+    /// @param x, inertial_target, force as solve()'s; @param weight w
+    ContactBalance balance_at(const std::vector<double>& x, const std::vector<double>& inertial_target,
+        double weight, const std::vector<double>& force);
+
     const DeviceElasticMesh& mesh() const { return m_mesh; }
 
 private:
     struct Impl;
     const DeviceElasticMesh& m_mesh;
     Impl* m_impl;
+    DeviceContact* m_contact = nullptr;
+    std::function<bool()> m_end_iteration;
 };
 
 } // namespace diffipc::gpu

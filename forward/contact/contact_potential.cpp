@@ -104,70 +104,80 @@ void ContactPotential::build_contacts(const VectorXd& x, ContactSet& out, double
     const Candidates& candidates = reuse ? m_segment->candidates : owned;
     Timer t;
     const double r2 = radius * radius;
-    // Classifies one candidate and keeps it if it is closer than the radius.
-    auto keep = [&](std::vector<Contact>& kept, ContactKind kind, int type, std::array<Index, 4> vertices,
-                    double s) -> Contact* {
-        if (!(s < r2))
-            return nullptr;
-        Contact c;
-        c.kind = kind;
-        c.distance_type = type;
-        c.vertices = vertices;
-        c.distance_squared = s;
-        kept.push_back(c);
-        return &kept.back();
-    };
     const auto& ve = candidates.vertex_edge;
     const auto& vf = candidates.vertex_face;
     const auto& ee = candidates.edge_edge;
     const size_t n_ve = ve.size(), n_vf = vf.size(), n_ee = ee.size();
     const size_t n_plane = m_planes.size() * m_plane_vertices.size();
-    // In candidate order (vertex-edge, vertex-face, edge-edge, planes), whatever the thread count.
+    // In candidate order (vertex-edge, vertex-face, edge-edge, planes), whatever the thread count;
+    // a pair is kept if it is closer than the radius (a plane pair: its signed distance is below it).
     out = parallel_collect<Contact>(n_ve + n_vf + n_ee + n_plane, 512, [&](size_t k, std::vector<Contact>& kept) {
+        Contact c;
         if (k < n_ve) {
             const auto& [v, e] = ve[k];
-            const Index e0 = m_mesh.edges(e, 0), e1 = m_mesh.edges(e, 1);
-            const Eigen::Vector3d p = vertex_point(x, v, dim), a = vertex_point(x, e0, dim),
-                                  b = vertex_point(x, e1, dim);
-            const PointEdgeDistanceType type = point_edge_distance_type(p, a, b);
-            keep(kept, ContactKind::VERTEX_EDGE, int(type), { v, e0, e1, -1 }, point_edge_distance(p, a, b, type));
+            c = classify(ContactKind::VERTEX_EDGE, { v, m_mesh.edges(e, 0), m_mesh.edges(e, 1), -1 }, -1, x);
         } else if (k < n_ve + n_vf) {
             const auto& [v, f] = vf[k - n_ve];
-            const Index t0 = m_mesh.faces(f, 0), t1 = m_mesh.faces(f, 1), t2 = m_mesh.faces(f, 2);
-            const Eigen::Vector3d p = vertex_point(x, v, dim), a = vertex_point(x, t0, dim),
-                                  b = vertex_point(x, t1, dim), c = vertex_point(x, t2, dim);
-            const PointTriangleDistanceType type = point_triangle_distance_type(p, a, b, c);
-            keep(kept, ContactKind::VERTEX_FACE, int(type), { v, t0, t1, t2 },
-                point_triangle_distance(p, a, b, c, type));
+            c = classify(ContactKind::VERTEX_FACE, { v, m_mesh.faces(f, 0), m_mesh.faces(f, 1), m_mesh.faces(f, 2) },
+                -1, x);
         } else if (k < n_ve + n_vf + n_ee) {
             const auto& [ea, eb] = ee[k - n_ve - n_vf];
-            const Index a0 = m_mesh.edges(ea, 0), a1 = m_mesh.edges(ea, 1);
-            const Index b0 = m_mesh.edges(eb, 0), b1 = m_mesh.edges(eb, 1);
-            const Eigen::Vector3d pa0 = vertex_point(x, a0, dim), pa1 = vertex_point(x, a1, dim),
-                                  pb0 = vertex_point(x, b0, dim), pb1 = vertex_point(x, b1, dim);
-            const EdgeEdgeDistanceType type = edge_edge_distance_type(pa0, pa1, pb0, pb1);
-            if (Contact* c = keep(kept, ContactKind::EDGE_EDGE, int(type), { a0, a1, b0, b1 },
-                    edge_edge_distance(pa0, pa1, pb0, pb1, type)))
-                c->mollifier_threshold = edge_edge_mollifier_threshold(
-                    rest_point(m_rest, a0), rest_point(m_rest, a1), rest_point(m_rest, b0), rest_point(m_rest, b1));
+            c = classify(ContactKind::EDGE_EDGE,
+                { m_mesh.edges(ea, 0), m_mesh.edges(ea, 1), m_mesh.edges(eb, 0), m_mesh.edges(eb, 1) }, -1, x);
         } else {
             const size_t q = k - n_ve - n_vf - n_ee;
             const size_t k_plane = q / m_plane_vertices.size();
-            const ContactPlane& plane = m_planes[k_plane];
-            const Index v = m_plane_vertices[q % m_plane_vertices.size()];
-            const double h = (vertex_point(x, v, dim) - vertex_point(x, plane.vertex, dim)).dot(plane.normal);
-            if (h < radius) {
-                Contact c;
-                c.kind = ContactKind::VERTEX_PLANE;
-                c.vertices = { v, plane.vertex, -1, -1 };
-                c.plane = int(k_plane);
-                // A vertex on the wrong side is an intersection: no finite barrier.
-                c.distance_squared = h > 0 ? h * h : -1;
-                kept.push_back(c);
-            }
+            c = classify(ContactKind::VERTEX_PLANE,
+                { m_plane_vertices[q % m_plane_vertices.size()], m_planes[k_plane].vertex, -1, -1 }, int(k_plane), x);
         }
+        // s < r^2; for a plane pair h < radius, i.e. h^2 < r^2 in front of the plane and s = -1 behind it.
+        if (c.distance_squared < r2)
+            kept.push_back(c);
     });
     t.add_to(m_times.barrier);
+}
+
+Contact ContactPotential::classify(
+    ContactKind kind, const std::array<Index, 4>& vertices, int plane, const VectorXd& x) const
+{
+    const int dim = m_mesh.dim;
+    Contact c;
+    c.kind = kind;
+    c.vertices = vertices;
+    c.plane = plane;
+    const auto point = [&](int a) { return vertex_point(x, vertices[size_t(a)], dim); };
+    switch (kind) {
+    case ContactKind::VERTEX_EDGE: {
+        const Eigen::Vector3d p = point(0), a = point(1), b = point(2);
+        const PointEdgeDistanceType type = point_edge_distance_type(p, a, b);
+        c.distance_type = int(type);
+        c.distance_squared = point_edge_distance(p, a, b, type);
+        break;
+    }
+    case ContactKind::VERTEX_FACE: {
+        const Eigen::Vector3d p = point(0), a = point(1), b = point(2), t = point(3);
+        const PointTriangleDistanceType type = point_triangle_distance_type(p, a, b, t);
+        c.distance_type = int(type);
+        c.distance_squared = point_triangle_distance(p, a, b, t, type);
+        break;
+    }
+    case ContactKind::EDGE_EDGE: {
+        const Eigen::Vector3d pa0 = point(0), pa1 = point(1), pb0 = point(2), pb1 = point(3);
+        const EdgeEdgeDistanceType type = edge_edge_distance_type(pa0, pa1, pb0, pb1);
+        c.distance_type = int(type);
+        c.distance_squared = edge_edge_distance(pa0, pa1, pb0, pb1, type);
+        c.mollifier_threshold = edge_edge_mollifier_threshold(rest_point(m_rest, vertices[0]),
+            rest_point(m_rest, vertices[1]), rest_point(m_rest, vertices[2]), rest_point(m_rest, vertices[3]));
+        break;
+    }
+    case ContactKind::VERTEX_PLANE: {
+        const double h = (point(0) - point(1)).dot(m_planes[size_t(plane)].normal);
+        // A vertex on the wrong side is an intersection: no finite barrier (NaN stays NaN: never active).
+        c.distance_squared = h > 0 ? h * h : h <= 0 ? -1.0 : h;
+        break;
+    }
+    }
+    return c;
 }
 
 void ContactPotential::set_images(SparseMatrixd T)

@@ -621,11 +621,13 @@ void select_device(Scene& scene, const std::string& name, const std::string& fie
     const auto refuse = [&](const std::string& what) {
         throw InputError(field,
             "\"gpu\" does not support " + what
-                + " yet (issue 17: the GPU path has elasticity, inertia, "
-                  "gravity, tractions and Dirichlet conditions); use \"cpu\"");
+                + " yet (issue 17: the GPU path has elasticity, inertia, gravity, tractions, Dirichlet "
+                  "conditions and frictionless barrier contact with obstacles); use \"cpu\"");
     };
-    if (scene.contact.enabled || !scene.obstacles.empty())
-        refuse("contact or obstacles");
+    if (scene.contact.enabled && scene.contact.penalty)
+        refuse("the penalty contact model");
+    if (scene.contact.enabled && any_friction(scene))
+        refuse("friction");
     if (scene.periodic.enabled)
         refuse("periodic cells");
     if (scene.mass == MassType::CONSISTENT)

@@ -1,12 +1,17 @@
 #include "forward/simulation/device_solver.hpp"
 
 #include "forward/common/error.hpp"
+#include "forward/contact/barrier.hpp"
 
 #ifdef DIFFIPC_HAVE_CUDA
 #include "cuda/common/device.hpp"
+#include "cuda/contact/device_contact.hpp"
 #include "cuda/elastic/device_elastic_mesh.hpp"
 #include "cuda/solver/device_newton.hpp"
 #endif
+
+#include <algorithm>
+#include <limits>
 
 namespace diffipc {
 
@@ -17,12 +22,99 @@ namespace {
 
     // DeviceStepStatus has StepStatus's numbers (device_newton.hpp).
     StepStatus to_status(gpu::DeviceStepStatus s) { return StepStatus(int(s)); }
+
+    /// ContactPotential::end_iteration's state of the adaptive stiffness.
+    struct AdaptiveState {
+        DeviceSolver::AdaptiveKappa params;
+        bool rule_applied = false;
+        double previous_gap2 = -1;
+    };
 } // namespace
+
+gpu::CollisionMeshData to_device(const CollisionMesh& m)
+{
+    gpu::CollisionMeshData d;
+    d.dim = m.dim;
+    d.num_vertices = int(m.num_vertices);
+    d.vertices.assign(m.vertices.data(), m.vertices.data() + m.vertices.size());
+    // MatrixXi is row-major: edge e is (data[2e], data[2e + 1]).
+    d.edges.assign(m.edges.data(), m.edges.data() + m.edges.size());
+    if (m.dim == 3)
+        d.faces.assign(m.faces.data(), m.faces.data() + m.faces.size());
+    d.vertex_group = m.vertex_group;
+    d.group_self_contact = m.group_self_contact;
+    d.group_kinematic = m.group_kinematic;
+    d.point = m.point;
+    d.edge_source.assign(m.edge_source.begin(), m.edge_source.end());
+    d.edge_shift_positive = m.edge_shift_positive;
+    return d;
+}
+
+std::vector<gpu::PlaneObstacle> to_device(const std::vector<ContactPlane>& planes)
+{
+    std::vector<gpu::PlaneObstacle> out;
+    for (const ContactPlane& p : planes) {
+        gpu::PlaneObstacle g;
+        g.vertex = int(p.vertex);
+        for (int k = 0; k < 3; ++k)
+            g.normal[k] = p.normal[k];
+        out.push_back(g);
+    }
+    return out;
+}
 
 struct DeviceSolver::Impl {
     gpu::DeviceElasticMesh mesh;
+    std::unique_ptr<gpu::DeviceContact> contact;
     std::unique_ptr<gpu::DeviceNewton> newton;
     std::vector<double> x, target, inertial_target, force;
+    AdaptiveState adaptive;
+    double weight = 1;
+    gpu::DeviceContactTimes profiled; // the contact's times already added to the profile
+    mutable gpu::DeviceArray<double> scratch; // a host state uploaded for contacts() / min_distance()
+
+    /// IPC's balancing rule at the solve's current iterate (Simulator::balancing_kappa).
+    double balancing_kappa(const gpu::ContactBalance& b) const
+    {
+        return initial_barrier_stiffness(b.gb_ge / weight, b.gb_gb, adaptive.params.kappa_min);
+    }
+
+    /// ContactPotential::end_iteration with the device's active set: true if kappa changed.
+    bool end_iteration()
+    {
+        if (!adaptive.params.enabled)
+            return false;
+        const double kappa = contact->kappa();
+        if (!adaptive.rule_applied && contact->num_active() > 0) {
+            // Contact appeared during this step: balance the barrier now.
+            adaptive.rule_applied = true;
+            adaptive.previous_gap2 = -1;
+            const double k
+                = std::min(std::max(kappa, balancing_kappa(newton->current_balance())), adaptive.params.kappa_max);
+            if (k != kappa) {
+                contact->set_kappa(k);
+                return true;
+            }
+            return false;
+        }
+        const double gap2 = contact->min_active_gap_squared();
+        const double previous = adaptive.previous_gap2;
+        adaptive.previous_gap2 = gap2;
+        if (previous < 0)
+            return false;
+        const double k = update_barrier_stiffness(
+            previous, gap2, kappa, adaptive.params.kappa_max, adaptive.params.bbox_diagonal, /*dmin=*/0.0);
+        if (k == kappa)
+            return false;
+        contact->set_kappa(k);
+        return true;
+    }
+
+    const double* upload(const VectorXd& x) const
+    {
+        scratch.upload(x.data(), size_t(x.size()));
+        return scratch.data();
+    }
 };
 
 bool DeviceSolver::available(std::string* why)
@@ -36,13 +128,16 @@ bool DeviceSolver::available(std::string* why)
 
 std::string DeviceSolver::describe_device() { return gpu::cuda_device_description(); }
 
-DeviceSolver::DeviceSolver(
-    const ElasticPotential& elastic, const InertiaPotential* inertia, const std::vector<char>& constrained)
+DeviceSolver::DeviceSolver(const ElasticPotential& elastic, const InertiaPotential* inertia,
+    const std::vector<char>& constrained, const ContactPotential* contact)
     : m_impl(std::make_unique<Impl>())
+    , m_cpu_contact(contact)
 {
     std::string why;
     if (!available(&why))
         throw InputError("device", "\"gpu\" needs a CUDA device, and none is usable here (" + why + ")");
+    if (contact && (contact->penalty() || contact->has_images()))
+        throw InputError("device", "\"gpu\" has the barrier contact model without periodic images; use \"cpu\"");
     const Mesh& mesh = elastic.space().mesh();
     const int dim = mesh.dim;
     std::vector<double> rest(size_t(mesh.num_dofs()));
@@ -72,6 +167,77 @@ DeviceSolver::DeviceSolver(
     // allowance counts the neo-Hookean models' cancelling terms: the same here.
     m_impl->newton->set_force_reference(rest);
     m_impl->newton->set_material_scale(models, to_std(elastic.mu()));
+    if (contact) {
+        const ContactSettings& cs = contact->settings();
+        gpu::DeviceContactSettings s;
+        s.kappa = cs.kappa;
+        s.dhat = cs.dhat;
+        s.min_distance = cs.min_distance;
+        s.ccd_max_iterations = cs.ccd_max_iterations;
+        s.ccd_rescaling = cs.ccd_rescaling;
+        m_impl->contact = std::make_unique<gpu::DeviceContact>(
+            to_device(contact->collision_mesh()), rest, to_device(contact->planes()), s);
+        m_impl->newton->set_contact(m_impl->contact.get());
+        m_impl->newton->set_end_iteration([impl = m_impl.get()]() { return impl->end_iteration(); });
+    }
+}
+
+void DeviceSolver::begin_step(double kappa, const AdaptiveKappa& adaptive, const VectorXd& x,
+    const VectorXd& inertial_target, double weight, const VectorXd& force)
+{
+    Impl& d = *m_impl;
+    if (!d.contact)
+        return;
+    d.contact->reset_times();
+    d.profiled = {};
+    d.contact->set_kappa(kappa);
+    d.adaptive = AdaptiveState {};
+    d.adaptive.params = adaptive;
+    d.weight = weight;
+    if (!adaptive.enabled)
+        return;
+    const std::vector<double> xt = inertial_target.size() == x.size() ? to_std(inertial_target)
+                                                                       : std::vector<double>(size_t(x.size()), 0.0);
+    const gpu::ContactBalance b = d.newton->balance_at(to_std(x), xt, weight, to_std(force));
+    const bool active = b.active > 0;
+    if (active)
+        d.contact->set_kappa(std::max(kappa, d.balancing_kappa(b)));
+    d.adaptive.rule_applied = active;
+}
+
+double DeviceSolver::kappa() const { return m_impl->contact ? m_impl->contact->kappa() : 0.0; }
+
+ContactSet DeviceSolver::contacts(const VectorXd& x) const
+{
+    ContactSet out;
+    if (!m_impl->contact)
+        return out;
+    m_impl->contact->update_active(m_impl->upload(x));
+    const std::vector<gpu::BarrierPair>& pairs = m_impl->contact->active_pairs();
+    out.reserve(pairs.size());
+    for (const gpu::BarrierPair& p : pairs)
+        out.push_back(m_cpu_contact->classify(ContactKind(p.kind),
+            { p.vertices[0], p.vertices[1], p.vertices[2], p.vertices[3] }, p.plane, x));
+    return out;
+}
+
+double DeviceSolver::min_distance(const VectorXd& x, double radius) const
+{
+    if (!m_impl->contact)
+        return std::numeric_limits<double>::infinity();
+    return m_impl->contact->min_distance(m_impl->upload(x), radius);
+}
+
+ContactTimes DeviceSolver::contact_times() const
+{
+    ContactTimes t;
+    if (m_impl->contact) {
+        const gpu::DeviceContactTimes& d = m_impl->contact->times();
+        t.broad_phase = d.broad_phase;
+        t.ccd = d.ccd;
+        t.barrier = d.barrier;
+    }
+    return t;
 }
 
 DeviceSolver::~DeviceSolver() = default;
@@ -84,7 +250,10 @@ NewtonResult DeviceSolver::solve(VectorXd& x, const VectorXd& inertial_target, d
     s.max_iterations = settings.max_iterations;
     s.line_search_max_halvings = settings.line_search_max_halvings;
     s.armijo = settings.armijo;
+    s.max_displacement = settings.max_displacement;
+    s.adaptive_projection = settings.adaptive_projection;
     Impl& d = *m_impl;
+    d.weight = weight;
     d.x.assign(x.data(), x.data() + x.size());
     d.target.assign(target.data(), target.data() + target.size());
     d.force.assign(force.data(), force.data() + force.size());
@@ -102,10 +271,22 @@ NewtonResult DeviceSolver::solve(VectorXd& x, const VectorXd& inertial_target, d
     result.line_search_cuts = r.line_search_cuts;
     result.roundoff_limited = r.roundoff_limited;
     result.gradient_steps = r.gradient_steps;
+    result.true_hessian_steps = r.true_hessian_steps;
     result.times.assembly = r.assembly_time;
     result.times.solve = r.solve_time;
     result.times.line_search = r.line_search_time;
     m_last_pcg_iterations = r.pcg_iterations;
+    m_total_pcg_iterations += r.pcg_iterations;
+    if (d.contact) {
+        // Times since begin_step() (which resets them), added once per step after its solve.
+        const gpu::DeviceContactTimes& t = d.contact->times();
+        m_profile.active_sets += t.active_sets - d.profiled.active_sets;
+        m_profile.energies += t.energies - d.profiled.energies;
+        m_profile.active_set_count += t.active_set_count - d.profiled.active_set_count;
+        m_profile.energy_count += t.energy_count - d.profiled.energy_count;
+        m_profile.max_active = std::max(m_profile.max_active, d.contact->num_active());
+        d.profiled = t;
+    }
     if (result.status == StepStatus::CONVERGED)
         x = Eigen::Map<const VectorXd>(d.x.data(), Index(d.x.size()));
     return result;
@@ -145,7 +326,8 @@ std::string DeviceSolver::describe_device()
     return why;
 }
 
-DeviceSolver::DeviceSolver(const ElasticPotential&, const InertiaPotential*, const std::vector<char>&)
+DeviceSolver::DeviceSolver(
+    const ElasticPotential&, const InertiaPotential*, const std::vector<char>&, const ContactPotential*)
 {
     std::string why;
     available(&why);
@@ -161,6 +343,18 @@ NewtonResult DeviceSolver::solve(
 }
 
 bool DeviceSolver::solve_adjoint(const VectorXd&, double, const VectorXd&, VectorXd&, int*) { return false; }
+
+void DeviceSolver::begin_step(double, const AdaptiveKappa&, const VectorXd&, const VectorXd&, double, const VectorXd&)
+{
+}
+
+double DeviceSolver::kappa() const { return 0.0; }
+
+ContactSet DeviceSolver::contacts(const VectorXd&) const { return {}; }
+
+double DeviceSolver::min_distance(const VectorXd&, double) const { return 0.0; }
+
+ContactTimes DeviceSolver::contact_times() const { return {}; }
 
 #endif
 

@@ -5,6 +5,13 @@
 /// the step stays the Simulator's (integrator, Dirichlet targets, loads, statuses, records,
 /// output), so the GPU path writes the same records and files as the CPU path.
 ///
+/// Contact (the barrier model without friction or periodic images): the CPU's ContactPotential
+/// gives the collision mesh, planes and settings, and stays the source of kappa between steps;
+/// the device has its own twin (cuda/contact/device_contact.hpp). The adaptive stiffness runs as
+/// on the CPU (Simulator::update_kappa_for_step at the step's start, ContactPotential::end_iteration
+/// after each iterate: IPC's balancing rule once contact appears, then doubling), with the
+/// balancing products and the smallest gap computed on the device.
+///
 /// Data residency: the mesh, the materials, the masses, the Hessian's pattern and every work
 /// vector live on the GPU for the whole run; per step the start x, the inertial target, the
 /// external force and the prescribed targets go up (4 vectors) and the converged x comes back
@@ -13,6 +20,7 @@
 /// Builds without CUDA compile this file too: constructing a DeviceSolver then throws an
 /// InputError naming the scene's "device" field.
 
+#include "forward/contact/contact_potential.hpp"
 #include "forward/potentials/elastic_potential.hpp"
 #include "forward/potentials/inertia_potential.hpp"
 #include "forward/solver/newton.hpp"
@@ -21,7 +29,18 @@
 #include <string>
 #include <vector>
 
+#ifdef DIFFIPC_HAVE_CUDA
+#include "cuda/broad_phase/step_bound.hpp" // plain C++: gpu::CollisionMeshData, gpu::PlaneObstacle
+#endif
+
 namespace diffipc {
+
+#ifdef DIFFIPC_HAVE_CUDA
+/// The CPU's CollisionMesh in cuda/broad_phase's plain arrays (field for field).
+gpu::CollisionMeshData to_device(const CollisionMesh& mesh);
+/// The CPU's plane obstacles as the device's (cuda/broad_phase/step_bound.hpp).
+std::vector<gpu::PlaneObstacle> to_device(const std::vector<ContactPlane>& planes);
+#endif
 
 class DeviceSolver {
 public:
@@ -29,9 +48,11 @@ public:
     /// @param elastic      the scene's elastic potential (its mesh, models and Lame parameters)
     /// @param inertia      the lumped masses, or nullptr for a static scene (no inertial term)
     /// @param constrained  #dofs Dirichlet flags
-    /// @throws InputError naming "device" when this build has no CUDA or no GPU is present
-    DeviceSolver(
-        const ElasticPotential& elastic, const InertiaPotential* inertia, const std::vector<char>& constrained);
+    /// @param contact      the scene's contact potential (barrier model, no periodic images), or nullptr
+    /// @throws InputError naming "device" when this build has no CUDA or no GPU is present, or the
+    ///         contact is one the device does not have (penalty, periodic images)
+    DeviceSolver(const ElasticPotential& elastic, const InertiaPotential* inertia, const std::vector<char>& constrained,
+        const ContactPotential* contact = nullptr);
     ~DeviceSolver();
     DeviceSolver(const DeviceSolver&) = delete;
     DeviceSolver& operator=(const DeviceSolver&) = delete;
@@ -45,6 +66,37 @@ public:
     NewtonResult solve(VectorXd& x, const VectorXd& inertial_target, double weight, const VectorXd& force,
         const VectorXd& target, double force_scale, double step_scale, const NewtonSettings& settings);
 
+    /// The adaptive stiffness' parameters (Simulator::update_kappa_for_step's).
+    struct AdaptiveKappa {
+        bool enabled = false;
+        double kappa_min = 0; ///< the rule's floor (barrier_stiffness_min)
+        double kappa_max = 0; ///< 100 kappa_min
+        double bbox_diagonal = 1; ///< m
+    };
+    /// @brief The contact's state at the start of a step (call before solve() in a contact scene):
+    /// kappa from the CPU contact (the value carried between steps); with the adaptive stiffness,
+    /// kappa = max(kappa, the balancing rule) if contacts are active at x, and the rule's state reset.
+    /// @param x, inertial_target, weight, force  the step's start and its terms (as solve()'s)
+    void begin_step(double kappa, const AdaptiveKappa& adaptive, const VectorXd& x, const VectorXd& inertial_target,
+        double weight, const VectorXd& force);
+    /// The device contact's kappa (after a solve: the value it ended with).
+    double kappa() const;
+    /// @brief The active contacts at x (the CPU's ContactPotential::contacts(x): the same pairs in the
+    /// same order, with their distance types and squared distances classified on the host).
+    ContactSet contacts(const VectorXd& x) const;
+    /// @brief ContactPotential::min_distance(x, radius) on the device.
+    double min_distance(const VectorXd& x, double radius) const;
+    /// Wall times of the device contact work since the last begin_step().
+    ContactTimes contact_times() const;
+    /// The device contact's work over the whole run (s and counts): active-set rebuilds (part of
+    /// contact_times().barrier) and energy evaluations, the largest active set.
+    struct ContactProfile {
+        double active_sets = 0, energies = 0;
+        long active_set_count = 0, energy_count = 0;
+        int max_active = 0;
+    };
+    ContactProfile contact_profile() const { return m_profile; }
+
     /// @brief The adjoint system of a converged step on the device (adjoint/adjoint.cpp):
     /// (M + w H) y = b on the free dofs, H the true elastic Hessian at x; y = 0 on constrained dofs.
     /// @return false if PCG did not converge (a true Hessian that is not positive definite, or the
@@ -53,6 +105,8 @@ public:
 
     /// PCG iterations of the last solve() (all its Newton iterations).
     int last_pcg_iterations() const { return m_last_pcg_iterations; }
+    /// PCG iterations of every solve() so far.
+    long total_pcg_iterations() const { return m_total_pcg_iterations; }
 
     /// @brief True when this build has CUDA and a GPU is present; otherwise false, with the
     /// reason in *why (if given).
@@ -63,7 +117,10 @@ public:
 private:
     struct Impl;
     std::unique_ptr<Impl> m_impl;
+    const ContactPotential* m_cpu_contact = nullptr;
     int m_last_pcg_iterations = 0;
+    long m_total_pcg_iterations = 0;
+    ContactProfile m_profile;
 };
 
 } // namespace diffipc

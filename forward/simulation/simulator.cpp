@@ -277,9 +277,11 @@ Simulator::Simulator(Scene scene, const SimulationParameters& parameters)
         }
     }
     m_integrator->initialize(x0, v0, a0);
+    if (m_scene.device == DeviceType::GPU && m_friction)
+        throw InputError("device", "\"gpu\" has no friction yet (here from the run's friction parameters); use \"cpu\"");
     if (m_scene.device == DeviceType::GPU)
         m_device = std::make_unique<DeviceSolver>(
-            *m_elastic, m_integrator->dynamic() ? m_inertia.get() : nullptr, m_constrained);
+            *m_elastic, m_integrator->dynamic() ? m_inertia.get() : nullptr, m_constrained, m_contact.get());
     m_trajectory.initial_time = 0;
     m_trajectory.initial_positions = x0;
     m_trajectory.initial_velocities = v0;
@@ -660,7 +662,14 @@ StepStatus Simulator::step()
         }
         return record.status;
     }
-    if (m_contact) {
+    if (m_contact && m_device) {
+        DeviceSolver::AdaptiveKappa adaptive;
+        adaptive.enabled = m_scene.contact.adaptive_kappa;
+        adaptive.kappa_min = m_kappa_min;
+        adaptive.kappa_max = 100 * m_kappa_min;
+        adaptive.bbox_diagonal = m_bbox_diagonal;
+        m_device->begin_step(m_contact->kappa(), adaptive, x, inertial_target, w, m_external->force());
+    } else if (m_contact) {
         update_kappa_for_step(x);
         if (m_friction) {
             m_problem.set_weight(m_friction.get(), w);
@@ -753,7 +762,16 @@ StepStatus Simulator::step()
     record.line_search_cuts = result.line_search_cuts;
     record.roundoff_limited = result.roundoff_limited;
     record.phases = result.times;
-    if (m_contact) {
+    if (m_contact && m_device) {
+        m_contact->set_kappa(m_device->kappa()); // the CPU contact carries kappa between steps
+        const ContactTimes times = m_device->contact_times();
+        record.phases.broad_phase = times.broad_phase;
+        record.phases.ccd = times.ccd;
+        record.phases.barrier = times.barrier;
+        record.kappa = m_contact->kappa();
+        if (result.status == StepStatus::CCD_UNRESOLVED)
+            record.min_distance = m_device->min_distance(m_integrator->positions(), 1e-2 * m_bbox_diagonal);
+    } else if (m_contact) {
         record.phases.broad_phase = m_contact->times().broad_phase;
         record.phases.ccd = m_contact->times().ccd;
         record.phases.barrier = m_contact->times().barrier;
@@ -776,9 +794,10 @@ StepStatus Simulator::step()
             record.macro_stress = macro_stress(x);
         }
         if (m_contact) {
-            record.contacts = m_contact->contacts(x);
+            record.contacts = m_device ? m_device->contacts(x) : m_contact->contacts(x);
             record.active_contacts = int(record.contacts.size());
-            record.min_distance = m_contact->min_distance(x, 1e-2 * m_bbox_diagonal);
+            record.min_distance = m_device ? m_device->min_distance(x, 1e-2 * m_bbox_diagonal)
+                                           : m_contact->min_distance(x, 1e-2 * m_bbox_diagonal);
         }
         m_integrator->commit(record.positions, record.velocities, record.accelerations);
     } else {

@@ -7,6 +7,7 @@
 #include "cuda/common/device.hpp"
 #include "forward/contact/broad_phase/broad_phase.hpp"
 #include "forward/contact/contact_potential.hpp"
+#include "forward/simulation/device_solver.hpp"
 #include "tests/forward/periodic/post_cell.hpp"
 #include "tests/forward/test_utils.hpp"
 
@@ -30,38 +31,11 @@ namespace diffipc::test {
                             "__host__ __device__ code on the CPU)";                                                    \
     } while (0)
 
-/// The CPU CollisionMesh in cuda/broad_phase's plain arrays.
-inline gpu::CollisionMeshData to_gpu(const CollisionMesh& m)
-{
-    gpu::CollisionMeshData d;
-    d.dim = m.dim;
-    d.num_vertices = int(m.num_vertices);
-    d.vertices.assign(m.vertices.data(), m.vertices.data() + m.vertices.size());
-    // MatrixXi is row-major: edge e is (data[2e], data[2e + 1]).
-    d.edges.assign(m.edges.data(), m.edges.data() + m.edges.size());
-    if (m.dim == 3)
-        d.faces.assign(m.faces.data(), m.faces.data() + m.faces.size());
-    d.vertex_group = m.vertex_group;
-    d.group_self_contact = m.group_self_contact;
-    d.group_kinematic = m.group_kinematic;
-    d.point = m.point;
-    d.edge_source.assign(m.edge_source.begin(), m.edge_source.end());
-    d.edge_shift_positive = m.edge_shift_positive;
-    return d;
-}
+/// The CPU CollisionMesh in cuda/broad_phase's plain arrays (DeviceSolver's conversion).
+inline gpu::CollisionMeshData to_gpu(const CollisionMesh& m) { return to_device(m); }
 
-inline std::vector<gpu::PlaneObstacle> to_gpu(const std::vector<ContactPlane>& planes)
-{
-    std::vector<gpu::PlaneObstacle> out;
-    for (const ContactPlane& p : planes) {
-        gpu::PlaneObstacle g;
-        g.vertex = int(p.vertex);
-        for (int k = 0; k < 3; ++k)
-            g.normal[k] = p.normal[k];
-        out.push_back(g);
-    }
-    return out;
-}
+/// The CPU planes as the step bound takes them (DeviceSolver's conversion).
+inline std::vector<gpu::PlaneObstacle> to_gpu(const std::vector<ContactPlane>& planes) { return to_device(planes); }
 
 inline gpu::StepBoundSettings to_gpu(const ContactSettings& s)
 {

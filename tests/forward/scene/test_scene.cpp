@@ -173,12 +173,26 @@ std::vector<Malformed> malformed_cases()
         { "output_misspelled_vtu_key", [](json& s) { s["output"]["vtu_encode"] = "ascii"; }, "vtu_encode" },
         { "mass_unknown", [](json& s) { s["mass"] = "heavy"; }, "mass" },
         { "device_unknown", [](json& s) { s["device"] = "tpu"; }, "device: expected \"cpu\" or \"gpu\", got \"tpu\"" },
-        { "device_gpu_with_contact",
+        { "device_gpu_with_friction",
             [](json& s) {
                 s["device"] = "gpu";
                 s["contact"] = { { "dhat", 1e-3 } };
+                s["friction"] = { { "coefficient", 0.3 } };
             },
-            "device: \"gpu\" does not support contact" },
+            "device: \"gpu\" does not support friction" },
+        { "device_gpu_with_a_body_s_friction",
+            [](json& s) {
+                s["device"] = "gpu";
+                s["contact"] = { { "dhat", 1e-3 } };
+                s["bodies"][0]["friction"] = { { "coefficient", 0.2 } };
+            },
+            "device: \"gpu\" does not support friction" },
+        { "device_gpu_with_penalty_contact",
+            [](json& s) {
+                s["device"] = "gpu";
+                s["contact"] = { { "dhat", 1e-3 }, { "model", "penalty" }, { "penalty_stiffness", 1e6 } };
+            },
+            "device: \"gpu\" does not support the penalty contact model" },
         { "device_gpu_with_consistent_mass",
             [](json& s) {
                 s["device"] = "gpu";

