@@ -134,6 +134,7 @@ void DeviceBarrier::upload(int dim, const std::vector<double>& rest_positions, c
     m_dim = dim;
     m_num_vertices = int(rest_positions.size() / size_t(dim));
     m_rest = rest_positions;
+    m_d_rest.upload(rest_positions);
     m_num_planes = int(plane_normals.size() / 3);
     m_normals.upload(plane_normals);
     m_partials.resize(REDUCTION_PARTIALS);
@@ -155,6 +156,7 @@ void DeviceBarrier::set_pairs(const std::vector<BarrierPair>& pairs)
     m_vertex_codes.upload(m_pairs.vertex_codes);
     m_slot_offsets.upload(m_pairs.slot_offsets);
     m_slot_codes.upload(m_pairs.slot_codes);
+    m_num_rows = int(m_pairs.rows.size());
     m_pair_energy.resize(size_t(m_pairs.num_pairs));
     // The gradient and Hessian scratch is sized on first use.
 }
@@ -199,7 +201,7 @@ void DeviceBarrier::add_gradient_device(const double* d_x, double weight, double
     const PairArrays P = pair_arrays(m_pairs, m_settings, m_kind, m_vertices, m_plane, m_eps_x, m_normals);
     pair_gradients<<<grid(size_t(np)), THREADS>>>(P, d_x, m_pair_gradient.data());
     check_launch("launch of the pair barrier gradients");
-    const int rows = int(m_pairs.rows.size());
+    const int rows = m_num_rows;
     gather_gradient<<<grid(size_t(rows) * size_t(m_dim)), THREADS>>>(rows, m_dim, np, m_rows.data(),
         m_vertex_offsets.data(), m_vertex_codes.data(), m_pair_gradient.data(), weight * m_settings.kappa, d_g);
     check_launch("launch of the barrier gradient gather");

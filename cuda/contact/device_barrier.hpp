@@ -45,7 +45,14 @@ public:
     /// on a bad pair) and copies them and their incidence lists to the GPU. Call whenever the
     /// pair list changes; then make a new Hessian matrix (the pattern changed).
     void set_pairs(const std::vector<BarrierPair>& pairs);
-    /// The prepared pair list and the contact pattern (host copy).
+    /// @brief set_pairs() from a pair list in GPU memory, prepared on the GPU (device_barrier_pairs.cu):
+    /// the same arrays, pattern and incidence lists as prepare_barrier_pairs, built by stable radix
+    /// sorts (deterministic); only the contact pattern comes back to the host. Not checked: for pairs a
+    /// checked source built (DeviceContact's classification of a checked collision mesh).
+    /// @param d_pairs 6 ints per pair: kind, the 4 vertices (-1 unused), the plane (-1 unless vertex-plane)
+    void set_pairs_device(const int* d_pairs, int num_pairs);
+    /// The prepared pair list and the contact pattern (host copy; after set_pairs_device() only dim,
+    /// num_vertices, num_pairs and the pattern's row_offsets and col_indices are filled).
     const BarrierPairs& pairs() const { return m_pairs; }
     int num_pairs() const { return m_pairs.num_pairs; }
     int dim() const { return m_dim; }
@@ -76,7 +83,9 @@ private:
 
     int m_dim = 0, m_num_vertices = 0;
     std::vector<double> m_rest;
+    DeviceArray<double> m_d_rest; // the rest positions on the device (set_pairs_device's thresholds)
     int m_num_planes = 0;
+    int m_num_rows = 0; // vertices in some pair (the gradient gather's rows)
     BarrierSettings m_settings;
     BarrierPairs m_pairs;
     DeviceArray<double> m_normals; // #planes * 3
@@ -86,6 +95,10 @@ private:
     DeviceArray<int> m_rows, m_vertex_offsets, m_vertex_codes, m_slot_offsets, m_slot_codes;
     // Scratch: per-pair energies, gradients (4 dim * #P) and Hessians ((4 dim)^2 * #P), reductions.
     mutable DeviceArray<double> m_pair_energy, m_pair_gradient, m_pair_hessian, m_partials, m_scalar;
+    // set_pairs_device's scratch: sort keys and values, flags, cub's temporary storage.
+    DeviceArray<int> m_keys, m_sorted_keys, m_codes, m_heads, m_count;
+    DeviceArray<long long> m_block_keys, m_sorted_block_keys, m_head_keys;
+    DeviceArray<unsigned char> m_flags, m_temp;
 };
 
 } // namespace diffipc::gpu

@@ -228,7 +228,9 @@ struct DeviceContact::Impl {
     DeviceArray<int> kept, kept_count, kept_pairs;
     DeviceArray<unsigned char> cub_temp;
     DeviceArray<double> partials, scalar;
-    std::vector<BarrierPair> active;
+    int num_active = 0;
+    std::vector<BarrierPair> active; // host copy of kept_pairs, made on request
+    bool active_downloaded = true;
     double min_gap2 = INF;
     DeviceBsrMatrix hessian;
     DeviceContactTimes times;
@@ -377,7 +379,7 @@ int DeviceContact::update_active(const double* d_x)
     t = Clock::now();
     const CandidateList L = d.list(candidates);
     const size_t n = L.size();
-    d.active.clear();
+    d.num_active = 0;
     d.min_gap2 = INF;
     if (n > 0) {
         if (n > size_t(std::numeric_limits<int>::max()))
@@ -399,36 +401,46 @@ int DeviceContact::update_active(const double* d_x)
                        d.cub_temp.data(), bytes, indices, d.flags.data(), d.kept.data(), d.kept_count.data(), int(n)),
             "cub::DeviceSelect::Flagged of the active pairs");
         d.min_gap2 = d.minimum(n);
-        int count = 0;
-        detail::copy_device_to_host(&count, d.kept_count.data(), sizeof(int));
-        if (count > 0) {
-            ensure(d.kept_pairs, size_t(count) * 6);
-            gather_pairs<<<grid(size_t(count)), THREADS>>>(L, d.kept.data(), count, d.kept_pairs.data());
+        detail::copy_device_to_host(&d.num_active, d.kept_count.data(), sizeof(int));
+        if (d.num_active > 0) {
+            ensure(d.kept_pairs, size_t(d.num_active) * 6);
+            gather_pairs<<<grid(size_t(d.num_active)), THREADS>>>(L, d.kept.data(), d.num_active, d.kept_pairs.data());
             check_launch("launch of the active pairs' gather");
-            std::vector<int> host(size_t(count) * 6);
-            detail::copy_device_to_host(host.data(), d.kept_pairs.data(), host.size() * sizeof(int));
-            d.active.resize(size_t(count));
-            for (int p = 0; p < count; ++p) {
-                const int* o = host.data() + size_t(p) * 6;
-                BarrierPair& q = d.active[size_t(p)];
-                q.kind = o[0];
-                for (int a = 0; a < 4; ++a)
-                    q.vertices[a] = o[1 + a];
-                q.plane = o[5];
-            }
         }
     }
-    d.barrier.set_pairs(d.active);
+    // The pairs are prepared on the device; the host copy is made on request (active_pairs()).
+    d.barrier.set_pairs_device(d.kept_pairs.data(), d.num_active);
+    d.active_downloaded = false;
     d.hessian = d.barrier.make_hessian_matrix();
     const double before = d.times.barrier;
     add_time(t, d.times.barrier);
     d.times.active_sets += d.times.barrier - before;
     ++d.times.active_set_count;
-    return int(d.active.size());
+    return d.num_active;
 }
 
-int DeviceContact::num_active() const { return int(m_impl->active.size()); }
-const std::vector<BarrierPair>& DeviceContact::active_pairs() const { return m_impl->active; }
+int DeviceContact::num_active() const { return m_impl->num_active; }
+
+const std::vector<BarrierPair>& DeviceContact::active_pairs() const
+{
+    Impl& d = *m_impl;
+    if (!d.active_downloaded) {
+        std::vector<int> host(size_t(d.num_active) * 6);
+        if (!host.empty())
+            detail::copy_device_to_host(host.data(), d.kept_pairs.data(), host.size() * sizeof(int));
+        d.active.resize(size_t(d.num_active));
+        for (int p = 0; p < d.num_active; ++p) {
+            const int* o = host.data() + size_t(p) * 6;
+            BarrierPair& q = d.active[size_t(p)];
+            q.kind = o[0];
+            for (int a = 0; a < 4; ++a)
+                q.vertices[a] = o[1 + a];
+            q.plane = o[5];
+        }
+        d.active_downloaded = true;
+    }
+    return d.active;
+}
 double DeviceContact::min_active_gap_squared() const { return m_impl->min_gap2; }
 
 void DeviceContact::add_gradient(const double* d_x, double weight, double* d_g) const

@@ -8,7 +8,8 @@
 ///    (plane, non-kinematic surface vertex) pair classified at x and kept if its squared distance
 ///    is below (dmin + dhat)^2 (a plane pair if its signed distance is below dmin + dhat), in the
 ///    CPU's order (vertex-edge, vertex-face, edge-edge, planes; a stable compaction on the GPU);
-///    the kept pairs go to a DeviceBarrier (copied to the host and prepared there: O(#active));
+///    the kept pairs go to a DeviceBarrier, prepared there on the GPU (set_pairs_device: the contact
+///    pattern and the gathers' incidence lists by stable radix sorts; only the pattern comes back);
 ///  - the barrier's gradient and projected Hessian of that set (DeviceBarrier), the Hessian on the
 ///    contact pattern (hessian(), to be added to the elastic matrix by a SumOperator);
 ///  - the energy kappa sum_k m_k b_k at any state y without building a pair list: every candidate

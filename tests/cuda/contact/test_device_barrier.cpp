@@ -201,3 +201,56 @@ TEST(DeviceBarrier, DISABLED_TimingsOfAFewThousandPairs)
     std::printf("  %d pairs: energy %.3f ms, gradient %.3f ms, projected Hessian %.3f ms\n", b.num_pairs(), 1e3 * te,
         1e3 * tg, 1e3 * th);
 }
+
+TEST(DeviceBarrier, PairsPreparedOnTheDeviceEqualTheHosts)
+{
+    DIFFIPC_SKIP_WITHOUT_GPU();
+    // set_pairs_device builds the pattern and the incidence lists by radix sorts on the GPU: the same
+    // pattern as prepare_barrier_pairs, and so the same energies, gradients and Hessians bit for bit
+    // (the gathers then sum in the same order).
+    const test::ContactScene scenes[] = {
+        test::boxes_on_plane(8, 0.3, 5e-5, { { "dhat", 1e-3 }, { "kappa", 3.0 } }),
+        test::boxes_on_plane(8, 0.01, 5e-5, { { "dhat", 1e-3 }, { "kappa", 3.0 }, { "min_distance", 2e-4 } }),
+        test::rings_on_plane(1e-5, { { "dhat", 1e-3 }, { "kappa", 3.0 } }),
+        test::boxes_on_plane_2d(8, 3e-4, 1e-5, { { "dhat", 1e-3 }, { "kappa", 3.0 } }),
+    };
+    for (const test::ContactScene& scene : scenes) {
+        const gpu::DeviceBarrier host = device_barrier(scene);
+        gpu::DeviceBarrier device;
+        device.upload(scene.dim(), scene.rest_vector(), scene.plane_normals());
+        device.set_settings(host.settings());
+        std::vector<int> packed;
+        for (const gpu::BarrierPair& p : scene.pairs()) {
+            packed.push_back(p.kind);
+            for (int a = 0; a < 4; ++a)
+                packed.push_back(p.vertices[a]);
+            packed.push_back(p.plane);
+        }
+        gpu::DeviceArray<int> d_pairs(packed);
+        device.set_pairs_device(d_pairs.data(), int(packed.size() / 6));
+        ASSERT_EQ(device.num_pairs(), host.num_pairs());
+        ASSERT_GT(device.num_pairs(), 0);
+        EXPECT_EQ(device.pairs().row_offsets, host.pairs().row_offsets);
+        EXPECT_EQ(device.pairs().col_indices, host.pairs().col_indices);
+        const std::vector<double> x = scene.x_vector();
+        const double e0 = host.energy(x), e1 = device.energy(x);
+        EXPECT_EQ(std::memcmp(&e0, &e1, sizeof(double)), 0);
+        const std::vector<double> g0 = host.gradient(x, 0.7), g1 = device.gradient(x, 0.7);
+        EXPECT_EQ(std::memcmp(g0.data(), g1.data(), g0.size() * sizeof(double)), 0);
+        for (bool project : { false, true }) {
+            const std::vector<double> h0 = host.hessian_bsr(x, project).download().values;
+            const std::vector<double> h1 = device.hessian_bsr(x, project).download().values;
+            ASSERT_EQ(h0.size(), h1.size());
+            EXPECT_EQ(std::memcmp(h0.data(), h1.data(), h0.size() * sizeof(double)), 0) << "project " << project;
+        }
+        std::printf("  %d pairs, %zu blocks: the device's preparation equals the host's\n", device.num_pairs(),
+            device.pairs().col_indices.size());
+    }
+    // No pairs: an empty pattern, zero energy.
+    gpu::DeviceBarrier empty;
+    empty.upload(scenes[0].dim(), scenes[0].rest_vector(), scenes[0].plane_normals());
+    empty.set_pairs_device(nullptr, 0);
+    EXPECT_EQ(empty.num_pairs(), 0);
+    EXPECT_EQ(empty.energy(scenes[0].x_vector()), 0.0);
+    EXPECT_EQ(empty.make_hessian_matrix().num_blocks(), 0);
+}
