@@ -125,8 +125,9 @@ struct AdjointStepSystem {
     std::vector<Coupling> couplings;
     int step = -1; ///< the step whose system is factorized (-1: none)
     int substep = 0; ///< and its sub-step (0: the step's own problem)
-    /// The GPU path (scene "device": "gpu") without contact: the system is solved on the device
-    /// (Simulator::device_solver), factorized on the CPU only if that fails; `weight` is the step's w for it.
+    /// The GPU path (scene "device": "gpu"): the system is solved on the device (Simulator::device_solver;
+    /// with contact, the barrier's Hessian at the step's kappa), factorized on the CPU only if that fails;
+    /// `weight` is the step's w for it.
     bool on_device = false;
     bool factorized = false;
     double weight = 0;
@@ -277,9 +278,7 @@ void AdjointSweep::Impl::factorize(int k, int j, const VectorXd& x)
     a.assembler.apply_constraints(constrained);
     ta.add_to(st.assembly_time);
     a.factorized = false;
-    // The device solves the elastic system only (DeviceNewton::solve_true_hessian): a contact scene's
-    // adjoint systems, with the barrier's Hessian, are factorized on the CPU.
-    a.on_device = sim.device_solver() && j == 0 && !sim.contact();
+    a.on_device = sim.device_solver() && j == 0;
     a.weight = problem.weight(&sim.elastic());
     if (!a.on_device)
         factorize_on_cpu(k);
@@ -466,7 +465,9 @@ void AdjointSweep::Impl::sweep_state(int k, int j, const VectorXd& x, double tim
                             grad.macro(k - 1, i * d + jj) += cell->map().length() * xq[cell->map().macro_dof(i, jj)];
             }
         } else if (system->on_device
-            && (system->factorized || !sim.device_solver()->solve_adjoint(x, system->weight, rhs, lambda))) {
+            && (system->factorized
+                || !sim.device_solver()->solve_adjoint(
+                    x, system->weight, rhs, lambda, nullptr, sim.contact() ? sim.contact()->kappa() : 0.0))) {
             // The device's PCG did not converge (a true Hessian that is not positive definite):
             // the CPU's factorization with its LDL^T fallback.
             if (!system->factorized)

@@ -1,13 +1,16 @@
 // `diffipc bench --suite gpu`: the same elastic boxes and contact scenes (a slab dropped on a
 // clamped base) stepped by the CPU solver (all usable cores) and by the GPU path (scene "device":
 // "gpu"), side by side in one run; per step and per phase, and the largest difference of the final
-// states. Prints figures; asserts nothing
-// (docs/performance.md).
+// states; and the adjoint gradient of a stress p-norm on each path, against its forward run.
+// Prints figures; asserts nothing (docs/performance.md).
 
 #include "cli/bench.hpp"
 #include "cli/bench_scenes.hpp"
 
+#include "adjoint/adjoint.hpp"
 #include "forward/common/threads.hpp"
+#include "forward/common/timer.hpp"
+#include "objectives/objective_json.hpp"
 #include "forward/scene/scene.hpp"
 #include "forward/simulation/device_solver.hpp"
 #include "forward/simulation/simulator.hpp"
@@ -27,14 +30,22 @@ namespace {
         VectorXd x;
         DeviceSolver::ContactProfile contact; // GPU runs with contact: after the warm-up
         long pcg_iterations = 0;
+        // The adjoint: dJ/d(mu, lambda) of a stress p-norm at the final time over the whole run,
+        // against the whole forward run's wall time (warm-up included).
+        double forward_total = 0, adjoint = 0;
+        AdjointStatistics adjoint_stats;
+        VectorXd gradient;
     };
 
     /// Steps 2.. of the scene (the first is a warm-up: the CPU's symbolic analysis, the GPU's
     /// module loading and allocations), on `device`.
-    Run measure(nlohmann::json scene, const std::string& device, const std::string& name)
+    /// @param kappa a fixed barrier stiffness for a contact scene (> 0; the adjoint needs one), or 0
+    Run measure(nlohmann::json scene, const std::string& device, const std::string& name, double kappa = 0)
     {
         scene["device"] = device;
-        Simulator sim(parse_scene(scene, ".", name));
+        SimulationParameters parameters;
+        parameters.kappa = kappa;
+        Simulator sim(parse_scene(scene, ".", name), parameters);
         Run r;
         if ((r.status = sim.step()) != StepStatus::CONVERGED)
             return r;
@@ -52,6 +63,21 @@ namespace {
         r.wall = t.wall_time - warm.wall_time;
         r.phases = t.phases - warm.phases;
         r.x = sim.positions();
+        r.forward_total = t.wall_time;
+        if (r.status == StepStatus::CONVERGED) {
+            const nlohmann::json spec = { { "type", "stress_norm" }, { "p", 8 }, { "time", "final" } };
+            const auto objective = parse_objective(spec, "objective", sim);
+            ParameterRequest request;
+            request.lame = true;
+            Timer timer;
+            StateSeed seed;
+            seed.resize(int(t.steps.size()));
+            objective->add_gradient(sim, t, request, 1.0, seed);
+            const ParameterGradient g = adjoint_gradient(sim, seed, request, &r.adjoint_stats);
+            r.adjoint = timer.seconds();
+            r.gradient.resize(g.mu.size() + g.lambda.size());
+            r.gradient << g.mu, g.lambda;
+        }
         if (solver) {
             const DeviceSolver::ContactProfile c = solver->contact_profile();
             r.contact.active_sets = c.active_sets - warm_contact.active_sets;
@@ -78,6 +104,11 @@ namespace {
         if (r.pcg_iterations > 0)
             std::printf("       PCG %.0f iterations/step\n", double(r.pcg_iterations) * per);
         const DeviceSolver::ContactProfile& c = r.contact;
+        if (r.adjoint > 0)
+            std::printf("       adjoint dJ/d(mu, lambda) of a stress p-norm: %.4f s = %.1f%% of the whole forward run "
+                        "(%.4f s); assembly %.4f (parameter derivatives %.4f), factorization %.4f, solve %.4f\n",
+                r.adjoint, 100 * r.adjoint / r.forward_total, r.forward_total, r.adjoint_stats.assembly_time,
+                r.adjoint_stats.parameter_time, r.adjoint_stats.factorization_time, r.adjoint_stats.solve_time);
         if (c.active_set_count > 0)
             std::printf("       of the barrier: %.1f active-set rebuilds/step (%.2f ms each, up to %d pairs), %.1f "
                         "energies/step (%.2f ms each)\n",
@@ -113,14 +144,24 @@ int run_gpu_bench(const BenchOptions& options)
         options.size.c_str(), describe(thread_config()).c_str(), DeviceSolver::describe_device().c_str(),
         options.steps);
     int failures = 0;
-    // One scene on both paths, side by side.
+    // One scene on both paths, side by side. A contact scene's kappa is fixed (the adjoint needs it)
+    // at the value the adaptive rule gives its first step on the GPU.
     const auto compare = [&](const nlohmann::json& scene, const std::string& name) {
-        const Simulator probe(parse_scene(scene, ".", name));
+        Simulator probe(parse_scene(scene, ".", name));
         std::printf("\n%s: %ld vertices, %ld tetrahedra, %ld dofs\n", name.c_str(), long(probe.mesh().num_vertices()),
             long(probe.mesh().num_elements()), long(probe.mesh().num_dofs()));
-        const Run cpu = measure(scene, "cpu", name);
+        double kappa = 0;
+        if (probe.contact()) {
+            nlohmann::json first = scene;
+            first["device"] = "gpu";
+            Simulator nominal(parse_scene(first, ".", name));
+            if (nominal.step() == StepStatus::CONVERGED)
+                kappa = nominal.trajectory().steps.back().kappa;
+            std::printf("  kappa fixed at %.4g (the adaptive rule's after the first step)\n", kappa);
+        }
+        const Run cpu = measure(scene, "cpu", name, kappa);
         print("cpu", cpu);
-        const Run gpu = measure(scene, "gpu", name);
+        const Run gpu = measure(scene, "gpu", name, kappa);
         print("gpu", gpu);
         if (cpu.steps > 0 && gpu.steps > 0) {
             const VectorXd X = probe.positions();
@@ -128,6 +169,9 @@ int run_gpu_bench(const BenchOptions& options)
                         "%.3e m)\n",
                 (cpu.wall / cpu.steps) / (gpu.wall / gpu.steps), (cpu.x - gpu.x).lpNorm<Eigen::Infinity>(),
                 (cpu.x - X).lpNorm<Eigen::Infinity>());
+            if (cpu.gradient.size() > 0 && gpu.gradient.size() == cpu.gradient.size())
+                std::printf("  adjoint gradients differ by %.2e relative (GPU adjoint / CPU adjoint time %.2f)\n",
+                    (gpu.gradient - cpu.gradient).norm() / cpu.gradient.norm(), gpu.adjoint / cpu.adjoint);
         }
         failures += cpu.status != StepStatus::CONVERGED || gpu.status != StepStatus::CONVERGED;
     };

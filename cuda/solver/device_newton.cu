@@ -569,8 +569,15 @@ PcgResult DeviceNewton::solve_true_hessian(const std::vector<double>& x_host, do
             n, m.dim, m.diagonal_slots.data(), m.mass.data(), m.H.device_values());
         check_launch("launch of the mass diagonal");
     }
+    if (m_contact) {
+        // The barrier's true Hessian of the active set at x (the committed step's set).
+        m_contact->update_active(m.x.data());
+        m.active_current = false;
+        m_contact->assemble_hessian(m.x.data(), weight, /*project=*/false);
+        m.sum.bind(m.H, m_contact->hessian());
+    }
     m.pcg.settings() = PcgSettings { relative_tolerance, max_iterations };
-    const PcgResult r = m.pcg.solve_device(m.H, m.rhs.data(), m.p.data());
+    const PcgResult r = m.pcg.solve_device(m.system(m_contact), m.rhs.data(), m.p.data());
     y_host = m.p.download();
     return r;
 }

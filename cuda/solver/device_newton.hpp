@@ -175,9 +175,11 @@ public:
         const std::vector<double>& force, const std::vector<double>& target, double force_scale, double step_scale,
         const DeviceNewtonSettings& settings);
 
-    /// @brief Solves the adjoint system of a converged step on the device: (M + w H_Psi(x)) y = b on
-    /// the free dofs, H_Psi the true (unprojected) Hessian at x, M the lumped mass of a dynamic solver
-    /// (none for a static one); y = 0 on the constrained dofs. Block-Jacobi PCG from y = 0.
+    /// @brief Solves the adjoint system of a converged step on the device: (M + w (H_Psi(x) + H_B(x))) y
+    /// = b on the free dofs, H_Psi the true (unprojected) elastic Hessian at x, H_B the contact barrier's
+    /// true Hessian of the active set at x (with the contact's current kappa; none without contact), M
+    /// the lumped mass of a dynamic solver (none for a static one); y = 0 on the constrained dofs.
+    /// Block-Jacobi PCG from y = 0.
     /// @param x       #dofs, the converged state
     /// @param weight  w of the step (> 0)
     /// @param b       #dofs right-hand side (its constrained entries are ignored)

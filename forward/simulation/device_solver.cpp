@@ -292,8 +292,11 @@ NewtonResult DeviceSolver::solve(VectorXd& x, const VectorXd& inertial_target, d
     return result;
 }
 
-bool DeviceSolver::solve_adjoint(const VectorXd& x, double weight, const VectorXd& b, VectorXd& y, int* iterations)
+bool DeviceSolver::solve_adjoint(
+    const VectorXd& x, double weight, const VectorXd& b, VectorXd& y, int* iterations, double kappa)
 {
+    if (m_impl->contact)
+        m_impl->contact->set_kappa(kappa);
     // The adjoint of the tests' gradient checks needs 1e-6 relative agreement with the CPU's direct
     // solve: 1e-12 relative residual leaves the solution's error far below that on conditioned steps.
     constexpr double TOLERANCE = 1e-12;
@@ -342,7 +345,7 @@ NewtonResult DeviceSolver::solve(
     return {};
 }
 
-bool DeviceSolver::solve_adjoint(const VectorXd&, double, const VectorXd&, VectorXd&, int*) { return false; }
+bool DeviceSolver::solve_adjoint(const VectorXd&, double, const VectorXd&, VectorXd&, int*, double) { return false; }
 
 void DeviceSolver::begin_step(double, const AdaptiveKappa&, const VectorXd&, const VectorXd&, double, const VectorXd&)
 {

@@ -98,10 +98,12 @@ public:
     ContactProfile contact_profile() const { return m_profile; }
 
     /// @brief The adjoint system of a converged step on the device (adjoint/adjoint.cpp):
-    /// (M + w H) y = b on the free dofs, H the true elastic Hessian at x; y = 0 on constrained dofs.
+    /// (M + w H) y = b on the free dofs, H the true Hessian at x (elastic, and the barrier's of the
+    /// active set at x with stiffness `kappa` in a contact scene); y = 0 on constrained dofs.
     /// @return false if PCG did not converge (a true Hessian that is not positive definite, or the
     ///         iteration cap): the caller then factorizes on the CPU
-    bool solve_adjoint(const VectorXd& x, double weight, const VectorXd& b, VectorXd& y, int* iterations = nullptr);
+    bool solve_adjoint(const VectorXd& x, double weight, const VectorXd& b, VectorXd& y, int* iterations = nullptr,
+        double kappa = 0);
 
     /// PCG iterations of the last solve() (all its Newton iterations).
     int last_pcg_iterations() const { return m_last_pcg_iterations; }
