@@ -5,6 +5,7 @@
 // dmin, and the GPU's recorded active set equal to the CPU's at the same state. Skipped without a GPU.
 
 #include "adjoint/adjoint.hpp"
+#include "tests/cuda/simulation/adjoint_test_utils.hpp"
 #include "cuda/common/device.hpp"
 #include "forward/contact/intersection.hpp"
 #include "tests/forward/contact/contact_scenes.hpp"
@@ -15,7 +16,6 @@
 #include <cmath>
 #include <cstdio>
 #include <cstring>
-#include <random>
 
 using namespace diffipc;
 using nlohmann::json;
@@ -243,15 +243,6 @@ TEST(DeviceContactSimulation, FailedStepReportsTheCpuStatusAndKeepsTheCommittedS
 
 } // namespace
 
-namespace {
-
-double relative_difference(const VectorXd& a, const VectorXd& b)
-{
-    return b.norm() > 0 ? (a - b).norm() / b.norm() : a.norm();
-}
-
-} // namespace
-
 TEST(DeviceContactSimulation, AdjointGradientEqualsTheCpus)
 {
     REQUIRE_GPU();
@@ -281,23 +272,14 @@ TEST(DeviceContactSimulation, AdjointGradientEqualsTheCpus)
             const int T = sim.trajectory().committed();
             for (int step = 1; step <= T; ++step)
                 active = std::max(active, sim.trajectory().step(step).active_contacts);
-            StateSeed seed;
-            seed.resize(T);
-            std::mt19937 rng(7);
-            std::uniform_real_distribution<double> u(-1, 1);
-            for (int step : { T, T / 2 }) {
-                VectorXd w(sim.mesh().num_dofs());
-                for (Index i = 0; i < w.size(); ++i)
-                    w[i] = u(rng);
-                seed.add_position(step, w);
-            }
+            const StateSeed seed = test::random_position_seed(sim, T);
             ParameterRequest request;
             request.rest_positions = request.lame = true;
             g[k] = adjoint_gradient(sim, seed, request, &stats[k]);
         }
-        const double e_shape = relative_difference(g[1].rest_positions, g[0].rest_positions);
-        const double e_mu = relative_difference(g[1].mu, g[0].mu);
-        const double e_lambda = relative_difference(g[1].lambda, g[0].lambda);
+        const double e_shape = test::relative_difference(g[1].rest_positions, g[0].rest_positions);
+        const double e_mu = test::relative_difference(g[1].mu, g[0].mu);
+        const double e_lambda = test::relative_difference(g[1].lambda, g[0].lambda);
         std::printf("  %-24s (up to %d active pairs) adjoint gradient GPU against CPU: shape %.1e, mu %.1e, lambda "
                     "%.1e relative; adjoint solve time CPU %.4f s, GPU %.4f s (CPU factorizations in the GPU "
                     "adjoint: %.4f s)\n",

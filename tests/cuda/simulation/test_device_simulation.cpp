@@ -2,6 +2,7 @@
 // against the CPU path: the same scenes through Simulator, step by step. Skipped without a GPU.
 
 #include "adjoint/adjoint.hpp"
+#include "tests/cuda/simulation/adjoint_test_utils.hpp"
 #include "cuda/common/device.hpp"
 #include "tests/forward/test_utils.hpp"
 
@@ -9,7 +10,6 @@
 
 #include <cmath>
 #include <cstdio>
-#include <random>
 
 using namespace diffipc;
 using nlohmann::json;
@@ -139,8 +139,6 @@ TEST(DeviceSimulation, FailedStepReportsTheCpuStatusAndKeepsTheCommittedState)
 
 bool request_density(const std::string& integrator) { return integrator != "static"; }
 
-double relative_difference(const VectorXd& a, const VectorXd& b) { return (a - b).norm() / std::max(b.norm(), 1e-300); }
-
 TEST(DeviceSimulation, AdjointGradientEqualsTheCpus)
 {
     REQUIRE_GPU();
@@ -161,25 +159,16 @@ TEST(DeviceSimulation, AdjointGradientEqualsTheCpus)
                 sim.run();
                 ASSERT_EQ(sim.trajectory().final_status, StepStatus::CONVERGED);
                 const int T = sim.trajectory().committed();
-                StateSeed seed;
-                seed.resize(T);
-                std::mt19937 rng(7);
-                std::uniform_real_distribution<double> u(-1, 1);
-                for (int step : { T, T / 2 }) {
-                    VectorXd w(sim.mesh().num_dofs());
-                    for (Index i = 0; i < w.size(); ++i)
-                        w[i] = u(rng);
-                    seed.add_position(step, w);
-                }
+                const StateSeed seed = test::random_position_seed(sim, T);
                 ParameterRequest request;
                 request.rest_positions = request.lame = true;
                 request.density = request_density(integrator);
                 g[k] = adjoint_gradient(sim, seed, request, &stats[k]);
             }
             const std::string name = std::to_string(dim) + "D " + integrator;
-            const double e_shape = relative_difference(g[1].rest_positions, g[0].rest_positions);
-            const double e_mu = relative_difference(g[1].mu, g[0].mu);
-            const double e_lambda = relative_difference(g[1].lambda, g[0].lambda);
+            const double e_shape = test::relative_difference(g[1].rest_positions, g[0].rest_positions);
+            const double e_mu = test::relative_difference(g[1].mu, g[0].mu);
+            const double e_lambda = test::relative_difference(g[1].lambda, g[0].lambda);
             std::printf("  %-20s adjoint gradient GPU against CPU: shape %.1e, mu %.1e, lambda %.1e relative; "
                         "adjoint solve time CPU %.4f s (factorization %.4f), GPU %.4f s\n",
                 name.c_str(), e_shape, e_mu, e_lambda, stats[0].solve_time + stats[0].factorization_time,
@@ -189,7 +178,7 @@ TEST(DeviceSimulation, AdjointGradientEqualsTheCpus)
             EXPECT_LT(e_mu, 1e-6) << name;
             EXPECT_LT(e_lambda, 1e-6) << name;
             if (request_density(integrator))
-                EXPECT_LT(relative_difference(g[1].density, g[0].density), 1e-6) << name;
+                EXPECT_LT(test::relative_difference(g[1].density, g[0].density), 1e-6) << name;
             EXPECT_EQ(stats[1].factorization_time, 0.0) << name << ": the GPU run fell back to the CPU factorization";
         }
 }
