@@ -120,7 +120,6 @@ namespace {
 /// factorization and the couplings of prescribed dofs. Sweeps of several objectives over
 /// one run share it (adjoint_gradients()), so each step is assembled and factorized once.
 struct AdjointStepSystem {
-    SparseAssembler assembler;
     LinearSolver linear;
     std::vector<Coupling> couplings;
     int step = -1; ///< the step whose system is factorized (-1: none)
@@ -130,14 +129,32 @@ struct AdjointStepSystem {
     /// `weight` is the step's w for it.
     bool on_device = false;
     bool factorized = false;
+    /// The CPU has assembled the step's system and its couplings (the GPU path only for its fallback).
+    bool assembled = false;
     double weight = 0;
     SparseMatrixd reduced; ///< a periodic cell's P^T H P (lower triangle, constraints applied)
 
     explicit AdjointStepSystem(const Simulator& sim)
         : linear(sim.scene().solver.linear_solver)
+        , mesh(sim.mesh())
     {
-        assembler.build(sim.mesh().dim, sim.mesh().num_vertices(), sim.mesh().elements);
     }
+
+    /// The CPU's assembler of the system, its pattern built on first use (a GPU run's adjoint that
+    /// solves every step on the device never needs it: at 200k tets the pattern costs 0.3 s).
+    SparseAssembler& assembler()
+    {
+        if (!built) {
+            cpu_assembler.build(mesh.dim, mesh.num_vertices(), mesh.elements);
+            built = true;
+        }
+        return cpu_assembler;
+    }
+
+private:
+    const Mesh& mesh;
+    SparseAssembler cpu_assembler;
+    bool built = false;
 };
 
 struct AdjointSweep::Impl {
@@ -235,6 +252,9 @@ struct AdjointSweep::Impl {
     void factorize(int k, int j, const VectorXd& x);
     /// Factorizes the assembled system of step k on the CPU (the GPU path's fallback).
     void factorize_on_cpu(int k);
+    /// Assembles step k's system on the CPU with its couplings, constraints applied (the CPU path, and
+    /// the GPU path's fallback); the step's problem must be set (factorize()).
+    void assemble_on_cpu(const Problem& problem, const VectorXd& x);
 };
 
 void AdjointSweep::Impl::factorize(int k, int j, const VectorXd& x)
@@ -245,10 +265,10 @@ void AdjointSweep::Impl::factorize(int k, int j, const VectorXd& x)
     a.step = -1;
     Timer ta;
     const Problem& problem = j == 0 ? sim.step_problem(k) : sim.substep_problem(k, j);
-    problem.hessian(x, false, a.assembler);
     if (const PeriodicCell* cell = sim.periodic()) {
+        problem.hessian(x, false, a.assembler());
         // The system in the cell's unknowns: P^T H P, its constrained entries replaced by identity rows.
-        a.reduced = cell->map().reduce_matrix(a.assembler.matrix());
+        a.reduced = cell->map().reduce_matrix(a.assembler().matrix());
         const std::vector<char>& fixed = cell->constrained();
         // The couplings of q's constrained entries (in q's indices), before the identity rows replace them.
         a.couplings.clear();
@@ -268,29 +288,39 @@ void AdjointSweep::Impl::factorize(int k, int j, const VectorXd& x)
         a.substep = j;
         return;
     }
+    a.factorized = false;
+    a.assembled = false;
+    a.on_device = sim.device_solver() && j == 0;
+    a.weight = problem.weight(&sim.elastic());
+    if (!a.on_device) {
+        assemble_on_cpu(problem, x);
+        ta.add_to(st.assembly_time);
+        factorize_on_cpu(k);
+    }
+    a.step = k;
+    a.substep = j;
+}
+
+void AdjointSweep::Impl::assemble_on_cpu(const Problem& problem, const VectorXd& x)
+{
+    AdjointStepSystem& a = *system;
+    problem.hessian(x, false, a.assembler());
     // The couplings of prescribed dofs (lower triangle), before the constraints replace them.
-    const SparseMatrixd& A = a.assembler.matrix();
+    const SparseMatrixd& A = a.assembler().matrix();
     a.couplings = parallel_collect<Coupling>(size_t(A.cols()), 256, [&](size_t col, std::vector<Coupling>& out) {
         for (SparseMatrixd::InnerIterator it(A, Index(col)); it; ++it)
             if (constrained[size_t(it.row())] || constrained[col])
                 out.push_back({ it.row(), Index(col), it.value() });
     });
-    a.assembler.apply_constraints(constrained);
-    ta.add_to(st.assembly_time);
-    a.factorized = false;
-    a.on_device = sim.device_solver() && j == 0;
-    a.weight = problem.weight(&sim.elastic());
-    if (!a.on_device)
-        factorize_on_cpu(k);
-    a.step = k;
-    a.substep = j;
+    a.assembler().apply_constraints(constrained);
+    a.assembled = true;
 }
 
 void AdjointSweep::Impl::factorize_on_cpu(int k)
 {
     AdjointStepSystem& a = *system;
     Timer tf;
-    if (!a.linear.factorize(a.assembler.matrix(), true))
+    if (!a.linear.factorize(a.assembler().matrix(), true))
         throw AdjointError("no gradient: the adjoint system of step " + std::to_string(k)
             + " is singular (true Hessian at the converged state)");
     tf.add_to(st.factorization_time);
@@ -443,7 +473,7 @@ void AdjointSweep::Impl::sweep_state(int k, int j, const VectorXd& x, double tim
     if (!rhs.isZero(0.0)) {
         factorize(k, j, x);
         Timer ts;
-        VectorXd lambda;
+        VectorXd lambda, device_coupling;
         if (const PeriodicCell* cell = sim.periodic()) {
             // dJ/dq = P^T dJ/dx on q's free entries; the full-space adjoint is P lambda_q.
             const std::vector<char>& fixed = cell->constrained();
@@ -466,12 +496,16 @@ void AdjointSweep::Impl::sweep_state(int k, int j, const VectorXd& x, double tim
             }
         } else if (system->on_device
             && (system->factorized
-                || !sim.device_solver()->solve_adjoint(
-                    x, system->weight, rhs, lambda, nullptr, sim.contact() ? sim.contact()->kappa() : 0.0))) {
+                || !sim.device_solver()->solve_adjoint(x, system->weight, rhs, lambda, nullptr,
+                    sim.contact() ? sim.contact()->kappa() : 0.0, &device_coupling))) {
             // The device's PCG did not converge (a true Hessian that is not positive definite):
-            // the CPU's factorization with its LDL^T fallback.
-            if (!system->factorized)
+            // the CPU's assembly and factorization with its LDL^T fallback.
+            if (!system->factorized) {
+                Timer ta;
+                assemble_on_cpu(j == 0 ? sim.step_problem(k) : sim.substep_problem(k, j), x);
+                ta.add_to(st.assembly_time);
                 factorize_on_cpu(k);
+            }
             lambda = system->linear.solve(rhs);
         } else if (!system->on_device) {
             lambda = system->linear.solve(rhs);
@@ -487,8 +521,14 @@ void AdjointSweep::Impl::sweep_state(int k, int j, const VectorXd& x, double tim
         // Prescribed entries of x enter every free row through H: (H lambda)_i for prescribed i
         // (lambda vanishes on prescribed dofs, so only their couplings to free dofs count). A
         // periodic cell's couplings are those of q's entries, used above.
-        if (!sim.periodic())
+        if (system->on_device && !system->assembled) {
+            // The device's product (H lambda) on the prescribed dofs: the same sum as the couplings'.
+            for (Index i = 0; i < n; ++i)
+                if (constrained[size_t(i)])
+                    xb[i] -= device_coupling[i];
+        } else if (!sim.periodic()) {
             subtract_couplings(system->couplings, constrained, lambda, xb);
+        }
         // History: g contains -M x~.
         if (s.inertia) {
             const VectorXd Ml = sim.inertia().apply_mass(lambda);
@@ -560,7 +600,7 @@ void AdjointSweep::Impl::periodic_shape_terms(
     for (int i = 0; i < d; ++i)
         for (int jj = 0; jj < d; ++jj)
             Lambda(i, jj) = lq[map.macro_dof(i, jj)] / map.length();
-    const VectorXd r = xb - system->assembler.matrix().selfadjointView<Eigen::Lower>() * lambda;
+    const VectorXd r = xb - system->assembler().matrix().selfadjointView<Eigen::Lower>() * lambda;
     VectorXd g;
     (j == 0 ? sim.step_problem(k) : sim.substep_problem(k, j)).gradient(x, g);
     const MatrixXd F = MatrixXd::Identity(d, d) + G;
@@ -612,7 +652,7 @@ void AdjointSweep::Impl::finish()
         }
         const VectorXd& x0 = tr.initial_positions;
         // d a0 = M^-1 (df - d grad Psi - dM a0)
-        SparseAssembler& assembler = system->assembler;
+        SparseAssembler& assembler = system->assembler();
         system->step = -1;
         assembler.set_zero();
         elastic.add_hessian(x0, 1.0, false, assembler);
