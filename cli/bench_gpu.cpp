@@ -10,10 +10,10 @@
 #include "adjoint/adjoint.hpp"
 #include "forward/common/threads.hpp"
 #include "forward/common/timer.hpp"
-#include "objectives/objective_json.hpp"
 #include "forward/scene/scene.hpp"
 #include "forward/simulation/device_solver.hpp"
 #include "forward/simulation/simulator.hpp"
+#include "objectives/objective_json.hpp"
 
 #include <cstdio>
 #include <string>
@@ -99,8 +99,8 @@ namespace {
             device, to_string(r.status).c_str(), r.steps, r.steps ? double(r.iterations) / r.steps : 0.0, r.wall * per,
             p.assembly * per, p.factorization * per, p.solve * per, p.line_search * per);
         if (p.broad_phase + p.ccd + p.barrier > 0)
-            std::printf("       of which contact: broad phase %.4f, CCD %.4f, barrier %.4f s/step\n", p.broad_phase * per,
-                p.ccd * per, p.barrier * per);
+            std::printf("       of which contact: broad phase %.4f, CCD %.4f, barrier %.4f s/step\n",
+                p.broad_phase * per, p.ccd * per, p.barrier * per);
         if (r.pcg_iterations > 0)
             std::printf("       PCG %.0f iterations/step\n", double(r.pcg_iterations) * per);
         const DeviceSolver::ContactProfile& c = r.contact;

@@ -16,8 +16,8 @@
 
 #include <cub/device/device_radix_sort.cuh>
 #include <cub/device/device_select.cuh>
-#include <thrust/iterator/counting_iterator.h>
 #include <cuda_runtime.h>
+#include <thrust/iterator/counting_iterator.h>
 
 #include <climits>
 #include <stdexcept>
@@ -73,10 +73,9 @@ namespace {
             vertex_keys[size_t(p) * 4 + a] = v[a] >= 0 ? v[a] : nv;
             vertex_codes[size_t(p) * 4 + a] = p * 4 + a;
         }
-        eps_x[p] = PairKind(o[0]) == PairKind::EDGE_EDGE
-            ? edge_edge_mollifier_threshold(rest_point(rest, dim, v[0]), rest_point(rest, dim, v[1]),
-                  rest_point(rest, dim, v[2]), rest_point(rest, dim, v[3]))
-            : 0.0;
+        eps_x[p] = PairKind(o[0]) == PairKind::EDGE_EDGE ? edge_edge_mollifier_threshold(rest_point(rest, dim, v[0]),
+                       rest_point(rest, dim, v[1]), rest_point(rest, dim, v[2]), rest_point(rest, dim, v[3]))
+                                                         : 0.0;
         const long long invalid = (long long)nv * nv;
         for (int a = 0; a < 4; ++a)
             for (int b = 0; b < 4; ++b) {
@@ -114,7 +113,8 @@ namespace {
     }
 
     /// flags[i] = entry i starts a run of equal valid keys.
-    __global__ void run_starts(size_t n, long long invalid, const long long* __restrict__ keys, unsigned char* __restrict__ flags)
+    __global__ void run_starts(
+        size_t n, long long invalid, const long long* __restrict__ keys, unsigned char* __restrict__ flags)
     {
         const size_t i = size_t(blockIdx.x) * blockDim.x + threadIdx.x;
         if (i < n)
@@ -134,7 +134,8 @@ namespace {
     }
 
     /// The stable compaction of the indices whose flag is set; returns their count.
-    int select_flagged(const unsigned char* flags, int n, int* out, DeviceArray<int>& count, DeviceArray<unsigned char>& temp)
+    int select_flagged(
+        const unsigned char* flags, int n, int* out, DeviceArray<int>& count, DeviceArray<unsigned char>& temp)
     {
         thrust::counting_iterator<int> indices(0);
         size_t bytes = 0;

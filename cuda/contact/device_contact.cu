@@ -6,8 +6,8 @@
 
 #include <cub/device/device_reduce.cuh>
 #include <cub/device/device_select.cuh>
-#include <thrust/iterator/counting_iterator.h>
 #include <cuda_runtime.h>
+#include <thrust/iterator/counting_iterator.h>
 
 #include <chrono>
 #include <cmath>
@@ -113,17 +113,16 @@ namespace {
         for (int a = 0; a < nv; ++a)
             points[a] = point_of(x, c.v[a], L.dim);
         normal = c.plane >= 0 ? vec3::load(L.normals + 3 * size_t(c.plane)) : vec3(0, 0, 0);
-        eps_x = c.kind == PairKind::EDGE_EDGE
-            ? edge_edge_mollifier_threshold(point_of(L.rest, c.v[0], L.dim), point_of(L.rest, c.v[1], L.dim),
-                  point_of(L.rest, c.v[2], L.dim), point_of(L.rest, c.v[3], L.dim))
-            : 0.0;
+        eps_x = c.kind == PairKind::EDGE_EDGE ? edge_edge_mollifier_threshold(point_of(L.rest, c.v[0], L.dim),
+                    point_of(L.rest, c.v[1], L.dim), point_of(L.rest, c.v[2], L.dim), point_of(L.rest, c.v[3], L.dim))
+                                              : 0.0;
     }
 
     /// The CPU build_contacts' test with radius r: s < r^2 (s of the classified type), or for a plane
     /// pair h < r; `distance` is sqrt(s) (0 behind a plane), `gap2` (sqrt(max(s, 0)) - dmin)^2 with
     /// s = -1 behind a plane as the CPU stores it.
-    __device__ bool classify(const CandidateList& L, size_t k, const double* x, double radius, double dmin,
-        double& distance, double& gap2)
+    __device__ bool classify(
+        const CandidateList& L, size_t k, const double* x, double radius, double dmin, double& distance, double& gap2)
     {
         const Candidate c = load_candidate(L, k);
         vec3 points[4], normal;

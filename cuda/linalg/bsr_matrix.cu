@@ -133,11 +133,11 @@ void DeviceBsrMatrix::diagonal_blocks(double* d_out) const
     constexpr int THREADS = 256;
     const int blocks = (rows + THREADS - 1) / THREADS;
     if (m_block_size == 2)
-        bsr_diagonal_blocks<2><<<blocks, THREADS>>>(
-            rows, m_d_row_offsets.data(), m_d_col_indices.data(), m_d_values.data(), d_out);
+        bsr_diagonal_blocks<2>
+            <<<blocks, THREADS>>>(rows, m_d_row_offsets.data(), m_d_col_indices.data(), m_d_values.data(), d_out);
     else
-        bsr_diagonal_blocks<3><<<blocks, THREADS>>>(
-            rows, m_d_row_offsets.data(), m_d_col_indices.data(), m_d_values.data(), d_out);
+        bsr_diagonal_blocks<3>
+            <<<blocks, THREADS>>>(rows, m_d_row_offsets.data(), m_d_col_indices.data(), m_d_values.data(), d_out);
     check_cuda(cudaGetLastError(), "launch of the BSR diagonal blocks");
 }
 

@@ -25,9 +25,8 @@ namespace {
     /// fixed rows and columns made identity ones; a block without a Cholesky factorization gets its
     /// inverted diagonal.
     template <int B>
-    __global__ void invert_diagonal_blocks(
-        int block_rows, const double* __restrict__ blocks, const unsigned char* __restrict__ fixed,
-        double* __restrict__ inverses)
+    __global__ void invert_diagonal_blocks(int block_rows, const double* __restrict__ blocks,
+        const unsigned char* __restrict__ fixed, double* __restrict__ inverses)
     {
         const int br = blockIdx.x * blockDim.x + threadIdx.x;
         if (br >= block_rows)

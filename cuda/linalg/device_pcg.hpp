@@ -2,8 +2,8 @@
 /// @file device_pcg.hpp
 /// Preconditioned conjugate gradients on the GPU for a symmetric positive definite matrix given
 /// as a DeviceLinearOperator (linear_operator.hpp: a BSR matrix, bsr_matrix.hpp, or the sum of the
-/// elastic and contact matrices, cuda/contact/sum_operator.hpp), with a block-Jacobi preconditioner (the inverted b by b
-/// diagonal blocks) and Dirichlet-fixed dofs.
+/// elastic and contact matrices, cuda/contact/sum_operator.hpp), with a block-Jacobi preconditioner (the inverted b by
+/// b diagonal blocks) and Dirichlet-fixed dofs.
 ///
 /// Fixed dofs are eliminated: with P the diagonal 0/1 matrix that zeroes them, the solve is
 /// (P A P + I - P) x = P b, i.e. A_ff x_f = b_f on the free dofs and x = 0 on the fixed ones.

@@ -551,7 +551,8 @@ void DeviceNewton::set_material_scale(const std::vector<int>& models, const std:
 double DeviceNewton::material_scale() const { return m_impl->material_scale; }
 
 PcgResult DeviceNewton::solve_true_hessian(const std::vector<double>& x_host, double weight,
-    const std::vector<double>& b_host, std::vector<double>& y_host, double relative_tolerance, int max_iterations)
+    const std::vector<double>& b_host, std::vector<double>& y_host, double relative_tolerance, int max_iterations,
+    std::vector<double>* product)
 {
     Impl& m = *m_impl;
     const size_t n = m.n;
@@ -579,6 +580,10 @@ PcgResult DeviceNewton::solve_true_hessian(const std::vector<double>& x_host, do
     m.pcg.settings() = PcgSettings { relative_tolerance, max_iterations };
     const PcgResult r = m.pcg.solve_device(m.system(m_contact), m.rhs.data(), m.p.data());
     y_host = m.p.download();
+    if (product) {
+        m.system(m_contact).multiply(m.p.data(), m.coupling.data(), nullptr);
+        *product = m.coupling.download();
+    }
     return r;
 }
 
@@ -902,8 +907,8 @@ ContactBalance DeviceNewton::balance_at(const std::vector<double>& x, const std:
 {
     Impl& m = *m_impl;
     if (x.size() != m.n || force.size() != m.n || (m.dynamic && inertial_target.size() != m.n))
-        throw std::invalid_argument("DeviceNewton::balance_at: x, inertial_target and force need #dofs = "
-            + std::to_string(m.n) + " entries");
+        throw std::invalid_argument(
+            "DeviceNewton::balance_at: x, inertial_target and force need #dofs = " + std::to_string(m.n) + " entries");
     if (!m_contact)
         return {};
     m.contact = m_contact;

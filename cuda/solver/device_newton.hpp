@@ -2,9 +2,10 @@
 /// @file device_newton.hpp
 /// One time step's Newton solve on the GPU: the device twin of NewtonSolver
 /// (forward/solver/newton.hpp) for scenes of elastic bodies with inertia, external forces,
-/// Dirichlet conditions and (set_contact()) IPC barrier contact without friction. The mesh, its material data, the Hessian's pattern and
-/// every work vector stay on the device; per solve, the start x, the inertial target, the force
-/// and the prescribed targets are copied up and the converged x copied back (the step record).
+/// Dirichlet conditions and (set_contact()) IPC barrier contact without friction. The mesh, its
+/// material data, the Hessian's pattern and every work vector stay on the device; per solve, the
+/// start x, the inertial target, the force and the prescribed targets are copied up and the
+/// converged x copied back (the step record).
 ///
 /// Incremental potential (docs/math.md), the CPU's:
 ///   E(x) = 1/2 (x - xt)^T M (x - xt) + w [Psi(x) + B(x) - f^T x]
@@ -186,8 +187,10 @@ public:
     /// @param y       out: #dofs solution (valid when converged)
     /// @return the PCG's result: a breakdown means the true Hessian is not positive definite on the
     ///         free dofs, and the caller must solve otherwise (the CPU's LDL^T)
+    /// @param product if given: #dofs, (M + w (H_Psi + H_B)) y without the constraints (the full
+    ///                matrix times y; on the constrained dofs, their couplings to the free ones times y)
     PcgResult solve_true_hessian(const std::vector<double>& x, double weight, const std::vector<double>& b,
-        std::vector<double>& y, double relative_tolerance, int max_iterations);
+        std::vector<double>& y, double relative_tolerance, int max_iterations, std::vector<double>* product = nullptr);
 
     /// @brief Adds the contact barrier (nullptr: none). The contact object must outlive its use; its
     /// kappa is read at every evaluation.
@@ -206,8 +209,8 @@ public:
     /// @brief The balancing products at a host state, before a solve (the step's start: the CPU's
     /// update_kappa_for_step); builds the active set there.
     /// @param x, inertial_target, force as solve()'s; @param weight w
-    ContactBalance balance_at(const std::vector<double>& x, const std::vector<double>& inertial_target,
-        double weight, const std::vector<double>& force);
+    ContactBalance balance_at(const std::vector<double>& x, const std::vector<double>& inertial_target, double weight,
+        const std::vector<double>& force);
 
     const DeviceElasticMesh& mesh() const { return m_mesh; }
 

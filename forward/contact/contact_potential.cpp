@@ -118,12 +118,13 @@ void ContactPotential::build_contacts(const VectorXd& x, ContactSet& out, double
             c = classify(ContactKind::VERTEX_EDGE, { v, m_mesh.edges(e, 0), m_mesh.edges(e, 1), -1 }, -1, x);
         } else if (k < n_ve + n_vf) {
             const auto& [v, f] = vf[k - n_ve];
-            c = classify(ContactKind::VERTEX_FACE, { v, m_mesh.faces(f, 0), m_mesh.faces(f, 1), m_mesh.faces(f, 2) },
-                -1, x);
+            c = classify(
+                ContactKind::VERTEX_FACE, { v, m_mesh.faces(f, 0), m_mesh.faces(f, 1), m_mesh.faces(f, 2) }, -1, x);
         } else if (k < n_ve + n_vf + n_ee) {
             const auto& [ea, eb] = ee[k - n_ve - n_vf];
             c = classify(ContactKind::EDGE_EDGE,
-                { m_mesh.edges(ea, 0), m_mesh.edges(ea, 1), m_mesh.edges(eb, 0), m_mesh.edges(eb, 1) }, -1, x);
+                { m_mesh.edges(ea, 0), m_mesh.edges(ea, 1), m_mesh.edges(eb, 0), m_mesh.edges(eb, 1) }, -1, x,
+                /*threshold=*/false);
         } else {
             const size_t q = k - n_ve - n_vf - n_ee;
             const size_t k_plane = q / m_plane_vertices.size();
@@ -131,14 +132,19 @@ void ContactPotential::build_contacts(const VectorXd& x, ContactSet& out, double
                 { m_plane_vertices[q % m_plane_vertices.size()], m_planes[k_plane].vertex, -1, -1 }, int(k_plane), x);
         }
         // s < r^2; for a plane pair h < radius, i.e. h^2 < r^2 in front of the plane and s = -1 behind it.
-        if (c.distance_squared < r2)
-            kept.push_back(c);
+        if (!(c.distance_squared < r2))
+            return;
+        if (c.kind == ContactKind::EDGE_EDGE) // the mollifier threshold of the kept pairs only
+            c.mollifier_threshold
+                = edge_edge_mollifier_threshold(rest_point(m_rest, c.vertices[0]), rest_point(m_rest, c.vertices[1]),
+                    rest_point(m_rest, c.vertices[2]), rest_point(m_rest, c.vertices[3]));
+        kept.push_back(c);
     });
     t.add_to(m_times.barrier);
 }
 
 Contact ContactPotential::classify(
-    ContactKind kind, const std::array<Index, 4>& vertices, int plane, const VectorXd& x) const
+    ContactKind kind, const std::array<Index, 4>& vertices, int plane, const VectorXd& x, bool threshold) const
 {
     const int dim = m_mesh.dim;
     Contact c;
@@ -166,8 +172,9 @@ Contact ContactPotential::classify(
         const EdgeEdgeDistanceType type = edge_edge_distance_type(pa0, pa1, pb0, pb1);
         c.distance_type = int(type);
         c.distance_squared = edge_edge_distance(pa0, pa1, pb0, pb1, type);
-        c.mollifier_threshold = edge_edge_mollifier_threshold(rest_point(m_rest, vertices[0]),
-            rest_point(m_rest, vertices[1]), rest_point(m_rest, vertices[2]), rest_point(m_rest, vertices[3]));
+        if (threshold)
+            c.mollifier_threshold = edge_edge_mollifier_threshold(rest_point(m_rest, vertices[0]),
+                rest_point(m_rest, vertices[1]), rest_point(m_rest, vertices[2]), rest_point(m_rest, vertices[3]));
         break;
     }
     case ContactKind::VERTEX_PLANE: {

@@ -72,7 +72,10 @@ public:
     /// order; plane: the plane's index for VERTEX_PLANE, else -1): its closest-feature type and squared
     /// distance (-1 for a vertex behind a plane), and an edge-edge pair's mollifier threshold; whether
     /// it is active is up to the caller (contacts() keeps those with s < (dmin + dhat)^2).
-    Contact classify(ContactKind kind, const std::array<Index, 4>& vertices, int plane, const VectorXd& x) const;
+    /// @param threshold compute an edge-edge pair's mollifier threshold (contacts() does it only for
+    ///                  the pairs it keeps)
+    Contact classify(ContactKind kind, const std::array<Index, 4>& vertices, int plane, const VectorXd& x,
+        bool threshold = true) const;
     /// Active contacts at x (cached for the last x asked about).
     const ContactSet& contacts(const VectorXd& x) const;
     /// contacts() at surface positions y (surface_positions(x)); the same without images.

@@ -196,8 +196,8 @@ void DeviceSolver::begin_step(double kappa, const AdaptiveKappa& adaptive, const
     d.weight = weight;
     if (!adaptive.enabled)
         return;
-    const std::vector<double> xt = inertial_target.size() == x.size() ? to_std(inertial_target)
-                                                                       : std::vector<double>(size_t(x.size()), 0.0);
+    const std::vector<double> xt
+        = inertial_target.size() == x.size() ? to_std(inertial_target) : std::vector<double>(size_t(x.size()), 0.0);
     const gpu::ContactBalance b = d.newton->balance_at(to_std(x), xt, weight, to_std(force));
     const bool active = b.active > 0;
     if (active)
@@ -216,8 +216,8 @@ ContactSet DeviceSolver::contacts(const VectorXd& x) const
     const std::vector<gpu::BarrierPair>& pairs = m_impl->contact->active_pairs();
     out.reserve(pairs.size());
     for (const gpu::BarrierPair& p : pairs)
-        out.push_back(m_cpu_contact->classify(ContactKind(p.kind),
-            { p.vertices[0], p.vertices[1], p.vertices[2], p.vertices[3] }, p.plane, x));
+        out.push_back(m_cpu_contact->classify(
+            ContactKind(p.kind), { p.vertices[0], p.vertices[1], p.vertices[2], p.vertices[3] }, p.plane, x));
     return out;
 }
 
@@ -293,22 +293,24 @@ NewtonResult DeviceSolver::solve(VectorXd& x, const VectorXd& inertial_target, d
 }
 
 bool DeviceSolver::solve_adjoint(
-    const VectorXd& x, double weight, const VectorXd& b, VectorXd& y, int* iterations, double kappa)
+    const VectorXd& x, double weight, const VectorXd& b, VectorXd& y, int* iterations, double kappa, VectorXd* coupling)
 {
     if (m_impl->contact)
         m_impl->contact->set_kappa(kappa);
     // The adjoint of the tests' gradient checks needs 1e-6 relative agreement with the CPU's direct
     // solve: 1e-12 relative residual leaves the solution's error far below that on conditioned steps.
     constexpr double TOLERANCE = 1e-12;
-    std::vector<double> out;
-    const gpu::PcgResult r
-        = m_impl->newton->solve_true_hessian(to_std(x), weight, to_std(b), out, TOLERANCE, 50 * int(x.size()) + 100);
+    std::vector<double> out, product;
+    const gpu::PcgResult r = m_impl->newton->solve_true_hessian(
+        to_std(x), weight, to_std(b), out, TOLERANCE, 50 * int(x.size()) + 100, coupling ? &product : nullptr);
     if (iterations)
         *iterations = r.iterations;
     if (!r.converged || r.breakdown)
         return false;
     y = Eigen::Map<const VectorXd>(out.data(), Index(out.size()));
-    return y.allFinite();
+    if (coupling)
+        *coupling = Eigen::Map<const VectorXd>(product.data(), Index(product.size()));
+    return y.allFinite() && (!coupling || coupling->allFinite());
 }
 
 #else // no CUDA in this build
@@ -345,7 +347,10 @@ NewtonResult DeviceSolver::solve(
     return {};
 }
 
-bool DeviceSolver::solve_adjoint(const VectorXd&, double, const VectorXd&, VectorXd&, int*, double) { return false; }
+bool DeviceSolver::solve_adjoint(const VectorXd&, double, const VectorXd&, VectorXd&, int*, double, VectorXd*)
+{
+    return false;
+}
 
 void DeviceSolver::begin_step(double, const AdaptiveKappa&, const VectorXd&, const VectorXd&, double, const VectorXd&)
 {

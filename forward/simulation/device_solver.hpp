@@ -102,8 +102,10 @@ public:
     /// active set at x with stiffness `kappa` in a contact scene); y = 0 on constrained dofs.
     /// @return false if PCG did not converge (a true Hessian that is not positive definite, or the
     ///         iteration cap): the caller then factorizes on the CPU
+    /// @param coupling if given: #dofs, H y without the constraints (on the constrained dofs: their
+    ///                 couplings to the free ones times y, what the adjoint subtracts there)
     bool solve_adjoint(const VectorXd& x, double weight, const VectorXd& b, VectorXd& y, int* iterations = nullptr,
-        double kappa = 0);
+        double kappa = 0, VectorXd* coupling = nullptr);
 
     /// PCG iterations of the last solve() (all its Newton iterations).
     int last_pcg_iterations() const { return m_last_pcg_iterations; }

@@ -278,7 +278,8 @@ Simulator::Simulator(Scene scene, const SimulationParameters& parameters)
     }
     m_integrator->initialize(x0, v0, a0);
     if (m_scene.device == DeviceType::GPU && m_friction)
-        throw InputError("device", "\"gpu\" has no friction yet (here from the run's friction parameters); use \"cpu\"");
+        throw InputError(
+            "device", "\"gpu\" has no friction yet (here from the run's friction parameters); use \"cpu\"");
     if (m_scene.device == DeviceType::GPU)
         m_device = std::make_unique<DeviceSolver>(
             *m_elastic, m_integrator->dynamic() ? m_inertia.get() : nullptr, m_constrained, m_contact.get());

@@ -5,9 +5,9 @@
 // dmin, and the GPU's recorded active set equal to the CPU's at the same state. Skipped without a GPU.
 
 #include "adjoint/adjoint.hpp"
-#include "tests/cuda/simulation/adjoint_test_utils.hpp"
 #include "cuda/common/device.hpp"
 #include "forward/contact/intersection.hpp"
+#include "tests/cuda/simulation/adjoint_test_utils.hpp"
 #include "tests/forward/contact/contact_scenes.hpp"
 #include "tests/forward/test_utils.hpp"
 
@@ -132,8 +132,7 @@ ContactComparison run_both(json s, const std::string& name, double tolerance, co
                 "per step from the same start %.2e (step %d); CPU residual at the GPU's states %.1e; Newton "
                 "iterations CPU %d, GPU %d (%ld PCG); kappa differs in %d steps\n",
         name.c_str(), c.steps, c.max_active, c.worst, size, c.worst_step, c.worst_step_index, c.cpu_residual,
-        c.cpu_iterations,
-        c.gpu_iterations, gpu.device_solver()->total_pcg_iterations(), c.kappa_differs);
+        c.cpu_iterations, c.gpu_iterations, gpu.device_solver()->total_pcg_iterations(), c.kappa_differs);
     if (tolerance > 0) {
         EXPECT_LE(c.worst_step, tolerance) << name;
         if (c.kappa_differs == 0)
@@ -256,8 +255,8 @@ TEST(DeviceContactSimulation, AdjointGradientEqualsTheCpus)
     json boxes = study_scene("202_boxes_head_on", 6);
     boxes["contact"]["kappa"] = 1e12;
     boxes["solver"]["residual_tolerance"] = 1e-10;
-    const std::pair<json*, std::string> cases[] = { { &rings, "2D rings on a plane" },
-        { &boxes, "202 boxes head on (3D)" } };
+    const std::pair<json*, std::string> cases[]
+        = { { &rings, "2D rings on a plane" }, { &boxes, "202 boxes head on (3D)" } };
     for (const auto& [scene, name] : cases) {
         ParameterGradient g[2];
         AdjointStatistics stats[2];
