@@ -1,0 +1,177 @@
+// cuda/contact/pair_friction.cuh, one pair at a time, on the CPU: the lagged friction pairs of 3D and
+// 2D contact scenes summed over the pairs against the CPU's FrictionPotential (value, gradient,
+// Hessian), in the sticking (|u| < eps) and sliding regimes; and each pair's gradient and Hessian
+// against finite differences of its energy. Runs without a GPU.
+
+#include "cuda/contact/pair_friction.cuh"
+#include "forward/contact/friction/friction_potential.hpp"
+#include "tests/cuda/contact/contact_test_utils.hpp"
+
+using namespace diffipc;
+
+namespace {
+
+gpu::FrictionPair to_pair(const FrictionContact& c)
+{
+    gpu::FrictionPair f;
+    f.num_vertices = c.num_vertices;
+    for (int i = 0; i < 4; ++i)
+        f.weights[i] = c.weights[size_t(i)];
+    for (int k = 0; k < 3; ++k) {
+        f.tangent[k] = c.tangent(k, 0);
+        f.tangent[3 + k] = c.tangent(k, 1);
+    }
+    f.scale = c.coefficient * c.normal_force;
+    return f;
+}
+
+/// The pair's displacements x_i - x0_i as the port takes them (z = 0 in 2D).
+void displacements(const FrictionContact& c, const VectorXd& x, const VectorXd& x0, int dim, gpu::vec3* dx)
+{
+    for (int i = 0; i < c.num_vertices; ++i) {
+        const Index v = c.vertices[size_t(i)];
+        const Eigen::Vector3d d = vertex_point(x, v, dim) - vertex_point(x0, v, dim);
+        dx[i] = gpu::vec3(d.x(), d.y(), d.z());
+    }
+}
+
+/// Compares the port, summed over the lagged pairs, with FrictionPotential at x; returns the pairs.
+int compare_with_cpu(const test::ContactScene& scene, double motion, const std::string& what)
+{
+    const Simulator& sim = *scene.sim;
+    const int dim = scene.dim();
+    const Index n = scene.x.size();
+    const std::vector<double> mu = { 0.3, 0.5, 0.4, 0.6 }; // per contact group (bodies, then obstacles)
+    const std::vector<double> groups(
+        mu.begin(), mu.begin() + Index(sim.scene().bodies.size() + sim.scene().obstacles.size()));
+    FrictionPotential friction(dim, groups, sim.mesh().vertex_body, 1e-3);
+    const double dt = 0.01; // eps = 1e-5 m
+    const VectorXd x0 = scene.x - motion * test::random_vector(n, 3);
+    friction.set_step(x0, dt);
+    friction.lag(scene.contact(), scene.x);
+    const std::vector<FrictionContact>& pairs = friction.lagged();
+    EXPECT_GT(pairs.size(), 0u) << what;
+
+    double energy = 0;
+    VectorXd g = VectorXd::Zero(n);
+    std::vector<Eigen::Triplet<double>> triplets;
+    int sticking = 0;
+    for (const FrictionContact& c : pairs) {
+        const gpu::FrictionPair f = to_pair(c);
+        gpu::vec3 dx[4];
+        displacements(c, scene.x, x0, dim, dx);
+        const int m = c.num_vertices * dim;
+        double grad[12], hess[144];
+        energy += gpu::pair_friction(dim, f, dx, friction.eps(), grad, hess);
+        for (int i = 0; i < c.num_vertices; ++i)
+            for (int a = 0; a < dim; ++a) {
+                g[c.vertices[size_t(i)] * dim + a] += grad[i * dim + a];
+                for (int j = 0; j < c.num_vertices; ++j)
+                    for (int b = 0; b < dim; ++b)
+                        triplets.emplace_back(c.vertices[size_t(i)] * dim + a, c.vertices[size_t(j)] * dim + b,
+                            hess[(i * dim + a) * m + j * dim + b]);
+            }
+        // The sticking regime: the pair's tangential displacement below eps.
+        Eigen::Vector3d r = Eigen::Vector3d::Zero();
+        for (int i = 0; i < c.num_vertices; ++i)
+            r += c.weights[size_t(i)] * Eigen::Vector3d(dx[i].x, dx[i].y, dx[i].z);
+        sticking += (c.tangent.transpose() * r).head(dim - 1).norm() < friction.eps();
+    }
+    SparseMatrixd H(n, n);
+    H.setFromTriplets(triplets.begin(), triplets.end());
+
+    const double e_cpu = friction.value(scene.x);
+    VectorXd g_cpu = VectorXd::Zero(n);
+    friction.add_gradient(scene.x, 1.0, g_cpu);
+    SparseAssembler A;
+    A.build(dim, sim.mesh().num_vertices(), sim.mesh().elements);
+    A.set_zero();
+    friction.add_hessian(scene.x, 1.0, false, A);
+    A.finalize();
+    const SparseMatrixd H_cpu = A.matrix().selfadjointView<Eigen::Lower>();
+
+    const double de = std::abs(energy - e_cpu) / std::abs(e_cpu);
+    const double dg = (g - g_cpu).lpNorm<Eigen::Infinity>() / g_cpu.lpNorm<Eigen::Infinity>();
+    const double dh = test::relative_difference(H, H_cpu);
+    EXPECT_GT(e_cpu, 0) << what;
+    EXPECT_LE(de, 1e-13) << what;
+    EXPECT_LE(dg, 1e-13) << what;
+    EXPECT_LE(dh, 1e-13) << what;
+    std::printf("  %s: %zu friction pairs (%d sticking): energy %.1e, gradient %.1e, Hessian %.1e relative\n",
+        what.c_str(), pairs.size(), sticking, de, dg, dh);
+    return int(pairs.size());
+}
+
+} // namespace
+
+TEST(GpuPairFriction, EqualsFrictionPotential3D)
+{
+    for (double motion : { 2e-6, 1e-3 })
+        compare_with_cpu(test::boxes_on_plane(6, 0.3, 5e-5, { { "dhat", 1e-3 }, { "kappa", 3.0 } }), motion,
+            "3D boxes, motion " + std::to_string(motion));
+}
+
+TEST(GpuPairFriction, EqualsFrictionPotential2D)
+{
+    for (double motion : { 2e-6, 1e-3 }) {
+        compare_with_cpu(test::rings_on_plane(1e-5, { { "dhat", 1e-3 }, { "kappa", 3.0 } }), motion,
+            "2D rings, motion " + std::to_string(motion));
+        compare_with_cpu(test::boxes_on_plane_2d(6, 3e-4, 1e-5, { { "dhat", 1e-3 }, { "kappa", 3.0 } }), motion,
+            "2D boxes, motion " + std::to_string(motion));
+    }
+}
+
+TEST(GpuPairFriction, DerivativesMatchFiniteDifferences)
+{
+    // One 3D vertex-face-like pair of 4 vertices and one 2D pair of 3, in both regimes.
+    const double eps = 1e-5;
+    for (int dim : { 2, 3 })
+        for (double size : { 3e-6, 4e-5 }) {
+            gpu::FrictionPair f;
+            f.num_vertices = dim == 3 ? 4 : 3;
+            const double w[4] = { 1.0, -0.2, -0.5, -0.3 };
+            const double w2[3] = { 1.0, -0.4, -0.6 };
+            for (int i = 0; i < f.num_vertices; ++i)
+                f.weights[i] = dim == 3 ? w[i] : w2[i];
+            const double s = 1 / std::sqrt(2.0);
+            const double t3[6] = { s, 0, s, -0.5, s, 0.5 };
+            const double t2[6] = { 0, 1, 0, 0, 0, 0 };
+            for (int k = 0; k < 6; ++k)
+                f.tangent[k] = dim == 3 ? t3[k] : t2[k];
+            f.scale = 2.5;
+            const int n = f.num_vertices * dim;
+            const VectorXd base = size * test::random_vector(n, 5);
+            auto energy_at = [&](const VectorXd& q, double* grad, double* hess) {
+                gpu::vec3 dx[4];
+                for (int i = 0; i < f.num_vertices; ++i)
+                    dx[i] = gpu::vec3(q[i * dim], q[i * dim + 1], dim == 3 ? q[i * dim + 2] : 0.0);
+                return gpu::pair_friction(dim, f, dx, eps, grad, hess);
+            };
+            double grad[12], hess[144];
+            energy_at(base, grad, hess);
+            const double h = 1e-4 * size;
+            double worst_g = 0, worst_h = 0, gmax = 0, hmax = 0;
+            for (int k = 0; k < n; ++k) {
+                VectorXd p = base, m = base;
+                p[k] += h;
+                m[k] -= h;
+                double gp[12], gm[12];
+                const double fd = (energy_at(p, gp, nullptr) - energy_at(m, gm, nullptr)) / (2 * h);
+                worst_g = std::max(worst_g, std::abs(fd - grad[k]));
+                gmax = std::max(gmax, std::abs(grad[k]));
+                for (int l = 0; l < n; ++l) {
+                    worst_h = std::max(worst_h, std::abs((gp[l] - gm[l]) / (2 * h) - hess[l * n + k]));
+                    hmax = std::max(hmax, std::abs(hess[l * n + k]));
+                }
+            }
+            // The Hessian's scale: its largest entry, or the force over the displacement where the Hessian
+            // vanishes (2D sliding: a force of constant size along the one tangent, whose difference
+            // quotient is round-off of order eps_mach |g| / h).
+            const double h_scale = std::max(hmax, gmax / size);
+            EXPECT_LE(worst_g, 1e-6 * gmax) << dim << "D, size " << size;
+            EXPECT_LE(worst_h, 1e-6 * h_scale) << dim << "D, size " << size;
+            std::printf("  %dD pair, |dx| ~ %.0e (eps %.0e): gradient %.1e, Hessian %.1e relative to finite "
+                        "differences\n",
+                dim, size, eps, worst_g / gmax, worst_h / h_scale);
+        }
+}
