@@ -96,7 +96,7 @@ private:
     // Scratch: per-pair energies, gradients (4 dim * #P) and Hessians ((4 dim)^2 * #P), reductions.
     mutable DeviceArray<double> m_pair_energy, m_pair_gradient, m_pair_hessian, m_partials, m_scalar;
     // set_pairs_device's scratch: sort keys and values, flags, cub's temporary storage.
-    DeviceArray<int> m_keys, m_sorted_keys, m_codes, m_heads, m_count;
+    DeviceArray<int> m_keys, m_sorted_keys, m_codes, m_heads, m_count, m_bounds, m_columns, m_block_rows;
     DeviceArray<long long> m_block_keys, m_sorted_block_keys, m_head_keys;
     DeviceArray<unsigned char> m_flags, m_temp;
 };

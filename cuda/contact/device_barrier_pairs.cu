@@ -228,27 +228,29 @@ void DeviceBarrier::set_pairs_device(const int* d_pairs, int np)
     check_launch("launch of the slot starts");
     const int slots = select_flagged(m_flags.data(), int(n16), m_heads.data(), m_count, m_temp);
     // The valid entries: those before the first invalid key.
-    DeviceArray<int> valid(2); // lower bounds of 0 and of `invalid`
-    lower_bounds<long long><<<1, 2>>>(2, m_sorted_block_keys.data(), n16, invalid, valid.data());
+    m_bounds.resize(2); // lower bounds of 0 and of `invalid`
+    lower_bounds<long long><<<1, 2>>>(2, m_sorted_block_keys.data(), n16, invalid, m_bounds.data());
     check_launch("launch of the valid entries' count");
     int num_valid = 0;
-    detail::copy_device_to_host(&num_valid, valid.data() + 1, sizeof(int));
+    detail::copy_device_to_host(&num_valid, m_bounds.data() + 1, sizeof(int));
     m_slot_offsets.resize(size_t(slots) + 1);
     detail::copy_device_to_device(m_slot_offsets.data(), m_heads.data(), size_t(slots) * sizeof(int));
     detail::copy_host_to_device(m_slot_offsets.data() + slots, &num_valid, sizeof(int));
     ensure(m_head_keys, size_t(slots));
-    DeviceArray<int> columns { size_t(slots) };
+    ensure(m_columns, size_t(slots));
     slot_columns<<<grid(size_t(slots)), THREADS>>>(
-        slots, nv, m_heads.data(), m_sorted_block_keys.data(), m_head_keys.data(), columns.data());
+        slots, nv, m_heads.data(), m_sorted_block_keys.data(), m_head_keys.data(), m_columns.data());
     check_launch("launch of the slot columns");
     // Row offsets: the first slot whose key is >= r nv.
-    DeviceArray<int> row_offsets(size_t(nv) + 1);
+    m_block_rows.resize(size_t(nv) + 1);
     lower_bounds<long long><<<grid(size_t(nv) + 1), THREADS>>>(
-        nv + 1, m_head_keys.data(), size_t(slots), (long long)nv, row_offsets.data());
+        nv + 1, m_head_keys.data(), size_t(slots), (long long)nv, m_block_rows.data());
     check_launch("launch of the row offsets");
     // The pattern on the host (make_hessian_matrix, SumOperator::bind).
-    m_pairs.row_offsets = row_offsets.download();
-    m_pairs.col_indices = columns.download();
+    m_pairs.row_offsets = m_block_rows.download();
+    m_pairs.col_indices.resize(size_t(slots));
+    if (slots > 0)
+        detail::copy_device_to_host(m_pairs.col_indices.data(), m_columns.data(), size_t(slots) * sizeof(int));
 }
 
 } // namespace diffipc::gpu

@@ -195,14 +195,4 @@ void SumOperator::assemble_sum(DeviceBsrMatrix& S) const
     check_launch("launch of the matrix sum");
 }
 
-std::vector<double> SumOperator::multiply(const std::vector<double>& x) const
-{
-    if (x.size() != size_t(size()))
-        throw std::invalid_argument("SumOperator::multiply: x has " + std::to_string(x.size())
-            + " entries, the operator " + std::to_string(size()) + " columns");
-    DeviceArray<double> d_x(x), d_y(x.size());
-    multiply(d_x.data(), d_y.data());
-    return d_y.download();
-}
-
 } // namespace diffipc::gpu

@@ -69,7 +69,7 @@ public:
     }
 
     /// @brief y = (A + C) x with host vectors (size() each); synchronizes.
-    std::vector<double> multiply(const std::vector<double>& x) const;
+    using DeviceLinearOperator::multiply;
 
 private:
     /// The union pattern and the slot maps (once per bind()).

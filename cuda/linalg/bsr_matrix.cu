@@ -141,14 +141,4 @@ void DeviceBsrMatrix::diagonal_blocks(double* d_out) const
     check_cuda(cudaGetLastError(), "launch of the BSR diagonal blocks");
 }
 
-std::vector<double> DeviceBsrMatrix::multiply(const std::vector<double>& x) const
-{
-    if (x.size() != size_t(size()))
-        throw std::invalid_argument("DeviceBsrMatrix::multiply: x has " + std::to_string(x.size())
-            + " entries, the matrix " + std::to_string(size()) + " columns");
-    DeviceArray<double> d_x(x), d_y(x.size());
-    multiply(d_x.data(), d_y.data());
-    return d_y.download();
-}
-
 } // namespace diffipc::gpu

@@ -65,8 +65,7 @@ public:
     void multiply(const double* d_x, double* d_y, const unsigned char* d_fixed = nullptr) const override;
     /// @brief d_out = the diagonal blocks (DeviceLinearOperator). Asynchronous.
     void diagonal_blocks(double* d_out) const override;
-    /// @brief y = A x with host vectors (size() each); synchronizes.
-    std::vector<double> multiply(const std::vector<double>& x) const;
+    using DeviceLinearOperator::multiply; // y = A x with host vectors
 
 private:
     int m_block_size = 0;

@@ -6,6 +6,8 @@
 /// without a union pattern, is another. Host API (plain C++); vectors are device pointers of
 /// size() doubles, flattened vertex-major (xyzxyz).
 
+#include <vector>
+
 namespace diffipc::gpu {
 
 class DeviceLinearOperator {
@@ -25,6 +27,10 @@ public:
     /// @brief d_out = the diagonal blocks, #block rows * b^2 doubles (block r row-major at r b^2; zero
     /// where the pattern has no diagonal block). Asynchronous.
     virtual void diagonal_blocks(double* d_out) const = 0;
+
+    /// @brief y = A x with host vectors (size() each; copied up and back); synchronizes.
+    /// @throws std::invalid_argument if x has not size() entries
+    std::vector<double> multiply(const std::vector<double>& x) const;
 };
 
 } // namespace diffipc::gpu

@@ -63,6 +63,17 @@ std::vector<gpu::PlaneObstacle> to_device(const std::vector<ContactPlane>& plane
     return out;
 }
 
+gpu::DeviceContactSettings to_device(const ContactSettings& cs)
+{
+    gpu::DeviceContactSettings s;
+    s.kappa = cs.kappa;
+    s.dhat = cs.dhat;
+    s.min_distance = cs.min_distance;
+    s.ccd_max_iterations = cs.ccd_max_iterations;
+    s.ccd_rescaling = cs.ccd_rescaling;
+    return s;
+}
+
 struct DeviceSolver::Impl {
     gpu::DeviceElasticMesh mesh;
     std::unique_ptr<gpu::DeviceContact> contact;
@@ -168,15 +179,8 @@ DeviceSolver::DeviceSolver(const ElasticPotential& elastic, const InertiaPotenti
     m_impl->newton->set_force_reference(rest);
     m_impl->newton->set_material_scale(models, to_std(elastic.mu()));
     if (contact) {
-        const ContactSettings& cs = contact->settings();
-        gpu::DeviceContactSettings s;
-        s.kappa = cs.kappa;
-        s.dhat = cs.dhat;
-        s.min_distance = cs.min_distance;
-        s.ccd_max_iterations = cs.ccd_max_iterations;
-        s.ccd_rescaling = cs.ccd_rescaling;
         m_impl->contact = std::make_unique<gpu::DeviceContact>(
-            to_device(contact->collision_mesh()), rest, to_device(contact->planes()), s);
+            to_device(contact->collision_mesh()), rest, to_device(contact->planes()), to_device(contact->settings()));
         m_impl->newton->set_contact(m_impl->contact.get());
         m_impl->newton->set_end_iteration([impl = m_impl.get()]() { return impl->end_iteration(); });
     }

@@ -31,6 +31,7 @@
 
 #ifdef DIFFIPC_HAVE_CUDA
 #include "cuda/broad_phase/step_bound.hpp" // plain C++: gpu::CollisionMeshData, gpu::PlaneObstacle
+#include "cuda/contact/device_contact.hpp" // plain C++: gpu::DeviceContactSettings
 #endif
 
 namespace diffipc {
@@ -40,6 +41,8 @@ namespace diffipc {
 gpu::CollisionMeshData to_device(const CollisionMesh& mesh);
 /// The CPU's plane obstacles as the device's (cuda/broad_phase/step_bound.hpp).
 std::vector<gpu::PlaneObstacle> to_device(const std::vector<ContactPlane>& planes);
+/// The barrier's settings as the device contact takes them (kappa, dhat, dmin, the CCD's).
+gpu::DeviceContactSettings to_device(const ContactSettings& settings);
 #endif
 
 class DeviceSolver {

@@ -16,10 +16,8 @@ namespace {
 
 gpu::DeviceContact device_contact(const test::ContactScene& scene)
 {
-    const ContactSettings& s = scene.contact().settings();
     return gpu::DeviceContact(to_device(scene.contact().collision_mesh()), scene.rest_vector(),
-        to_device(scene.contact().planes()),
-        gpu::DeviceContactSettings { s.kappa, s.dhat, s.min_distance, s.ccd_max_iterations, s.ccd_rescaling });
+        to_device(scene.contact().planes()), to_device(scene.contact().settings()));
 }
 
 void compare_with_cpu(const test::ContactScene& scene, const std::string& what)
