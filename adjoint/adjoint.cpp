@@ -292,6 +292,8 @@ void AdjointSweep::Impl::factorize(int k, int j, const VectorXd& x)
     a.assembled = false;
     a.on_device = sim.device_solver() && j == 0;
     a.weight = problem.weight(&sim.elastic());
+    if (a.on_device && sim.friction()) // the step's lagged friction (step_problem(k) set it) in the device's matrix
+        sim.device_solver()->set_friction(*sim.friction());
     if (!a.on_device) {
         assemble_on_cpu(problem, x);
         ta.add_to(st.assembly_time);

@@ -23,7 +23,7 @@ namespace diffipc {
 namespace {
 
     struct Run {
-        int steps = 0, iterations = 0;
+        int steps = 0, iterations = 0, line_search_cuts = 0, friction_solves = 0;
         double wall = 0;
         PhaseTimes phases;
         StepStatus status = StepStatus::CONVERGED;
@@ -62,6 +62,9 @@ namespace {
         r.iterations = t.newton_iterations - warm.newton_iterations;
         r.wall = t.wall_time - warm.wall_time;
         r.phases = t.phases - warm.phases;
+        r.line_search_cuts = t.totals.line_search_cuts - warm.totals.line_search_cuts;
+        for (size_t k = warm.steps.size(); k < t.steps.size(); ++k)
+            r.friction_solves += t.steps[k].friction_iterations;
         r.x = sim.positions();
         r.forward_total = t.wall_time;
         if (r.status == StepStatus::CONVERGED) {
@@ -85,6 +88,10 @@ namespace {
             r.contact.active_set_count = c.active_set_count - warm_contact.active_set_count;
             r.contact.energy_count = c.energy_count - warm_contact.energy_count;
             r.contact.max_active = c.max_active;
+            r.contact.contact_sets = c.contact_sets - warm_contact.contact_sets;
+            r.contact.contact_set_count = c.contact_set_count - warm_contact.contact_set_count;
+            r.contact.friction_uploads = c.friction_uploads - warm_contact.friction_uploads;
+            r.contact.friction_upload_count = c.friction_upload_count - warm_contact.friction_upload_count;
             r.pcg_iterations = solver->total_pcg_iterations() - warm_pcg;
         }
         return r;
@@ -101,6 +108,12 @@ namespace {
         if (p.broad_phase + p.ccd + p.barrier > 0)
             std::printf("       of which contact: broad phase %.4f, CCD %.4f, barrier %.4f s/step\n",
                 p.broad_phase * per, p.ccd * per, p.barrier * per);
+        // Outside the Newton phases: the step's set-up, the friction lagging (and its residual), the records.
+        std::printf("       outside the Newton phases %.4f s/step; %.1f line-search cuts/step",
+            (r.wall - p.assembly - p.factorization - p.solve - p.line_search) * per, r.line_search_cuts * per);
+        if (r.friction_solves > 0)
+            std::printf("; %.1f friction-lagging solves/step", r.friction_solves * per);
+        std::printf("\n");
         if (r.pcg_iterations > 0)
             std::printf("       PCG %.0f iterations/step\n", double(r.pcg_iterations) * per);
         const DeviceSolver::ContactProfile& c = r.contact;
@@ -114,6 +127,14 @@ namespace {
                         "energies/step (%.2f ms each)\n",
                 double(c.active_set_count) * per, 1e3 * c.active_sets / double(c.active_set_count), c.max_active,
                 double(c.energy_count) * per, c.energy_count ? 1e3 * c.energies / double(c.energy_count) : 0.0);
+        if (c.contact_set_count > 0 || c.friction_upload_count > 0)
+            std::printf(
+                "       outside the Newton phases: %.1f active sets for the records and the lagging/step (%.2f ms "
+                "each), %.1f friction uploads/step (%.2f ms each)\n",
+                double(c.contact_set_count) * per,
+                c.contact_set_count ? 1e3 * c.contact_sets / c.contact_set_count : 0.0,
+                double(c.friction_upload_count) * per,
+                c.friction_upload_count ? 1e3 * c.friction_uploads / c.friction_upload_count : 0.0);
     }
 
 } // namespace
@@ -178,7 +199,8 @@ int run_gpu_bench(const BenchOptions& options)
     for (const Box& b : boxes)
         if (wanted(b.key))
             compare(beam(3, "neo_hookean", b.cells, { 4.0, 1.4, 1.5 }, options.steps), b.name);
-    // The contact scene: a slab dropped on a clamped base (contact from the first step), frictionless.
+    // The contact scene: a slab dropped on a clamped base (contact from the first step), frictionless unless
+    // --friction is given.
     struct Slabs {
         std::string key, name;
         std::vector<int> base, slab;
@@ -190,9 +212,14 @@ int run_gpu_bench(const BenchOptions& options)
               { "contact-1m", "contact-slabs-1m", { 100, 8, 100 }, { 90, 10, 90 } } }
         : std::vector<Slabs> { { "contact-50k", "contact-slabs-2k", { 8, 2, 8 }, { 8, 2, 8 } },
               { "contact-200k", "contact-slabs-6k", { 14, 2, 14 }, { 12, 3, 12 } } };
+    // --friction MU: the slabs with lagged friction, lagged once per step (the adjoint differentiates that).
     for (const Slabs& s : slabs)
-        if (wanted(s.key))
-            compare(contact_slabs(s.base, s.slab, options.steps, 0.0), s.name);
+        if (wanted(s.key)) {
+            nlohmann::json scene = contact_slabs(s.base, s.slab, options.steps, options.friction);
+            if (options.friction > 0)
+                scene["friction"]["iterations"] = 1;
+            compare(scene, options.friction > 0 ? s.name + "-friction" : s.name);
+        }
     return failures == 0 ? 0 : 2;
 }
 

@@ -89,7 +89,7 @@ int main(int argc, char** argv)
         ->check(CLI::Range(1, 1 << 30));
     sim_cmd->add_option("--device", sim_options.device,
         "cpu | gpu: where the Newton solves run, replacing the scene's \"device\" (gpu: elastic scenes, "
-        "frictionless contact; docs/scene_format.md \"Device\")");
+        "barrier contact and lagged friction; docs/scene_format.md \"Device\")");
     sim_cmd->add_flag("-q,--quiet", sim_options.quiet, "no progress output");
 
     StudyOptions study_options;
@@ -124,9 +124,12 @@ int main(int argc, char** argv)
         ->delimiter(',')
         ->check(CLI::Range(1, 4096));
     bench_cmd->add_option("--scenes", bench_options.scenes,
-        "scaling suite: any of 50k,200k,contact,adjoint,factor; gpu suite: any of 50k,200k,1m,contact-50k,contact-200k,contact-1m (default: all)");
+        "scaling suite: any of 50k,200k,contact,adjoint,factor; gpu suite: any of "
+        "50k,200k,1m,contact-50k,contact-200k,contact-1m (default: all)");
     bench_cmd->add_option("--source-dir", bench_options.source_dir, "repository root, where studies/ lives");
-    bench_cmd->add_option("--friction", bench_options.friction, "contact suite: friction coefficient (0: none)")
+    bench_cmd
+        ->add_option("--friction", bench_options.friction,
+            "contact and gpu suites: friction coefficient of the contact slabs (0: none)")
         ->check(CLI::Range(0.0, 10.0));
 
     std::string problem_path;

@@ -23,6 +23,7 @@
 /// 4 slots); its local block (a, b) is p * 16 + a * 4 + b. Each vertex and each block slot lists
 /// its codes in increasing order, i.e. in pair order, as the CPU sums them.
 
+#include <cstddef>
 #include <vector>
 
 namespace diffipc::gpu {
@@ -61,6 +62,10 @@ struct BarrierPairs {
 
     int num_slots() const { return int(col_indices.size()); }
 };
+
+/// @brief Checks pair p of a list (prepare_barrier_pairs' checks, below), for callers that prepare the pairs
+/// otherwise (on the GPU). @throws std::invalid_argument naming the pair
+void check_barrier_pair(int dim, int num_vertices, int num_planes, const BarrierPair& pair, size_t p);
 
 /// @brief Checks a pair list and prepares it (layouts in the file comment).
 /// @param dim             2 or 3

@@ -2,6 +2,7 @@
 
 #include "cuda/common/device.hpp"
 #include "cuda/contact/pair_barrier.cuh"
+#include "cuda/contact/pair_gather.hpp"
 #include "cuda/linalg/reduction.hpp"
 
 #include <cuda_runtime.h>
@@ -88,40 +89,6 @@ namespace {
                 out[size_t(r * L + c) * P.np + p] = H[r * n + c];
     }
 
-    /// g[v dim + i] += scale * the vertex's pair gradients, in pair order (rows: vertices in a pair).
-    __global__ void gather_gradient(int num_rows, int dim, int np, const int* __restrict__ rows,
-        const int* __restrict__ offsets, const int* __restrict__ codes, const double* __restrict__ local, double scale,
-        double* __restrict__ g)
-    {
-        const int t = blockIdx.x * blockDim.x + threadIdx.x;
-        if (t >= num_rows * dim)
-            return;
-        const int v = rows[t / dim], i = t % dim;
-        double acc = g[size_t(v) * dim + i];
-        for (int c = offsets[v]; c < offsets[v + 1]; ++c) {
-            const int p = codes[c] / 4, a = codes[c] % 4;
-            acc += scale * local[size_t(a * dim + i) * np + p];
-        }
-        g[size_t(v) * dim + i] = acc;
-    }
-
-    /// Block slot s, entry (i, k): += the slot's pair blocks, in pair order.
-    __global__ void gather_hessian(int slots, int dim, int np, const int* __restrict__ offsets,
-        const int* __restrict__ codes, const double* __restrict__ local, double* __restrict__ values)
-    {
-        const int t = blockIdx.x * blockDim.x + threadIdx.x;
-        if (t >= slots * dim * dim)
-            return;
-        const int s = t / (dim * dim), i = (t / dim) % dim, k = t % dim, L = 4 * dim;
-        double acc = values[t];
-        for (int c = offsets[s]; c < offsets[s + 1]; ++c) {
-            const int code = codes[c];
-            const int p = code / 16, a = (code / 4) % 4, b = code % 4;
-            acc += local[size_t((a * dim + i) * L + b * dim + k) * np + p];
-        }
-        values[t] = acc;
-    }
-
 } // namespace
 
 void DeviceBarrier::upload(int dim, const std::vector<double>& rest_positions, const std::vector<double>& plane_normals)
@@ -159,6 +126,12 @@ void DeviceBarrier::set_pairs(const std::vector<BarrierPair>& pairs)
     m_num_rows = int(m_pairs.rows.size());
     m_pair_energy.resize(size_t(m_pairs.num_pairs));
     // The gradient and Hessian scratch is sized on first use.
+}
+
+DeviceBarrier::Layout DeviceBarrier::layout() const
+{
+    return Layout { m_pairs.num_pairs, m_num_rows, m_pairs.num_slots(), m_vertices.data(), m_rows.data(),
+        m_vertex_offsets.data(), m_vertex_codes.data(), m_slot_offsets.data(), m_slot_codes.data() };
 }
 
 DeviceBsrMatrix DeviceBarrier::make_hessian_matrix() const
@@ -201,10 +174,8 @@ void DeviceBarrier::add_gradient_device(const double* d_x, double weight, double
     const PairArrays P = pair_arrays(m_pairs, m_settings, m_kind, m_vertices, m_plane, m_eps_x, m_normals);
     pair_gradients<<<grid(size_t(np)), THREADS>>>(P, d_x, m_pair_gradient.data());
     check_launch("launch of the pair barrier gradients");
-    const int rows = m_num_rows;
-    gather_gradient<<<grid(size_t(rows) * size_t(m_dim)), THREADS>>>(rows, m_dim, np, m_rows.data(),
-        m_vertex_offsets.data(), m_vertex_codes.data(), m_pair_gradient.data(), weight * m_settings.kappa, d_g);
-    check_launch("launch of the barrier gradient gather");
+    gather_pair_gradients(m_num_rows, m_dim, np, m_rows.data(), m_vertex_offsets.data(), m_vertex_codes.data(),
+        m_pair_gradient.data(), weight * m_settings.kappa, d_g);
 }
 
 void DeviceBarrier::add_hessian_device(const double* d_x, double weight, bool project, DeviceBsrMatrix& H) const
@@ -221,10 +192,8 @@ void DeviceBarrier::add_hessian_device(const double* d_x, double weight, bool pr
     const PairArrays P = pair_arrays(m_pairs, m_settings, m_kind, m_vertices, m_plane, m_eps_x, m_normals);
     pair_hessians<<<grid(size_t(np)), THREADS>>>(P, d_x, project, weight * m_settings.kappa, m_pair_hessian.data());
     check_launch("launch of the pair barrier Hessians");
-    const size_t entries = size_t(m_pairs.num_slots()) * size_t(m_dim * m_dim);
-    gather_hessian<<<grid(entries), THREADS>>>(m_pairs.num_slots(), m_dim, np, m_slot_offsets.data(),
-        m_slot_codes.data(), m_pair_hessian.data(), H.device_values());
-    check_launch("launch of the barrier Hessian gather");
+    gather_pair_hessians(m_pairs.num_slots(), m_dim, np, m_slot_offsets.data(), m_slot_codes.data(),
+        m_pair_hessian.data(), H.device_values());
 }
 
 } // namespace diffipc::gpu

@@ -55,6 +55,15 @@ public:
     /// num_vertices, num_pairs and the pattern's row_offsets and col_indices are filled).
     const BarrierPairs& pairs() const { return m_pairs; }
     int num_pairs() const { return m_pairs.num_pairs; }
+
+    /// The prepared pair list's device arrays (barrier_pairs.hpp's layout), for another potential on the
+    /// same pairs (DeviceFriction evaluates its own per-pair terms and gathers them with these lists).
+    struct Layout {
+        int num_pairs = 0, num_rows = 0, num_slots = 0;
+        const int *vertices = nullptr, *rows = nullptr, *vertex_offsets = nullptr, *vertex_codes = nullptr,
+                  *slot_offsets = nullptr, *slot_codes = nullptr;
+    };
+    Layout layout() const;
     int dim() const { return m_dim; }
     int num_dofs() const override { return m_num_vertices * m_dim; }
 

@@ -23,7 +23,8 @@
 /// Layouts: positions, gradients and steps are #V * dim doubles in GPU memory, flattened
 /// vertex-major (xyzxyz), metres; rest positions likewise on the host.
 ///
-/// Not here (yet): the penalty model, periodic images, friction, the shape derivative.
+/// Not here (yet): the penalty model, periodic images, the shape derivative. Friction is DeviceFriction
+/// (device_friction.hpp), a potential of its own on the lagged pairs.
 /// Host code; this header compiles with a plain C++ compiler (no CUDA headers).
 
 #include "cuda/broad_phase/device_broad_phase.hpp"

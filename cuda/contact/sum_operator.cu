@@ -71,38 +71,80 @@ namespace {
         return slots;
     }
 
+    /// The block rows of M with at least one block.
+    std::vector<int> nonempty_rows(const DeviceBsrMatrix& M)
+    {
+        const std::vector<int>& offsets = M.row_offsets();
+        std::vector<int> rows;
+        for (int r = 0; r < M.num_block_rows(); ++r)
+            if (offsets[size_t(r) + 1] > offsets[size_t(r)])
+                rows.push_back(r);
+        return rows;
+    }
+
+    /// out[r b^2 + q] += F's diagonal block of row r, entry q (where it has one).
+    __global__ void add_diagonal(size_t entries, int b2, const int* __restrict__ slot,
+        const double* __restrict__ values, double* __restrict__ out)
+    {
+        const size_t t = size_t(blockIdx.x) * blockDim.x + threadIdx.x;
+        if (t >= entries)
+            return;
+        const int s = slot[t / size_t(b2)];
+        if (s >= 0)
+            out[t] += values[size_t(s) * b2 + t % size_t(b2)];
+    }
+
+    /// y += (M x) over M's nonempty block rows `rows` (a DeviceArray of them).
+    void add_rows(int block_size, const DeviceArray<int>& rows, const DeviceBsrMatrix& M, const double* d_x,
+        double* d_y, const unsigned char* d_fixed)
+    {
+        const int nr = int(rows.size());
+        if (nr == 0)
+            return;
+        const size_t n = size_t(nr) * size_t(block_size);
+        if (block_size == 2)
+            add_rows_product<2><<<grid(n), THREADS>>>(
+                nr, rows.data(), M.device_row_offsets(), M.device_col_indices(), M.device_values(), d_x, d_y, d_fixed);
+        else
+            add_rows_product<3><<<grid(n), THREADS>>>(
+                nr, rows.data(), M.device_row_offsets(), M.device_col_indices(), M.device_values(), d_x, d_y, d_fixed);
+        check_launch("launch of the contact rows' product");
+    }
+
 } // namespace
 
-void SumOperator::bind(const DeviceBsrMatrix& A, const DeviceBsrMatrix& C)
+void SumOperator::bind(const DeviceBsrMatrix& A, const DeviceBsrMatrix& C, const DeviceBsrMatrix* F)
 {
-    if (A.block_size() != C.block_size() || A.num_block_rows() != C.num_block_rows())
-        throw std::invalid_argument("SumOperator: A has " + std::to_string(A.num_block_rows()) + " block rows of size "
-            + std::to_string(A.block_size()) + ", C " + std::to_string(C.num_block_rows()) + " of size "
-            + std::to_string(C.block_size()));
+    for (const DeviceBsrMatrix* M : { &C, F })
+        if (M && (A.block_size() != M->block_size() || A.num_block_rows() != M->num_block_rows()))
+            throw std::invalid_argument("SumOperator: A has " + std::to_string(A.num_block_rows())
+                + " block rows of size " + std::to_string(A.block_size()) + ", an addend "
+                + std::to_string(M->num_block_rows()) + " of size " + std::to_string(M->block_size()));
     const bool same_a = m_A == &A && m_a_blocks == A.num_blocks() && m_num_block_rows == A.num_block_rows();
     m_A = &A;
     m_C = &C;
     m_block_size = A.block_size();
     m_num_block_rows = A.num_block_rows();
     m_union_built = false;
-    const int rows = m_num_block_rows;
-    const std::vector<int>& co = C.row_offsets();
-    std::vector<int> c_rows;
-    for (int r = 0; r < rows; ++r)
-        if (co[size_t(r) + 1] > co[size_t(r)])
-            c_rows.push_back(r);
-    m_c_rows.upload(c_rows);
+    m_F = F;
+    m_c_rows.upload(nonempty_rows(C));
     if (!same_a) {
         m_a_diagonal.upload(diagonal_slots(A));
         m_a_blocks = A.num_blocks();
     }
     m_c_diagonal.upload(diagonal_slots(C));
+    if (F) {
+        m_f_rows.upload(nonempty_rows(*F));
+        m_f_diagonal.upload(diagonal_slots(*F));
+    }
 }
 
 void SumOperator::build_union() const
 {
     if (!m_A)
         throw std::logic_error("SumOperator: bind() first");
+    if (m_F)
+        throw std::logic_error("SumOperator: the union pattern is A + C's; a third addend is bound");
     if (m_union_built)
         return;
     const int rows = m_num_block_rows;
@@ -146,17 +188,9 @@ void SumOperator::multiply(const double* d_x, double* d_y, const unsigned char* 
     if (!m_A)
         throw std::logic_error("SumOperator::multiply: bind() first");
     m_A->multiply(d_x, d_y, d_fixed);
-    const int rows = int(m_c_rows.size());
-    if (rows == 0)
-        return;
-    const size_t n = size_t(rows) * size_t(m_block_size);
-    if (m_block_size == 2)
-        add_rows_product<2><<<grid(n), THREADS>>>(rows, m_c_rows.data(), m_C->device_row_offsets(),
-            m_C->device_col_indices(), m_C->device_values(), d_x, d_y, d_fixed);
-    else
-        add_rows_product<3><<<grid(n), THREADS>>>(rows, m_c_rows.data(), m_C->device_row_offsets(),
-            m_C->device_col_indices(), m_C->device_values(), d_x, d_y, d_fixed);
-    check_launch("launch of the contact rows' product");
+    add_rows(m_block_size, m_c_rows, *m_C, d_x, d_y, d_fixed);
+    if (m_F)
+        add_rows(m_block_size, m_f_rows, *m_F, d_x, d_y, d_fixed);
 }
 
 void SumOperator::diagonal_blocks(double* d_out) const
@@ -170,6 +204,10 @@ void SumOperator::diagonal_blocks(double* d_out) const
     sum_entries<<<grid(entries), THREADS>>>(
         entries, b2, m_a_diagonal.data(), m_c_diagonal.data(), m_A->device_values(), m_C->device_values(), d_out);
     check_launch("launch of the diagonal blocks' sum");
+    if (m_F) {
+        add_diagonal<<<grid(entries), THREADS>>>(entries, b2, m_f_diagonal.data(), m_F->device_values(), d_out);
+        check_launch("launch of the friction diagonal blocks' sum");
+    }
 }
 
 DeviceBsrMatrix SumOperator::make_sum_matrix() const

@@ -1,9 +1,10 @@
 #pragma once
 /// @file sum_operator.hpp
-/// The Newton matrix of a contact scene as the sum A + C of two BSR matrices with different
+/// The Newton matrix of a contact scene as the sum A + C (+ F) of BSR matrices with different
 /// patterns (cuda/linalg/bsr_matrix.hpp): A on the elastic mesh's fixed pattern
 /// (DeviceElasticMesh, plus inertia on its diagonal blocks), C on the contact pattern of the
-/// current pair list (DeviceBarrier, rebuilt whenever the pairs change). Both have the same
+/// current pair list (DeviceBarrier, rebuilt whenever the pairs change), and optionally F on the
+/// lagged friction pairs' pattern (DeviceFriction, rebuilt at each lagging). All have the same
 /// number of block rows (#V) and block size (dim).
 ///
 /// Two ways to solve with it:
@@ -39,7 +40,12 @@ public:
     /// bound again whenever its pattern changes, A whenever its pattern changes). Finds the diagonal
     /// slots and C's nonempty rows on the host and uploads them.
     /// @throws std::invalid_argument if the block sizes or the numbers of block rows differ
-    void bind(const DeviceBsrMatrix& A, const DeviceBsrMatrix& C);
+    void bind(const DeviceBsrMatrix& A, const DeviceBsrMatrix& C) { bind(A, C, nullptr); }
+    /// @brief bind(A, C) with a third addend F (nullptr: none) on a pattern of its own (lagged friction's
+    /// pairs): the operator is A + C + F; its product adds F's rows after C's, its diagonal blocks F's
+    /// after A + C's. The union pattern (make_sum_matrix, assemble_sum) is A + C's only: with F bound
+    /// they throw std::logic_error.
+    void bind(const DeviceBsrMatrix& A, const DeviceBsrMatrix& C, const DeviceBsrMatrix* F);
 
     int block_size() const override { return m_block_size; }
     int num_block_rows() const override { return m_num_block_rows; }
@@ -81,8 +87,9 @@ private:
     int m_a_blocks = -1; // A's number of blocks when its diagonal slots were found
     mutable bool m_union_built = false;
     mutable std::vector<int> m_row_offsets, m_col_indices; // union pattern
-    DeviceArray<int> m_c_rows; // block rows of C with blocks
-    DeviceArray<int> m_a_diagonal, m_c_diagonal; // per block row: slot of its diagonal block, or -1
+    const DeviceBsrMatrix* m_F = nullptr;
+    DeviceArray<int> m_c_rows, m_f_rows; // block rows of C (F) with blocks
+    DeviceArray<int> m_a_diagonal, m_c_diagonal, m_f_diagonal; // per block row: slot of its diagonal block, or -1
     mutable DeviceArray<int> m_a_slot, m_c_slot; // per union slot: the slot in A / C, or -1
 };
 

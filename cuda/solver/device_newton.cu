@@ -331,7 +331,8 @@ struct DeviceNewton::Impl {
     DeviceBsrMatrix H;
     DevicePCG pcg;
     DeviceContact* contact = nullptr;
-    SumOperator sum; // H + the contact Hessian
+    DeviceFriction* friction = nullptr; // lagged friction (needs contact)
+    SumOperator sum; // H + the contact Hessian (+ the friction Hessian)
     bool active_current = false; // the contact's active set was built at x's current contents
     DeviceArray<double> gb; // the barrier gradient (balancing)
     double w = 1; // the weight of the solve in progress (or of balance_at)
@@ -341,7 +342,7 @@ struct DeviceNewton::Impl {
     /// Energy terms at y: the inertia 1/2 (y - xt)^T M (y - xt), Psi(y), the barrier B(y) and the
     /// work f^T (y - x_ref). on_segment: y lies on the last contact step bound's segment.
     struct Energy {
-        double total = 0, inertia = 0, elastic = 0, contact = 0, work = 0;
+        double total = 0, inertia = 0, elastic = 0, contact = 0, friction = 0, work = 0;
     };
     Energy energy(const DeviceElasticMesh& mesh, const double* y, double w, bool on_segment = false)
     {
@@ -351,21 +352,34 @@ struct DeviceNewton::Impl {
         e.elastic = mesh.energy_device(y);
         if (contact)
             e.contact = contact->energy(y, on_segment);
+        if (friction)
+            e.friction = friction->energy_device(y);
         double s[2];
         detail::copy_device_to_host(s, scalars.data() + S_ENERGY, sizeof(s));
         e.inertia = 0.5 * s[0];
         e.work = s[1];
         // The CPU Problem's sum, term by term in the order the simulator adds them.
-        e.total = (dynamic ? e.inertia : 0.0) + w * e.elastic + (contact ? w * e.contact : 0.0) + w * -e.work;
+        e.total = (dynamic ? e.inertia : 0.0) + w * e.elastic + (contact ? w * e.contact : 0.0) + w * -e.work
+            + (friction ? w * e.friction : 0.0);
         return e;
     }
 
-    /// The Newton matrix: H, plus the contact Hessian (SumOperator) in a contact scene.
+    /// The Newton matrix: H, plus the contact Hessian (and the friction Hessian) by a SumOperator in a
+    /// contact scene.
     const DeviceLinearOperator& system(const DeviceContact* with_contact) const
     {
         if (with_contact)
             return sum;
         return H;
+    }
+
+    /// Assembles the contact (and friction) Hessians at x with weight w and binds them to the sum.
+    void assemble_contact(double w, bool project)
+    {
+        contact->assemble_hessian(x.data(), w, project);
+        if (friction)
+            friction->assemble_hessian(x.data(), w);
+        sum.bind(H, contact->hessian(), friction ? &friction->hessian() : nullptr);
     }
 
     /// Builds the contact's active set at the iterate x (if there is contact and it is not current).
@@ -412,7 +426,8 @@ struct DeviceNewton::Impl {
         return b;
     }
 
-    /// g = dE/dx at y (the contact's active set must have been built at y).
+    /// g = dE/dx at y (the contact's active set must have been built at y); with_contact false: without
+    /// the barrier and friction (the balancing rule's gE, as the CPU's, which leaves friction out).
     void gradient(const DeviceElasticMesh& mesh, const double* y, double w, double* out, bool with_contact = true)
     {
         inertia_force_gradient<<<kernel_grid(), THREADS>>>(n, dynamic, y, xt.data(), mass.data(), f.data(), w, out);
@@ -420,6 +435,8 @@ struct DeviceNewton::Impl {
         mesh.add_gradient_device(y, w, out);
         if (contact && with_contact)
             contact->add_gradient(y, w, out);
+        if (friction && with_contact)
+            friction->add_gradient_device(y, w, out);
     }
 
     /// The inversion bound along p at y (min over the elements, 1 if none).
@@ -574,8 +591,8 @@ PcgResult DeviceNewton::solve_true_hessian(const std::vector<double>& x_host, do
         // The barrier's true Hessian of the active set at x (the committed step's set).
         m_contact->update_active(m.x.data());
         m.active_current = false;
-        m_contact->assemble_hessian(m.x.data(), weight, /*project=*/false);
-        m.sum.bind(m.H, m_contact->hessian());
+        m.contact = m_contact;
+        m.assemble_contact(weight, /*project=*/false);
     }
     m.pcg.settings() = PcgSettings { relative_tolerance, max_iterations };
     const PcgResult r = m.pcg.solve_device(m.system(m_contact), m.rhs.data(), m.p.data());
@@ -646,7 +663,7 @@ DeviceNewtonResult DeviceNewton::solve(std::vector<double>& x_host, const std::v
     // Round-off of energy differences scales with the terms, not with their (possibly cancelling) sum.
     const double magnitude = (m.dynamic ? std::abs(start_energy.inertia) : 0.0)
         + w * (std::abs(start_energy.elastic) + m.material_scale) + w * std::abs(start_energy.contact)
-        + w * std::abs(start_energy.work);
+        + w * std::abs(start_energy.work) + w * std::abs(start_energy.friction);
     // After each accepted iterate: the hook (adaptive kappa) sees the active set at the new x.
     const auto end_iteration = [&]() {
         if (!m_contact || !m_end_iteration)
@@ -710,10 +727,8 @@ DeviceNewtonResult DeviceNewton::solve(std::vector<double>& x_host, const std::v
                         n, m.dim, m.diagonal_slots.data(), m.mass.data(), m.H.device_values());
                     check_launch("launch of the mass diagonal");
                 }
-                if (m_contact) {
-                    m_contact->assemble_hessian(m.x.data(), w, project);
-                    m.sum.bind(m.H, m_contact->hessian());
-                }
+                if (m_contact)
+                    m.assemble_contact(w, project);
                 if (lifting)
                     m.system(m_contact).multiply(m.pD.data(), m.coupling.data(), nullptr);
                 newton_rhs<<<G, THREADS>>>(n, m.g.data(), lifting ? m.coupling.data() : nullptr, m.rhs.data());
@@ -898,6 +913,38 @@ void DeviceNewton::set_contact(DeviceContact* contact)
     m_contact = contact;
     m_impl->contact = contact;
     m_impl->active_current = false;
+}
+
+void DeviceNewton::set_friction(DeviceFriction* friction)
+{
+    if (friction && size_t(friction->num_dofs()) != m_impl->n)
+        throw std::invalid_argument("DeviceNewton::set_friction: the friction has "
+            + std::to_string(friction->num_dofs()) + " dofs, the mesh " + std::to_string(m_impl->n));
+    if (friction && !m_contact)
+        throw std::logic_error("DeviceNewton::set_friction: friction needs the contact (set_contact() first)");
+    m_friction = friction;
+    m_impl->friction = friction;
+}
+
+double DeviceNewton::residual_at(const std::vector<double>& x, const std::vector<double>& inertial_target,
+    double weight, const std::vector<double>& force)
+{
+    Impl& m = *m_impl;
+    if (x.size() != m.n || force.size() != m.n || (m.dynamic && inertial_target.size() != m.n))
+        throw std::invalid_argument(
+            "DeviceNewton::residual_at: x, inertial_target and force need #dofs = " + std::to_string(m.n) + " entries");
+    m.contact = m_contact;
+    m.x.upload(x);
+    if (m.dynamic)
+        m.xt.upload(inertial_target);
+    m.f.upload(force);
+    m.w = weight;
+    m.active_current = false;
+    m.activate_at_x();
+    m.gradient(m_mesh, m.x.data(), weight, m.g_trial.data());
+    double rs[2];
+    m.residual_of(m.g_trial.data(), rs);
+    return rs[1] != 0 ? std::numeric_limits<double>::quiet_NaN() : rs[0];
 }
 
 ContactBalance DeviceNewton::current_balance() { return m_impl->balance(m_mesh, m_impl->w); }

@@ -2,7 +2,7 @@
 /// @file device_newton.hpp
 /// One time step's Newton solve on the GPU: the device twin of NewtonSolver
 /// (forward/solver/newton.hpp) for scenes of elastic bodies with inertia, external forces,
-/// Dirichlet conditions and (set_contact()) IPC barrier contact without friction. The mesh, its
+/// Dirichlet conditions, (set_contact()) IPC barrier contact and (set_friction()) lagged friction. The mesh, its
 /// material data, the Hessian's pattern and every work vector stay on the device; per solve, the
 /// start x, the inertial target, the force and the prescribed targets are copied up and the
 /// converged x copied back (the step record).
@@ -10,8 +10,9 @@
 /// Incremental potential (docs/math.md), the CPU's:
 ///   E(x) = 1/2 (x - xt)^T M (x - xt) + w [Psi(x) + B(x) - f^T x]
 /// with M the lumped mass (diagonal, per dof), xt the inertial target, w = c h^2 the potential
-/// weight (1 for static solves, which have no M), Psi the elastic energy (DeviceElasticMesh) and
-/// B the contact barrier kappa sum_k m_k b_k (DeviceContact; 0 without contact).
+/// weight (1 for static solves, which have no M), Psi the elastic energy (DeviceElasticMesh),
+/// B the contact barrier kappa sum_k m_k b_k (DeviceContact; 0 without contact) and, with friction,
+/// + w D(x), the lagged friction of the solve (DeviceFriction; its pairs fixed during the solve).
 ///
 /// Contact (as the CPU's ContactPotential inside NewtonSolver): the active set is rebuilt at each
 /// iterate (DeviceContact::update_active) for the gradient and the search matrix, whose contact
@@ -60,6 +61,7 @@
 /// Layouts: all vectors #dofs = #V * dim doubles, flattened vertex-major (xyzxyz), SI units.
 
 #include "cuda/contact/device_contact.hpp"
+#include "cuda/contact/device_friction.hpp"
 #include "cuda/elastic/device_elastic_mesh.hpp"
 #include "cuda/linalg/bsr_matrix.hpp"
 #include "cuda/linalg/device_array.hpp"
@@ -187,7 +189,9 @@ public:
     /// @param y       out: #dofs solution (valid when converged)
     /// @return the PCG's result: a breakdown means the true Hessian is not positive definite on the
     ///         free dofs, and the caller must solve otherwise (the CPU's LDL^T)
-    /// @param product if given: #dofs, (M + w (H_Psi + H_B)) y without the constraints (the full
+    /// With friction (set_friction()), w H_D of its current pairs is in the matrix too (the step's lagged data:
+    /// the caller sets them first).
+    /// @param product if given: #dofs, (M + w (H_Psi + H_B [+ H_D])) y without the constraints (the full
     ///                matrix times y; on the constrained dofs, their couplings to the free ones times y)
     PcgResult solve_true_hessian(const std::vector<double>& x, double weight, const std::vector<double>& b,
         std::vector<double>& y, double relative_tolerance, int max_iterations, std::vector<double>* product = nullptr);
@@ -197,6 +201,21 @@ public:
     /// @throws std::invalid_argument if its dofs differ from the mesh's
     void set_contact(DeviceContact* contact);
     DeviceContact* contact() const { return m_contact; }
+
+    /// @brief Adds lagged friction (nullptr: none): w D(x) in E, its gradient, and its Hessian (PSD) in
+    /// the search and the adjoint matrices, as a third addend of the SumOperator. The caller sets its
+    /// pairs and step start (the lagging) before each solve; it must outlive its use. Not part of the
+    /// adaptive stiffness' balance (the CPU leaves friction out of it too).
+    /// @throws std::invalid_argument if its dofs differ from the mesh's; std::logic_error without contact
+    void set_friction(DeviceFriction* friction);
+    DeviceFriction* friction() const { return m_friction; }
+
+    /// @brief max |g_free| of E's gradient at a host state (the CPU's Simulator::force_residual times
+    /// the force scale), with the contact's active set built there and the current friction pairs.
+    /// @param x, inertial_target, weight, force as solve()'s
+    /// @return NaN if the gradient is not finite
+    double residual_at(const std::vector<double>& x, const std::vector<double>& inertial_target, double weight,
+        const std::vector<double>& force);
 
     /// @brief The end-of-iteration hook (ContactPotential::end_iteration's role; empty: none): called
     /// after each accepted iterate, with the active set already built at it (DeviceContact's
@@ -219,6 +238,7 @@ private:
     const DeviceElasticMesh& m_mesh;
     Impl* m_impl;
     DeviceContact* m_contact = nullptr;
+    DeviceFriction* m_friction = nullptr;
     std::function<bool()> m_end_iteration;
 };
 

@@ -622,12 +622,10 @@ void select_device(Scene& scene, const std::string& name, const std::string& fie
         throw InputError(field,
             "\"gpu\" does not support " + what
                 + " yet (issue 17: the GPU path has elasticity, inertia, gravity, tractions, Dirichlet "
-                  "conditions and frictionless barrier contact with obstacles); use \"cpu\"");
+                  "conditions and barrier contact with obstacles and lagged friction); use \"cpu\"");
     };
     if (scene.contact.enabled && scene.contact.penalty)
         refuse("the penalty contact model");
-    if (scene.contact.enabled && any_friction(scene))
-        refuse("friction");
     if (scene.periodic.enabled)
         refuse("periodic cells");
     if (scene.mass == MassType::CONSISTENT)

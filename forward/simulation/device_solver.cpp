@@ -1,17 +1,24 @@
 #include "forward/simulation/device_solver.hpp"
 
 #include "forward/common/error.hpp"
+#include "forward/common/timer.hpp"
 #include "forward/contact/barrier.hpp"
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
 
 #ifdef DIFFIPC_HAVE_CUDA
 #include "cuda/common/device.hpp"
 #include "cuda/contact/device_contact.hpp"
+#include "cuda/contact/device_friction.hpp"
 #include "cuda/elastic/device_elastic_mesh.hpp"
 #include "cuda/solver/device_newton.hpp"
 #endif
 
 #include <algorithm>
+#include <cstring>
 #include <limits>
+#include <tuple>
 
 namespace diffipc {
 
@@ -74,15 +81,39 @@ gpu::DeviceContactSettings to_device(const ContactSettings& cs)
     return s;
 }
 
+std::pair<gpu::BarrierPair, gpu::FrictionPair> to_device(const FrictionContact& c)
+{
+    gpu::BarrierPair pair;
+    pair.kind = int(c.kind);
+    for (int a = 0; a < 4; ++a)
+        pair.vertices[a] = a < c.num_vertices ? int(c.vertices[size_t(a)]) : -1;
+    pair.plane = c.kind == ContactKind::VERTEX_PLANE ? c.source.plane : -1;
+    gpu::FrictionPair f;
+    f.num_vertices = c.num_vertices;
+    for (int a = 0; a < 4; ++a)
+        f.weights[a] = c.weights[size_t(a)];
+    for (int col = 0; col < 2; ++col)
+        for (int i = 0; i < 3; ++i)
+            f.tangent[3 * col + i] = c.tangent(i, col);
+    f.scale = c.coefficient * c.normal_force;
+    return { pair, f };
+}
+
 struct DeviceSolver::Impl {
     gpu::DeviceElasticMesh mesh;
     std::unique_ptr<gpu::DeviceContact> contact;
+    std::unique_ptr<gpu::DeviceFriction> friction; // made by the first set_friction()
     std::unique_ptr<gpu::DeviceNewton> newton;
+    std::vector<double> rest;
     std::vector<double> x, target, inertial_target, force;
     AdaptiveState adaptive;
     double weight = 1;
     gpu::DeviceContactTimes profiled; // the contact's times already added to the profile
     mutable gpu::DeviceArray<double> scratch; // a host state uploaded for contacts() / min_distance()
+    // The last contacts(x): the lagging at a step's end, its record and the next step's lagging ask for
+    // the same x (the active set depends on x alone).
+    mutable VectorXd contacts_x;
+    mutable ContactSet contacts_at_x;
 
     /// IPC's balancing rule at the solve's current iterate (Simulator::balancing_kappa).
     double balancing_kappa(const gpu::ContactBalance& b) const
@@ -164,6 +195,7 @@ DeviceSolver::DeviceSolver(const ElasticPotential& elastic, const InertiaPotenti
     for (MaterialModel m : elastic.models())
         models.push_back(int(m));
     m_impl->mesh.upload(dim, rest, elements, models, to_std(elastic.mu()), to_std(elastic.lambda()));
+    m_impl->rest = rest;
     std::vector<double> mass;
     if (inertia) {
         const VectorXd& lumped = inertia->lumped_masses();
@@ -216,13 +248,58 @@ ContactSet DeviceSolver::contacts(const VectorXd& x) const
     ContactSet out;
     if (!m_impl->contact)
         return out;
+    Impl& d = *m_impl;
+    if (d.contacts_x.size() == x.size()
+        && std::memcmp(d.contacts_x.data(), x.data(), size_t(x.size()) * sizeof(double)) == 0)
+        return d.contacts_at_x;
+    const Timer timer;
     m_impl->contact->update_active(m_impl->upload(x));
     const std::vector<gpu::BarrierPair>& pairs = m_impl->contact->active_pairs();
-    out.reserve(pairs.size());
-    for (const gpu::BarrierPair& p : pairs)
-        out.push_back(m_cpu_contact->classify(
-            ContactKind(p.kind), { p.vertices[0], p.vertices[1], p.vertices[2], p.vertices[3] }, p.plane, x));
+    out.resize(pairs.size());
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, pairs.size(), 256), [&](const tbb::blocked_range<size_t>& r) {
+        for (size_t k = r.begin(); k < r.end(); ++k) {
+            const gpu::BarrierPair& p = pairs[k];
+            out[k] = m_cpu_contact->classify(
+                ContactKind(p.kind), { p.vertices[0], p.vertices[1], p.vertices[2], p.vertices[3] }, p.plane, x);
+        }
+    });
+    d.contacts_x = x;
+    d.contacts_at_x = out;
+    timer.add_to(m_profile.contact_sets);
+    ++m_profile.contact_set_count;
     return out;
+}
+
+void DeviceSolver::set_friction(const FrictionPotential& friction)
+{
+    Impl& d = *m_impl;
+    if (!d.contact)
+        throw std::logic_error("DeviceSolver::set_friction: friction needs the scene's contact");
+    const Timer timer;
+    if (friction.has_images())
+        throw InputError("device", "\"gpu\" has no friction across periodic images; use \"cpu\"");
+    if (!d.friction) {
+        d.friction = std::make_unique<gpu::DeviceFriction>();
+        d.friction->upload(d.mesh.dim(), d.rest, int(m_cpu_contact->planes().size()));
+        d.newton->set_friction(d.friction.get());
+    }
+    const std::vector<FrictionContact>& lagged = friction.lagged();
+    std::vector<gpu::BarrierPair> pairs(lagged.size());
+    std::vector<gpu::FrictionPair> data(lagged.size());
+    for (size_t k = 0; k < lagged.size(); ++k)
+        std::tie(pairs[k], data[k]) = to_device(lagged[k]);
+    d.friction->set_pairs(pairs, data);
+    d.friction->set_step_start(to_std(friction.step_start()), friction.eps());
+    timer.add_to(m_profile.friction_uploads);
+    ++m_profile.friction_upload_count;
+}
+
+double DeviceSolver::residual(const VectorXd& x, const VectorXd& inertial_target, double weight, const VectorXd& force)
+{
+    const std::vector<double> xt
+        = inertial_target.size() == x.size() ? to_std(inertial_target) : std::vector<double>(size_t(x.size()), 0.0);
+    m_impl->weight = weight;
+    return m_impl->newton->residual_at(to_std(x), xt, weight, to_std(force));
 }
 
 double DeviceSolver::min_distance(const VectorXd& x, double radius) const
@@ -257,6 +334,14 @@ NewtonResult DeviceSolver::solve(VectorXd& x, const VectorXd& inertial_target, d
     s.max_displacement = settings.max_displacement;
     s.adaptive_projection = settings.adaptive_projection;
     Impl& d = *m_impl;
+    // Sticking friction's tangential stiffness (mu lambda 2 / (eps_v h)) is orders above the elastic one,
+    // and block-Jacobi PCG solved to the elastic scenes' loose forcing leaves its modes' error in the
+    // direction: 202's head-on boxes with friction stall at NEWTON_EXHAUSTED with forcing_max 0.5 and
+    // converge with 0.1 or 0.01; the 53k-tet friction slabs take 7.0 Newton iterations per step with 0.5,
+    // 5.0 with 0.1 and 4.5 with 0.01, the fastest (docs/performance.md).
+    constexpr double FRICTION_FORCING_MAX = 0.01;
+    if (d.friction && d.friction->num_pairs() > 0)
+        s.forcing_max = std::min(s.forcing_max, FRICTION_FORCING_MAX);
     d.weight = weight;
     d.x.assign(x.data(), x.data() + x.size());
     d.target.assign(target.data(), target.data() + target.size());
@@ -363,6 +448,10 @@ void DeviceSolver::begin_step(double, const AdaptiveKappa&, const VectorXd&, con
 double DeviceSolver::kappa() const { return 0.0; }
 
 ContactSet DeviceSolver::contacts(const VectorXd&) const { return {}; }
+
+void DeviceSolver::set_friction(const FrictionPotential&) { }
+
+double DeviceSolver::residual(const VectorXd&, const VectorXd&, double, const VectorXd&) { return 0.0; }
 
 double DeviceSolver::min_distance(const VectorXd&, double) const { return 0.0; }
 

@@ -5,12 +5,16 @@
 /// the step stays the Simulator's (integrator, Dirichlet targets, loads, statuses, records,
 /// output), so the GPU path writes the same records and files as the CPU path.
 ///
-/// Contact (the barrier model without friction or periodic images): the CPU's ContactPotential
+/// Contact (the barrier model without periodic images): the CPU's ContactPotential
 /// gives the collision mesh, planes and settings, and stays the source of kappa between steps;
 /// the device has its own twin (cuda/contact/device_contact.hpp). The adaptive stiffness runs as
 /// on the CPU (Simulator::update_kappa_for_step at the step's start, ContactPotential::end_iteration
 /// after each iterate: IPC's balancing rule once contact appears, then doubling), with the
 /// balancing products and the smallest gap computed on the device.
+///
+/// Friction: the Simulator lags it on the host (FrictionPotential::lag from this solver's active set,
+/// contacts()) and hands each lagged set to set_friction(), which uploads it for the next solves
+/// (cuda/contact/device_friction.hpp); the lagging iterations' residual comes from residual().
 ///
 /// Data residency: the mesh, the materials, the masses, the Hessian's pattern and every work
 /// vector live on the GPU for the whole run; per step the start x, the inertial target, the
@@ -21,17 +25,20 @@
 /// InputError naming the scene's "device" field.
 
 #include "forward/contact/contact_potential.hpp"
+#include "forward/contact/friction/friction_potential.hpp"
 #include "forward/potentials/elastic_potential.hpp"
 #include "forward/potentials/inertia_potential.hpp"
 #include "forward/solver/newton.hpp"
 
 #include <memory>
 #include <string>
+#include <utility>
 #include <vector>
 
 #ifdef DIFFIPC_HAVE_CUDA
 #include "cuda/broad_phase/step_bound.hpp" // plain C++: gpu::CollisionMeshData, gpu::PlaneObstacle
 #include "cuda/contact/device_contact.hpp" // plain C++: gpu::DeviceContactSettings
+#include "cuda/contact/device_friction.hpp" // plain C++: gpu::FrictionPair
 #endif
 
 namespace diffipc {
@@ -43,6 +50,9 @@ gpu::CollisionMeshData to_device(const CollisionMesh& mesh);
 std::vector<gpu::PlaneObstacle> to_device(const std::vector<ContactPlane>& planes);
 /// The barrier's settings as the device contact takes them (kappa, dhat, dmin, the CCD's).
 gpu::DeviceContactSettings to_device(const ContactSettings& settings);
+/// One lagged friction pair as the device takes it: its vertices (kind, vertices, plane) and its
+/// frozen data (weights, tangents, mu lambda).
+std::pair<gpu::BarrierPair, gpu::FrictionPair> to_device(const FrictionContact& contact);
 #endif
 
 class DeviceSolver {
@@ -87,6 +97,14 @@ public:
     /// @brief The active contacts at x (the CPU's ContactPotential::contacts(x): the same pairs in the
     /// same order, with their distance types and squared distances classified on the host).
     ContactSet contacts(const VectorXd& x) const;
+    /// @brief Uploads friction's lagged data for the next solves: its lagged pairs (with their
+    /// weights, tangents and mu lambda), its start-of-step positions and eps = eps_v h; empty pairs:
+    /// no friction work.
+    void set_friction(const FrictionPotential& friction);
+    /// @brief max |g_free| at x of the step's E (inertia, elastic, external, barrier with the device's
+    /// kappa and active set at x, the uploaded friction): Simulator::force_residual times w times the
+    /// force scale. NaN if not finite.
+    double residual(const VectorXd& x, const VectorXd& inertial_target, double weight, const VectorXd& force);
     /// @brief ContactPotential::min_distance(x, radius) on the device.
     double min_distance(const VectorXd& x, double radius) const;
     /// Wall times of the device contact work since the last begin_step().
@@ -97,12 +115,17 @@ public:
         double active_sets = 0, energies = 0;
         long active_set_count = 0, energy_count = 0;
         int max_active = 0;
+        /// contacts() that were not the last one's x (device active set, host copy and classification), and
+        /// set_friction() (conversion, the pairs' preparation on the host, upload): s and counts.
+        double contact_sets = 0, friction_uploads = 0;
+        long contact_set_count = 0, friction_upload_count = 0;
     };
     ContactProfile contact_profile() const { return m_profile; }
 
     /// @brief The adjoint system of a converged step on the device (adjoint/adjoint.cpp):
     /// (M + w H) y = b on the free dofs, H the true Hessian at x (elastic, and the barrier's of the
-    /// active set at x with stiffness `kappa` in a contact scene); y = 0 on constrained dofs.
+    /// active set at x with stiffness `kappa` in a contact scene, and the friction's of the data last
+    /// given to set_friction()); y = 0 on constrained dofs.
     /// @return false if PCG did not converge (a true Hessian that is not positive definite, or the
     ///         iteration cap): the caller then factorizes on the CPU
     /// @param coupling if given: #dofs, H y without the constraints (on the constrained dofs: their
@@ -127,7 +150,7 @@ private:
     const ContactPotential* m_cpu_contact = nullptr;
     int m_last_pcg_iterations = 0;
     long m_total_pcg_iterations = 0;
-    ContactProfile m_profile;
+    mutable ContactProfile m_profile;
 };
 
 } // namespace diffipc

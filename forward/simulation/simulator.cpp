@@ -277,9 +277,6 @@ Simulator::Simulator(Scene scene, const SimulationParameters& parameters)
         }
     }
     m_integrator->initialize(x0, v0, a0);
-    if (m_scene.device == DeviceType::GPU && m_friction)
-        throw InputError(
-            "device", "\"gpu\" has no friction yet (here from the run's friction parameters); use \"cpu\"");
     if (m_scene.device == DeviceType::GPU)
         m_device = std::make_unique<DeviceSolver>(
             *m_elastic, m_integrator->dynamic() ? m_inertia.get() : nullptr, m_constrained, m_contact.get());
@@ -418,6 +415,18 @@ void Simulator::setup_friction()
             Eigen::Map<const VectorXi>(m_contact->collision_mesh().vertex_group.data(),
                 Index(m_contact->collision_mesh().vertex_group.size())));
     m_problem.add(m_friction.get(), m_integrator->potential_weight());
+}
+
+void Simulator::lag_friction_at(const VectorXd& x)
+{
+    if (!m_device) {
+        m_friction->lag(*m_contact, x);
+        return;
+    }
+    // The device's active set at x (the CPU's pairs) and its current kappa give the normal forces.
+    m_contact->set_kappa(m_device->kappa());
+    m_friction->lag(*m_contact, m_device->contacts(x), x);
+    m_device->set_friction(*m_friction);
 }
 
 double Simulator::force_residual(const VectorXd& x, double w) const
@@ -670,6 +679,11 @@ StepStatus Simulator::step()
         adaptive.kappa_max = 100 * m_kappa_min;
         adaptive.bbox_diagonal = m_bbox_diagonal;
         m_device->begin_step(m_contact->kappa(), adaptive, x, inertial_target, w, m_external->force());
+        if (m_friction) {
+            m_problem.set_weight(m_friction.get(), w);
+            m_friction->set_step(x, m_scene.time.dt);
+            lag_friction_at(x);
+        }
     } else if (m_contact) {
         update_kappa_for_step(x);
         if (m_friction) {
@@ -712,8 +726,10 @@ StepStatus Simulator::step()
         record.friction_iterations = 1;
         for (;;) {
             std::vector<FrictionContact> used = m_friction->lagged();
-            m_friction->lag(*m_contact, x);
-            record.friction_residual = force_residual(x);
+            lag_friction_at(x);
+            record.friction_residual = m_device
+                ? m_device->residual(x, inertial_target, w, m_external->force()) / (w * m_force_scale)
+                : force_residual(x);
             record.friction_converged = record.friction_residual <= settings.residual_tolerance;
             if (record.friction_converged || record.friction_iterations >= m_scene.friction.iterations) {
                 record.friction = std::move(used);
@@ -722,7 +738,9 @@ StepStatus Simulator::step()
             // Solve a copy: if this re-solve fails, the last converged state (with the
             // data it satisfies) is still there for the permissive policy.
             VectorXd y = x;
-            NewtonResult again = newton.solve(y, target, m_constrained, w * m_force_scale, step_scale);
+            NewtonResult again = m_device ? m_device->solve(y, inertial_target, w, m_external->force(), target,
+                                     w * m_force_scale, step_scale, settings)
+                                          : newton.solve(y, target, m_constrained, w * m_force_scale, step_scale);
             ++record.friction_iterations;
             r.add_costs(again);
             if (again.status != StepStatus::CONVERGED) {

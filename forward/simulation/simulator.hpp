@@ -241,6 +241,9 @@ private:
     void setup_friction();
     /// max |free-dof gradient| / (w f_s) at x, w the weight of the non-inertial potentials
     /// (default: the integrator's).
+    /// Lags friction at x (FrictionPotential::lag); on the GPU path from the device's active set and
+    /// kappa, and uploads the lagged data to the device.
+    void lag_friction_at(const VectorXd& x);
     double force_residual(const VectorXd& x, double w) const;
     double force_residual(const VectorXd& x) const { return force_residual(x, m_integrator->potential_weight()); }
     /// Adaptive kappa at the start of a step (docs/math.md "Barrier stiffness").

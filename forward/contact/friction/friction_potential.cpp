@@ -201,12 +201,16 @@ void FrictionPotential::set_step(const VectorXd& x_start, double dt)
 
 void FrictionPotential::lag(const ContactPotential& contact, const VectorXd& mesh_x_lagged)
 {
+    lag(contact, contact.contacts(mesh_x_lagged), mesh_x_lagged);
+}
+
+void FrictionPotential::lag(const ContactPotential& contact, const ContactSet& set, const VectorXd& mesh_x_lagged)
+{
     if (contact.has_images() != has_images())
         throw std::logic_error("FrictionPotential::lag: the barrier and the friction differ in periodic images");
     const VectorXd x_lagged = contact.surface_positions(mesh_x_lagged); // the contacts' indices
     const ContactSettings& s = contact.settings();
     const double dmin2 = s.min_distance * s.min_distance;
-    const ContactSet& set = contact.contacts(mesh_x_lagged);
     // In contact order, whatever the thread count.
     m_contacts = parallel_collect<FrictionContact>(set.size(), 64, [&](size_t k, std::vector<FrictionContact>& out) {
         const Contact& c = set[k];

@@ -58,6 +58,9 @@ public:
     /// @param contact   the barrier (its stiffness, dhat and dmin give the normal forces)
     /// @param x_lagged  #V*dim state the data is taken from
     void lag(const ContactPotential& contact, const VectorXd& x_lagged);
+    /// @brief lag() from a given active set at x_lagged (the GPU path's: DeviceSolver::contacts, the
+    /// same pairs as contact.contacts(x_lagged)); the contact gives kappa, dhat, dmin and the planes.
+    void lag(const ContactPotential& contact, const ContactSet& set, const VectorXd& x_lagged);
     /// @brief Sets the start-of-step positions x0 and the time step h (eps = eps_v h).
     void set_step(const VectorXd& x_start, double dt);
 

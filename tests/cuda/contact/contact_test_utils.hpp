@@ -4,6 +4,7 @@
 
 #include "cuda/contact/barrier_pairs.hpp"
 #include "forward/contact/contact_potential.hpp"
+#include "forward/contact/friction/friction_potential.hpp"
 #include "forward/solver/sparse_assembler.hpp"
 #include "tests/cuda/elastic_test_utils.hpp"
 #include "tests/forward/contact/contact_scenes.hpp"
@@ -71,6 +72,27 @@ struct ContactScene {
         return k;
     }
 };
+
+/// Friction lagged at a scene's x (mu 0.3, 0.5, 0.4, 0.6 per contact group, eps_v 1e-3 m/s, h = 0.01 s:
+/// eps = 1e-5 m), from the step start x0 = x - motion * a random vector (|u| below eps: sticking pairs;
+/// well above: sliding ones).
+struct LaggedFriction {
+    std::unique_ptr<FrictionPotential> friction;
+    VectorXd x0;
+};
+inline LaggedFriction lagged_friction(const ContactScene& scene, double motion)
+{
+    const Simulator& sim = *scene.sim;
+    const std::vector<double> mu = { 0.3, 0.5, 0.4, 0.6 };
+    const std::vector<double> groups(
+        mu.begin(), mu.begin() + Index(sim.scene().bodies.size() + sim.scene().obstacles.size()));
+    LaggedFriction out;
+    out.friction = std::make_unique<FrictionPotential>(scene.dim(), groups, sim.mesh().vertex_body, 1e-3);
+    out.x0 = scene.x - motion * random_vector(scene.x.size(), 3);
+    out.friction->set_step(out.x0, 0.01);
+    out.friction->lag(scene.contact(), scene.x);
+    return out;
+}
 
 /// Two 3D boxes, the upper one turned by `angle` about the vertical so that edges cross edges,
 /// 0.5 mm apart and 0.5 mm above a plane, cells^2 x 2 cells each; positions jiggled by

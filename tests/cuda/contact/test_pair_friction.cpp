@@ -5,25 +5,12 @@
 
 #include "cuda/contact/pair_friction.cuh"
 #include "forward/contact/friction/friction_potential.hpp"
+#include "forward/simulation/device_solver.hpp"
 #include "tests/cuda/contact/contact_test_utils.hpp"
 
 using namespace diffipc;
 
 namespace {
-
-gpu::FrictionPair to_pair(const FrictionContact& c)
-{
-    gpu::FrictionPair f;
-    f.num_vertices = c.num_vertices;
-    for (int i = 0; i < 4; ++i)
-        f.weights[i] = c.weights[size_t(i)];
-    for (int k = 0; k < 3; ++k) {
-        f.tangent[k] = c.tangent(k, 0);
-        f.tangent[3 + k] = c.tangent(k, 1);
-    }
-    f.scale = c.coefficient * c.normal_force;
-    return f;
-}
 
 /// The pair's displacements x_i - x0_i as the port takes them (z = 0 in 2D).
 void displacements(const FrictionContact& c, const VectorXd& x, const VectorXd& x0, int dim, gpu::vec3* dx)
@@ -41,14 +28,9 @@ int compare_with_cpu(const test::ContactScene& scene, double motion, const std::
     const Simulator& sim = *scene.sim;
     const int dim = scene.dim();
     const Index n = scene.x.size();
-    const std::vector<double> mu = { 0.3, 0.5, 0.4, 0.6 }; // per contact group (bodies, then obstacles)
-    const std::vector<double> groups(
-        mu.begin(), mu.begin() + Index(sim.scene().bodies.size() + sim.scene().obstacles.size()));
-    FrictionPotential friction(dim, groups, sim.mesh().vertex_body, 1e-3);
-    const double dt = 0.01; // eps = 1e-5 m
-    const VectorXd x0 = scene.x - motion * test::random_vector(n, 3);
-    friction.set_step(x0, dt);
-    friction.lag(scene.contact(), scene.x);
+    const test::LaggedFriction lagged = test::lagged_friction(scene, motion);
+    const FrictionPotential& friction = *lagged.friction;
+    const VectorXd& x0 = lagged.x0;
     const std::vector<FrictionContact>& pairs = friction.lagged();
     EXPECT_GT(pairs.size(), 0u) << what;
 
@@ -57,7 +39,7 @@ int compare_with_cpu(const test::ContactScene& scene, double motion, const std::
     std::vector<Eigen::Triplet<double>> triplets;
     int sticking = 0;
     for (const FrictionContact& c : pairs) {
-        const gpu::FrictionPair f = to_pair(c);
+        const gpu::FrictionPair f = to_device(c).second;
         gpu::vec3 dx[4];
         displacements(c, scene.x, x0, dim, dx);
         const int m = c.num_vertices * dim;

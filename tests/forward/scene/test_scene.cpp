@@ -173,20 +173,12 @@ std::vector<Malformed> malformed_cases()
         { "output_misspelled_vtu_key", [](json& s) { s["output"]["vtu_encode"] = "ascii"; }, "vtu_encode" },
         { "mass_unknown", [](json& s) { s["mass"] = "heavy"; }, "mass" },
         { "device_unknown", [](json& s) { s["device"] = "tpu"; }, "device: expected \"cpu\" or \"gpu\", got \"tpu\"" },
-        { "device_gpu_with_friction",
+        { "device_gpu_with_adaptive_time",
             [](json& s) {
                 s["device"] = "gpu";
-                s["contact"] = { { "dhat", 1e-3 } };
-                s["friction"] = { { "coefficient", 0.3 } };
+                s["time"]["adaptive"] = true;
             },
-            "device: \"gpu\" does not support friction" },
-        { "device_gpu_with_a_body_s_friction",
-            [](json& s) {
-                s["device"] = "gpu";
-                s["contact"] = { { "dhat", 1e-3 } };
-                s["bodies"][0]["friction"] = { { "coefficient", 0.2 } };
-            },
-            "device: \"gpu\" does not support friction" },
+            "device: \"gpu\" does not support adaptive time stepping" },
         { "device_gpu_with_penalty_contact",
             [](json& s) {
                 s["device"] = "gpu";
@@ -274,6 +266,13 @@ TEST(Scene, DeviceIsCpuUnlessTheSceneSaysGpu)
     json s = valid_scene();
     s["device"] = "gpu";
     EXPECT_EQ(parse_scene(s, ".", "<test>").device, DeviceType::GPU); // parsing needs no GPU
+    // Contact with lagged friction (the scene's coefficient or a body's) is on the GPU path too.
+    s["contact"] = { { "dhat", 1e-3 } };
+    s["friction"] = { { "coefficient", 0.3 } };
+    EXPECT_EQ(parse_scene(s, ".", "<test>").device, DeviceType::GPU);
+    s.erase("friction");
+    s["bodies"][0]["friction"] = { { "coefficient", 0.2 } };
+    EXPECT_EQ(parse_scene(s, ".", "<test>").device, DeviceType::GPU);
     Scene scene = parse_scene(valid_scene(), ".", "<test>");
     select_device(scene, "gpu", "--device");
     EXPECT_EQ(scene.device, DeviceType::GPU);
