@@ -382,6 +382,24 @@ struct DeviceNewton::Impl {
         sum.bind(H, contact->hessian(), friction ? &friction->hessian() : nullptr);
     }
 
+    /// Uploads a host state (x, the inertial target, the force, the weight) between solves and builds the
+    /// contact's active set there. @throws std::invalid_argument naming `who` on a size mismatch
+    void load_state(const char* who, DeviceContact* with_contact, const std::vector<double>& x_host,
+        const std::vector<double>& inertial_target, double weight, const std::vector<double>& force)
+    {
+        if (x_host.size() != n || force.size() != n || (dynamic && inertial_target.size() != n))
+            throw std::invalid_argument(std::string("DeviceNewton::") + who
+                + ": x, inertial_target and force need #dofs = " + std::to_string(n) + " entries");
+        contact = with_contact;
+        x.upload(x_host);
+        if (dynamic)
+            xt.upload(inertial_target);
+        f.upload(force);
+        w = weight;
+        active_current = false;
+        activate_at_x();
+    }
+
     /// Builds the contact's active set at the iterate x (if there is contact and it is not current).
     void activate_at_x()
     {
@@ -930,17 +948,7 @@ double DeviceNewton::residual_at(const std::vector<double>& x, const std::vector
     double weight, const std::vector<double>& force)
 {
     Impl& m = *m_impl;
-    if (x.size() != m.n || force.size() != m.n || (m.dynamic && inertial_target.size() != m.n))
-        throw std::invalid_argument(
-            "DeviceNewton::residual_at: x, inertial_target and force need #dofs = " + std::to_string(m.n) + " entries");
-    m.contact = m_contact;
-    m.x.upload(x);
-    if (m.dynamic)
-        m.xt.upload(inertial_target);
-    m.f.upload(force);
-    m.w = weight;
-    m.active_current = false;
-    m.activate_at_x();
+    m.load_state("residual_at", m_contact, x, inertial_target, weight, force);
     m.gradient(m_mesh, m.x.data(), weight, m.g_trial.data());
     double rs[2];
     m.residual_of(m.g_trial.data(), rs);
@@ -953,19 +961,7 @@ ContactBalance DeviceNewton::balance_at(const std::vector<double>& x, const std:
     double weight, const std::vector<double>& force)
 {
     Impl& m = *m_impl;
-    if (x.size() != m.n || force.size() != m.n || (m.dynamic && inertial_target.size() != m.n))
-        throw std::invalid_argument(
-            "DeviceNewton::balance_at: x, inertial_target and force need #dofs = " + std::to_string(m.n) + " entries");
-    if (!m_contact)
-        return {};
-    m.contact = m_contact;
-    m.x.upload(x);
-    if (m.dynamic)
-        m.xt.upload(inertial_target);
-    m.f.upload(force);
-    m.w = weight;
-    m.active_current = false;
-    m.activate_at_x();
+    m.load_state("balance_at", m_contact, x, inertial_target, weight, force);
     return m.balance(m_mesh, weight);
 }
 

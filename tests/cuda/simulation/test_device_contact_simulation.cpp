@@ -278,6 +278,50 @@ TEST(DeviceContactSimulation, FailedStepReportsTheCpuStatusAndKeepsTheCommittedS
     }
 }
 
+TEST(DeviceContactSimulation, FrictionLaggingThatDoesNotConvergeFailsTransactionally)
+{
+    REQUIRE_GPU();
+    // FrictionScenes.StrictPolicyFailsTransactionallyWhenLaggingDoesNotConverge on both paths: mu = 2,
+    // eps_v = 1e-5 and a single lagging solve on a 60 degree incline: some step's lagged data does not
+    // describe its solution; the strict policy reports FRICTION_EXHAUSTED at the same step on both paths,
+    // with the committed state and kappa untouched bit for bit; the permissive one commits every step.
+    json s = test::block_on_incline(2, 60 * M_PI / 180, 2.0, 1e-3, 100);
+    s["friction"]["eps_v"] = 1e-5;
+    s["friction"]["iterations"] = 1;
+    s["friction"]["policy"] = "strict";
+    int failed_at[2] = { -1, -1 };
+    for (int k = 0; k < 2; ++k) {
+        s["device"] = k == 0 ? "cpu" : "gpu";
+        Simulator sim(test::make_scene(s));
+        StepStatus status = StepStatus::CONVERGED;
+        VectorXd before;
+        double kappa = 0;
+        while (status == StepStatus::CONVERGED && sim.steps_done() < 100) {
+            before = sim.positions();
+            kappa = sim.contact()->kappa();
+            status = sim.step();
+        }
+        ASSERT_EQ(status, StepStatus::FRICTION_EXHAUSTED) << s["device"];
+        EXPECT_EQ(std::memcmp(sim.positions().data(), before.data(), size_t(before.size()) * sizeof(double)), 0)
+            << s["device"];
+        EXPECT_EQ(sim.contact()->kappa(), kappa) << s["device"];
+        EXPECT_EQ(sim.trajectory().final_status, StepStatus::FRICTION_EXHAUSTED) << s["device"];
+        failed_at[k] = sim.trajectory().failed_step;
+    }
+    EXPECT_EQ(failed_at[1], failed_at[0]);
+    std::printf("  strict friction policy: FRICTION_EXHAUSTED at step %d on the CPU, %d on the GPU\n", failed_at[0],
+        failed_at[1]);
+    s["friction"]["policy"] = "permissive";
+    s["device"] = "gpu";
+    Simulator permissive(test::make_scene(s));
+    permissive.run();
+    EXPECT_EQ(permissive.trajectory().final_status, StepStatus::CONVERGED);
+    int unconverged = 0;
+    for (const StepRecord& r : permissive.trajectory().steps)
+        unconverged += !r.friction_converged;
+    EXPECT_GT(unconverged, 0);
+}
+
 } // namespace
 
 TEST(DeviceContactSimulation, AdjointGradientEqualsTheCpus)

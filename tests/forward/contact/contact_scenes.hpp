@@ -47,6 +47,29 @@ inline nlohmann::json boxes_on_plane(const nlohmann::json& contact)
     return s;
 }
 
+/// A neo-Hookean block (0.1 x 0.05 (x 0.1) m) resting 50 um above a horizontal plane, the incline
+/// modelled by gravity tilted by `theta` (rad), with friction coefficient mu (eps_v 1e-3, 10 lagging
+/// iterations), dhat 0.1 mm, implicit Euler with step dt, residual tolerance 1e-8.
+inline nlohmann::json block_on_incline(int dim, double theta, double mu, double dt, int steps)
+{
+    const double g = 9.81;
+    nlohmann::json s
+        = box_scene(dim, dim == 2 ? std::vector<double> { 0.1, 0.05 } : std::vector<double> { 0.1, 0.05, 0.1 },
+            dim == 2 ? std::vector<int> { 4, 2 } : std::vector<int> { 2, 1, 2 }, "neo_hookean", 1e7, 0.3, 1000);
+    s["bodies"][0]["translation"] = dim == 2 ? nlohmann::json { 0, 5e-5 } : nlohmann::json { 0, 5e-5, 0 };
+    std::vector<double> gravity(size_t(dim), 0.0), normal(size_t(dim), 0.0), origin(size_t(dim), 0.0);
+    gravity[0] = g * std::sin(theta);
+    gravity[1] = -g * std::cos(theta);
+    normal[1] = 1;
+    s["gravity"] = gravity;
+    s["obstacles"] = { { { "plane", { { "point", origin }, { "normal", normal } } } } };
+    s["contact"] = { { "dhat", 1e-4 } };
+    s["friction"] = { { "coefficient", mu }, { "eps_v", 1e-3 }, { "iterations", 10 } };
+    s["time"] = { { "integrator", "implicit_euler" }, { "dt", dt }, { "steps", steps } };
+    s["solver"] = { { "residual_tolerance", 1e-8 } };
+    return s;
+}
+
 /// boxes_on_plane()'s positions with body b turned by `angle` (rad) about the vertical axis through
 /// its centre, so that its edges cross body a's.
 inline Eigen::VectorXd turn_upper_box(const Simulator& sim, double angle)

@@ -3,6 +3,7 @@
 // The incline is modelled by tilting gravity over a horizontal plane.
 
 #include "../../test_utils.hpp"
+#include "../contact_scenes.hpp"
 
 #include "forward/contact/intersection.hpp"
 #include "forward/simulation/simulator.hpp"
@@ -17,24 +18,7 @@ using nlohmann::json;
 namespace {
 
 constexpr double G = 9.81;
-
-json block_on_incline(int dim, double theta, double mu, double dt, int steps)
-{
-    json s = test::box_scene(dim, dim == 2 ? std::vector<double> { 0.1, 0.05 } : std::vector<double> { 0.1, 0.05, 0.1 },
-        dim == 2 ? std::vector<int> { 4, 2 } : std::vector<int> { 2, 1, 2 }, "neo_hookean", 1e7, 0.3, 1000);
-    s["bodies"][0]["translation"] = dim == 2 ? json { 0, 5e-5 } : json { 0, 5e-5, 0 };
-    std::vector<double> g(size_t(dim), 0.0), normal(size_t(dim), 0.0), origin(size_t(dim), 0.0);
-    g[0] = G * std::sin(theta);
-    g[1] = -G * std::cos(theta);
-    normal[1] = 1;
-    s["gravity"] = g;
-    s["obstacles"] = { { { "plane", { { "point", origin }, { "normal", normal } } } } };
-    s["contact"] = { { "dhat", 1e-4 } };
-    s["friction"] = { { "coefficient", mu }, { "eps_v", 1e-3 }, { "iterations", 10 } };
-    s["time"] = { { "integrator", "implicit_euler" }, { "dt", dt }, { "steps", steps } };
-    s["solver"] = { { "residual_tolerance", 1e-8 } };
-    return s;
-}
+using test::block_on_incline;
 
 double mechanical_energy(const Simulator& sim, const VectorXd& x, const VectorXd& v, const VectorXd& gravity);
 
