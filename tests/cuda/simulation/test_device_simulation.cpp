@@ -87,6 +87,18 @@ TEST(DeviceSimulation, CantileverEveryIntegratorAndDimension)
                 std::to_string(dim) + "D " + integrator);
 }
 
+TEST(DeviceSimulation, ElasticStudies)
+{
+    REQUIRE_GPU();
+    // The repo's elastic example scenes (studies/101, 102) as they are, at the comparison's tolerance.
+    for (const char* folder : { "101_cantilever", "102_bar_2d" }) {
+        json s = json::parse(test::read_file(std::string(DIFFIPC_SOURCE_DIR) + "/studies/" + folder + "/scene.json"));
+        s.erase("output");
+        s["solver"]["residual_tolerance"] = 1e-10;
+        run_both(s, folder);
+    }
+}
+
 TEST(DeviceSimulation, EveryMaterialUnderATraction)
 {
     REQUIRE_GPU();
