@@ -45,9 +45,9 @@ NewtonResult Simulator::solve_in_substeps(int k, const NewtonSolver& newton, dou
         const double kappa = m_contact ? m_contact->kappa() : 0.0;
         VectorXd y = committed;
         restart_friction(committed, ts - t);
-        NewtonResult r = newton.solve(y, target, m_constrained, w * m_force_scale, step_scale);
+        NewtonResult r = solve_current(newton, y, target, w, step_scale, true);
         total.add_costs(r);
-        r = relag_friction(newton, w, step_scale, target, y, r, total);
+        r = relag_friction(newton, w, step_scale, target, y, r, total, true);
         if (r.status == StepStatus::CONVERGED) {
             record.min_increment = std::min(record.min_increment, ts - t);
             ++record.substeps;
@@ -70,9 +70,8 @@ NewtonResult Simulator::solve_in_substeps(int k, const NewtonSolver& newton, dou
                 if (!(control ? a.displacement_control : a.relaxation))
                     continue;
                 std::string note;
-                NewtonResult c = control
-                    ? pass_limit_point(k, newton, step_scale, t, committed, r, record, total, note)
-                    : relax_to_equilibrium(k, newton, step_scale, committed, record, total, note);
+                NewtonResult c = control ? pass_limit_point(k, newton, step_scale, t, committed, r, record, total, note)
+                                         : relax_to_equilibrium(k, newton, step_scale, committed, record, total, note);
                 if (c.status == StepStatus::CONVERGED) {
                     // Its last solve took the load from t to t_k.
                     record.min_increment = std::min(record.min_increment, t1 - t);
@@ -104,25 +103,39 @@ void Simulator::restart_friction(const VectorXd& from, double h)
     if (!m_friction)
         return;
     m_friction->set_step(from, h);
-    m_friction->lag(*m_contact, from);
+    lag_friction_at(from);
 }
 
-NewtonResult Simulator::relag_friction(const NewtonSolver& newton, double w, double step_scale,
-    const VectorXd& target, VectorXd& y, NewtonResult r, NewtonResult& total)
+NewtonResult Simulator::solve_current(
+    const NewtonSolver& newton, VectorXd& y, const VectorXd& target, double w, double step_scale, bool on_device)
+{
+    if (m_device && on_device) // static: no inertial target
+        return m_device->solve(
+            y, VectorXd(), w, m_external->force(), target, w * m_force_scale, step_scale, newton.settings());
+    return newton.solve(y, target, m_constrained, w * m_force_scale, step_scale);
+}
+
+NewtonResult Simulator::relag_friction(const NewtonSolver& newton, double w, double step_scale, const VectorXd& target,
+    VectorXd& y, NewtonResult r, NewtonResult& total, bool on_device)
 {
     for (int solves = 1; m_friction && r.status == StepStatus::CONVERGED && solves < m_scene.friction.iterations;
          ++solves) {
         const std::vector<FrictionContact> satisfied = m_friction->lagged();
-        m_friction->lag(*m_contact, y);
-        if (force_residual(y, w) <= m_scene.solver.residual_tolerance)
+        lag_friction_at(y);
+        const double residual = m_device && on_device
+            ? m_device->residual(y, VectorXd(), w, m_external->force()) / (w * m_force_scale)
+            : force_residual(y, w);
+        if (residual <= m_scene.solver.residual_tolerance)
             break;
         VectorXd z = y;
         const double kappa = m_contact->kappa();
-        NewtonResult again = newton.solve(z, target, m_constrained, w * m_force_scale, step_scale);
+        NewtonResult again = solve_current(newton, z, target, w, step_scale, on_device);
         total.add_costs(again);
         if (again.status != StepStatus::CONVERGED) {
             // A failed re-solve fails the solve: its increment is cut.
             m_friction->set_lagged(satisfied);
+            if (m_device)
+                m_device->set_friction(*m_friction);
             m_contact->set_kappa(kappa);
             return again;
         }
@@ -132,8 +145,8 @@ NewtonResult Simulator::relag_friction(const NewtonSolver& newton, double w, dou
     return r;
 }
 
-NewtonResult Simulator::pass_limit_point(int k, const NewtonSolver& newton, double step_scale, double t,
-    VectorXd& x, const NewtonResult& failed, StepRecord& record, NewtonResult& total, std::string& why)
+NewtonResult Simulator::pass_limit_point(int k, const NewtonSolver& newton, double step_scale, double t, VectorXd& x,
+    const NewtonResult& failed, StepRecord& record, NewtonResult& total, std::string& why)
 {
     const AdaptiveSpec& a = m_scene.time.adaptive;
     const double t1 = k * m_scene.time.dt;
@@ -235,9 +248,8 @@ NewtonResult Simulator::pass_limit_point(int k, const NewtonSolver& newton, doub
     return result;
 }
 
-NewtonResult Simulator::relax_to_equilibrium(
-    int k, const NewtonSolver& newton, double step_scale, VectorXd& x, StepRecord& record, NewtonResult& total,
-    std::string& why)
+NewtonResult Simulator::relax_to_equilibrium(int k, const NewtonSolver& newton, double step_scale, VectorXd& x,
+    StepRecord& record, NewtonResult& total, std::string& why)
 {
     const AdaptiveSpec& a = m_scene.time.adaptive;
     const double t1 = k * m_scene.time.dt;
@@ -319,10 +331,12 @@ NewtonResult Simulator::relax_to_equilibrium(
             return last;
         }
     }
-    why = "relaxation took " + std::to_string(record.relaxation_steps) + " proximal solves (" + std::to_string(plain_tries)
-        + " plain solves failed), then " + (record.relaxation_steps >= MAX_RELAXATION_STEPS
-            ? std::string("stopped at its limit of ") + std::to_string(MAX_RELAXATION_STEPS)
-            : std::string("failed even with a proximal weight 1e6 times its start (") + to_string(last.status) + ")");
+    why = "relaxation took " + std::to_string(record.relaxation_steps) + " proximal solves ("
+        + std::to_string(plain_tries) + " plain solves failed), then "
+        + (record.relaxation_steps >= MAX_RELAXATION_STEPS
+                ? std::string("stopped at its limit of ") + std::to_string(MAX_RELAXATION_STEPS)
+                : std::string("failed even with a proximal weight 1e6 times its start (") + to_string(last.status)
+                    + ")");
     return last;
 }
 

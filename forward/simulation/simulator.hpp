@@ -192,6 +192,7 @@ private:
     /// sub-steps of its load increment after its full solve failed. On success x is the
     /// equilibrium at t_k and the result CONVERGED; otherwise the last sub-step's status, with
     /// `why` saying how far it got. Fills the record's substeps, cuts and min_increment.
+    /// In a GPU run the sub-steps are solved on the device (solve_current).
     NewtonResult solve_in_substeps(int k, const NewtonSolver& newton, double step_scale, double kappa_before,
         VectorXd& x, StepRecord& record, std::string& why);
     /// @brief Displacement control past a limit point (load_stepping.cpp): from the equilibrium x at
@@ -235,8 +236,15 @@ private:
     /// sliding then feels the normal forces of its end, not of its start). A failed re-solve is
     /// returned as the solve's failure (y keeps the last solution, the friction its data).
     /// w: the weight of the solve's non-inertial potentials.
+    /// on_device: the re-solves on the GPU path's device (solve_current), as the solve r was.
     NewtonResult relag_friction(const NewtonSolver& newton, double w, double step_scale, const VectorXd& target,
-        VectorXd& y, NewtonResult r, NewtonResult& total);
+        VectorXd& y, NewtonResult r, NewtonResult& total, bool on_device = false);
+    /// @brief A static solve of the current step problem from y toward `target` (weight w of the
+    /// non-inertial potentials): on the device in a GPU run when on_device, else by `newton`. Load
+    /// stepping's sub-steps run on the device; its displacement control and proximal relaxation past
+    /// a limit point run on the CPU's Newton in either run (their terms are the CPU problem's).
+    NewtonResult solve_current(
+        const NewtonSolver& newton, VectorXd& y, const VectorXd& target, double w, double step_scale, bool on_device);
     void setup_contact();
     void setup_friction();
     /// max |free-dof gradient| / (w f_s) at x, w the weight of the non-inertial potentials

@@ -35,6 +35,8 @@ struct ContactComparison {
     int steps = 0, cpu_iterations = 0, gpu_iterations = 0, max_active = 0;
     double max_kappa = 0; ///< the CPU run's largest kappa
     int kappa_differs = 0; ///< steps whose kappa differs between the paths
+    int gpu_substeps = 0; ///< load-stepping sub-steps of the GPU run
+    int gpu_fallbacks = 0; ///< its displacement-control and relaxation solves (on the CPU's Newton)
 };
 
 /// Runs the scene on both paths; checks every committed GPU state independently (no intersection,
@@ -74,6 +76,8 @@ ContactComparison run_both(json s, const std::string& name, double tolerance, co
         c.max_active = std::max(c.max_active, rb.active_contacts);
         c.max_kappa = std::max(c.max_kappa, ra.kappa);
         c.kappa_differs += ra.kappa != rb.kappa;
+        c.gpu_substeps += rb.substeps;
+        c.gpu_fallbacks += rb.control_steps + rb.relaxation_steps;
         // Independent checks of the GPU's committed state (CPU code, not the GPU's).
         const VectorXd& x = rb.positions;
         EXPECT_EQ(find_intersection(contact.collision_mesh(), unflatten(x, gpu.scene().dim), true), "")
@@ -253,6 +257,44 @@ TEST(DeviceContactSimulation, FrictionScenes2DAnd3D)
     head_on["contact"]["kappa"] = 1e12;
     head_on["friction"] = { { "coefficient", 0.3 }, { "eps_v", 1e-3 }, { "iterations", 2 } };
     run_both(head_on, "202 boxes head on with friction (3D)", -1, study_folder("202_boxes_head_on"));
+}
+
+// Automatic load stepping of static scenes on the GPU path (its sub-steps solved on the device): a block
+// pressed onto a plane by its prescribed top face (30% of its height over 2 static steps) with 12 Newton
+// iterations allowed, so that a full step fails and is taken in sub-steps (the CPU: step 2 in 2 sub-steps),
+// all solved by the device's Newton (no displacement control or relaxation, which would run on the CPU's);
+// both paths end each step at the same equilibrium.
+TEST(DeviceContactSimulation, AutomaticLoadSteppingOfStaticScenes)
+{
+    REQUIRE_GPU();
+    for (int dim : { 2, 3 }) {
+        const std::vector<double> lo = dim == 2 ? std::vector<double> { 0, 5e-5 } : std::vector<double> { 0, 5e-5, 0 };
+        const std::vector<double> hi
+            = dim == 2 ? std::vector<double> { 0.1, 0.05005 } : std::vector<double> { 0.1, 0.05005, 0.1 };
+        const std::vector<int> cells = dim == 2 ? std::vector<int> { 8, 4 } : std::vector<int> { 4, 2, 4 };
+        json s;
+        s["dimension"] = dim;
+        s["bodies"]
+            = { { { "name", "block" }, { "mesh", { { "box", { { "min", lo }, { "max", hi }, { "cells", cells } } } } },
+                { "material", { { "model", "neo_hookean" }, { "E", 1e6 }, { "nu", 0.45 }, { "density", 1000 } } } } };
+        std::vector<double> origin(size_t(dim), 0.0), normal(size_t(dim), 0.0), top_lo(size_t(dim), -1.0),
+            top_hi(size_t(dim), 1.0);
+        normal[1] = 1;
+        top_lo[1] = 0.0499;
+        s["obstacles"] = { { { "plane", { { "point", origin }, { "normal", normal } } } } };
+        s["contact"] = { { "dhat", 1e-4 }, { "kappa", 1e13 } };
+        json motion = dim == 2 ? json { "0", "-0.015*t" } : json { "0", "-0.015*t", "0" };
+        s["dirichlet"]
+            = { { { "body", "block" }, { "region", test::region(top_lo, top_hi) }, { "displacement", motion } } };
+        s["time"] = { { "integrator", "static" }, { "dt", 1 }, { "steps", 2 }, { "adaptive", true } };
+        s["solver"] = { { "residual_tolerance", 1e-9 }, { "max_iterations", 12 } };
+        const ContactComparison c = run_both(s, std::to_string(dim) + "D block, automatic load stepping", 1e-6);
+        EXPECT_GT(c.gpu_substeps, 0) << dim << "D: the GPU's full steps did not need sub-steps";
+        EXPECT_EQ(c.gpu_fallbacks, 0) << dim << "D: the GPU's sub-steps needed the CPU's fallbacks";
+        std::printf("  %dD block: %d load-stepping sub-steps on the GPU, %d displacement-control and relaxation "
+                    "solves\n",
+            dim, c.gpu_substeps, c.gpu_fallbacks);
+    }
 }
 
 TEST(DeviceContactSimulation, FailedStepReportsTheCpuStatusAndKeepsTheCommittedState)

@@ -173,12 +173,20 @@ std::vector<Malformed> malformed_cases()
         { "output_misspelled_vtu_key", [](json& s) { s["output"]["vtu_encode"] = "ascii"; }, "vtu_encode" },
         { "mass_unknown", [](json& s) { s["mass"] = "heavy"; }, "mass" },
         { "device_unknown", [](json& s) { s["device"] = "tpu"; }, "device: expected \"cpu\" or \"gpu\", got \"tpu\"" },
-        { "device_gpu_with_adaptive_time",
+        { "device_gpu_with_adaptive_time_of_a_dynamic_scene",
             [](json& s) {
                 s["device"] = "gpu";
                 s["time"]["adaptive"] = true;
             },
-            "device: \"gpu\" does not support adaptive time stepping" },
+            "device: \"gpu\" does not support adaptive time stepping of dynamic scenes" },
+        { "device_gpu_with_load_stepping_and_the_adaptive_kappa",
+            [](json& s) {
+                s["device"] = "gpu";
+                s["time"]["integrator"] = "static";
+                s["time"]["adaptive"] = true;
+                s["contact"] = { { "dhat", 1e-3 }, { "kappa", "adaptive" } };
+            },
+            "device: \"gpu\" does not support automatic load stepping (time.adaptive) with the adaptive kappa" },
         { "device_gpu_with_penalty_contact",
             [](json& s) {
                 s["device"] = "gpu";
@@ -272,6 +280,11 @@ TEST(Scene, DeviceIsCpuUnlessTheSceneSaysGpu)
     EXPECT_EQ(parse_scene(s, ".", "<test>").device, DeviceType::GPU);
     s.erase("friction");
     s["bodies"][0]["friction"] = { { "coefficient", 0.2 } };
+    EXPECT_EQ(parse_scene(s, ".", "<test>").device, DeviceType::GPU);
+    // Automatic load stepping of a static scene with a fixed kappa too.
+    s["time"]["integrator"] = "static";
+    s["time"]["adaptive"] = true;
+    s["contact"]["kappa"] = 1e6;
     EXPECT_EQ(parse_scene(s, ".", "<test>").device, DeviceType::GPU);
     Scene scene = parse_scene(valid_scene(), ".", "<test>");
     select_device(scene, "gpu", "--device");
