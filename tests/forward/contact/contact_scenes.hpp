@@ -70,6 +70,25 @@ inline nlohmann::json block_on_incline(int dim, double theta, double mu, double 
     return s;
 }
 
+/// block_on_incline() in 2D on a 60 degree incline with mu = 2, eps_v = 1e-5 and a single lagging solve per
+/// step (100 steps of 1 ms): some step's lagged data does not describe its solution.
+inline nlohmann::json unconverged_lagging_scene()
+{
+    nlohmann::json s = block_on_incline(2, 60 * M_PI / 180, 2.0, 1e-3, 100);
+    s["friction"]["eps_v"] = 1e-5;
+    s["friction"]["iterations"] = 1;
+    return s;
+}
+
+/// The committed steps of a run whose friction lagging did not converge.
+inline int unconverged_lagging_steps(const Trajectory& trajectory)
+{
+    int count = 0;
+    for (const StepRecord& r : trajectory.steps)
+        count += !r.friction_converged;
+    return count;
+}
+
 /// boxes_on_plane()'s positions with body b turned by `angle` (rad) about the vertical axis through
 /// its centre, so that its edges cross body a's.
 inline Eigen::VectorXd turn_upper_box(const Simulator& sim, double angle)
