@@ -46,7 +46,8 @@ struct ContactComparison {
 /// the rest positions), both along the trajectory and per step from the same start (a CPU step from
 /// the GPU's previous state). `tolerance` < 0: the scene's step problems have several equilibria
 /// (the CPU's residual vouches for the GPU's), the differences are printed, not asserted.
-ContactComparison run_both(json s, const std::string& name, double tolerance, const std::string& directory = ".")
+ContactComparison run_both(
+    json s, const std::string& name, double tolerance, const std::string& directory = ".", bool expect_contact = true)
 {
     s.erase("output");
     const double residual_tolerance = s["solver"].value("residual_tolerance", 1e-8);
@@ -131,7 +132,8 @@ ContactComparison run_both(json s, const std::string& name, double tolerance, co
             c.worst_step_index = k;
         }
     }
-    EXPECT_GT(c.max_active, 0) << name << ": no contact happened";
+    if (expect_contact)
+        EXPECT_GT(c.max_active, 0) << name << ": no contact happened";
     std::printf("  %-34s %3d steps, up to %4d active pairs: max |x_gpu - x_cpu| = %.2e of the scene size %.3g m; "
                 "per step from the same start %.2e (step %d); CPU residual at the GPU's states %.1e; Newton "
                 "iterations CPU %d, GPU %d (%ld PCG); kappa differs in %d steps\n",
@@ -219,6 +221,15 @@ TEST(DeviceContactSimulation, ContactStudies)
     // runs with other Newton paths agree to 5e-9, so they find the same one).
     run_study("205_plate_on_sphere", 10, "205 plate on sphere (3D mesh obstacle)", -1);
     run_study("206_ring_chain", 20, "206 ring chain (3D)", 1e-6);
+    // The load-stepped static studies (fixed kappa; their first steps, where the full steps converge): the
+    // lattice block's step 1 has several equilibria (the GPU's state has the CPU's residual 9.1e-11 and, by a
+    // scratch check, a 2.3e-7 J higher energy than the CPU's, with 1,715 active pairs against 1,293), so it
+    // is printed, not asserted; the cellular strip's first 3 steps (its holes start to buckle, before any
+    // contact) are asserted.
+    json lattice = study_scene("208_lattice_block", 1);
+    run_both(lattice, "208 lattice block (3D, static)", -1, study_folder("208_lattice_block"));
+    json strip = study_scene("209_cellular_strip", 3);
+    run_both(strip, "209 cellular strip (2D, static)", 1e-6, study_folder("209_cellular_strip"), false);
 }
 
 // Lagged friction on the GPU path: the lagging (FrictionPotential::lag from the device's active set and
