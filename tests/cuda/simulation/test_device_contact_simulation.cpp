@@ -7,6 +7,7 @@
 #include "adjoint/adjoint.hpp"
 #include "cuda/common/device.hpp"
 #include "forward/contact/intersection.hpp"
+#include "tests/cuda/elastic_test_utils.hpp"
 #include "tests/cuda/simulation/adjoint_test_utils.hpp"
 #include "tests/forward/contact/contact_scenes.hpp"
 #include "tests/forward/test_utils.hpp"
@@ -21,10 +22,6 @@ using namespace diffipc;
 using nlohmann::json;
 
 namespace {
-
-#define REQUIRE_GPU()                                                                                                  \
-    if (!gpu::cuda_device_available())                                                                                 \
-    GTEST_SKIP() << gpu::cuda_device_description()
 
 struct ContactComparison {
     double worst = 0; ///< max over steps and dofs of |x_gpu - x_cpu| / bbox diagonal
@@ -187,7 +184,7 @@ void run_study(const std::string& folder, int steps, const std::string& name, do
 
 TEST(DeviceContactSimulation, TestScenes2DAnd3D)
 {
-    REQUIRE_GPU();
+    DIFFIPC_SKIP_WITHOUT_GPU();
     std::printf("  %s\n", gpu::cuda_device_description().c_str());
     // The adaptive stiffness, then a fixed kappa: the value the adaptive run ended with.
     json rings = test::rings_on_plane({ { "dhat", 1e-3 }, { "kappa", "adaptive" } });
@@ -208,7 +205,7 @@ TEST(DeviceContactSimulation, TestScenes2DAnd3D)
 
 TEST(DeviceContactSimulation, ContactStudies)
 {
-    REQUIRE_GPU();
+    DIFFIPC_SKIP_WITHOUT_GPU();
     run_study("201_ring_on_plane", 20, "201 ring on plane (2D)", 1e-6);
     run_study("204_ring_pile", 30, "204 ring pile (2D)", 1e-6);
     // 202 with the adaptive stiffness fails on the GPU at step 9 (NEWTON_EXHAUSTED, residual 3.7e-4
@@ -238,7 +235,7 @@ TEST(DeviceContactSimulation, ContactStudies)
 // planes and between bodies, 2D and 3D.
 TEST(DeviceContactSimulation, FrictionScenes2DAnd3D)
 {
-    REQUIRE_GPU();
+    DIFFIPC_SKIP_WITHOUT_GPU();
     // Ring a is thrown into ring b along the plane: vertex-edge friction between the rings, vertex-plane
     // friction with the plane (sliding, then rolling).
     json rings = test::rings_on_plane({ { "dhat", 1e-3 }, { "kappa", "adaptive" } });
@@ -277,7 +274,7 @@ TEST(DeviceContactSimulation, FrictionScenes2DAnd3D)
 // both paths end each step at the same equilibrium.
 TEST(DeviceContactSimulation, AutomaticLoadSteppingOfStaticScenes)
 {
-    REQUIRE_GPU();
+    DIFFIPC_SKIP_WITHOUT_GPU();
     for (int dim : { 2, 3 }) {
         const std::vector<double> lo = dim == 2 ? std::vector<double> { 0, 5e-5 } : std::vector<double> { 0, 5e-5, 0 };
         const std::vector<double> hi
@@ -310,7 +307,7 @@ TEST(DeviceContactSimulation, AutomaticLoadSteppingOfStaticScenes)
 
 TEST(DeviceContactSimulation, FailedStepReportsTheCpuStatusAndKeepsTheCommittedState)
 {
-    REQUIRE_GPU();
+    DIFFIPC_SKIP_WITHOUT_GPU();
     // Two Newton iterations cannot bring the rings to rest on the plane: NEWTON_EXHAUSTED on both
     // paths, and the committed state (the start) untouched bit for bit, kappa included.
     json s = test::rings_on_plane({ { "dhat", 1e-3 }, { "kappa", "adaptive" } });
@@ -333,7 +330,7 @@ TEST(DeviceContactSimulation, FailedStepReportsTheCpuStatusAndKeepsTheCommittedS
 
 TEST(DeviceContactSimulation, FrictionLaggingThatDoesNotConvergeFailsTransactionally)
 {
-    REQUIRE_GPU();
+    DIFFIPC_SKIP_WITHOUT_GPU();
     // FrictionScenes.StrictPolicyFailsTransactionallyWhenLaggingDoesNotConverge on both paths: mu = 2,
     // eps_v = 1e-5 and a single lagging solve on a 60 degree incline: some step's lagged data does not
     // describe its solution; the strict policy reports FRICTION_EXHAUSTED at the same step on both paths,
@@ -374,7 +371,7 @@ TEST(DeviceContactSimulation, FrictionLaggingThatDoesNotConvergeFailsTransaction
 
 TEST(DeviceContactSimulation, AdjointGradientEqualsTheCpus)
 {
-    REQUIRE_GPU();
+    DIFFIPC_SKIP_WITHOUT_GPU();
     // The adjoint systems of a GPU contact run are solved on the device (the true elastic and barrier
     // Hessians, PCG to 1e-12); the gradients of the same objective must match the CPU run's to 1e-6
     // (the adjoint needs a fixed kappa).

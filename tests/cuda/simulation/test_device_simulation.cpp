@@ -2,8 +2,9 @@
 // against the CPU path: the same scenes through Simulator, step by step. Skipped without a GPU.
 
 #include "adjoint/adjoint.hpp"
-#include "tests/cuda/simulation/adjoint_test_utils.hpp"
 #include "cuda/common/device.hpp"
+#include "tests/cuda/elastic_test_utils.hpp"
+#include "tests/cuda/simulation/adjoint_test_utils.hpp"
 #include "tests/forward/test_utils.hpp"
 
 #include <gtest/gtest.h>
@@ -15,10 +16,6 @@ using namespace diffipc;
 using nlohmann::json;
 
 namespace {
-
-#define REQUIRE_GPU()                                                                                                  \
-    if (!gpu::cuda_device_available())                                                                                 \
-    GTEST_SKIP() << gpu::cuda_device_description()
 
 /// Tolerance of the comparison: both solvers stop at residual_tolerance 1e-10 of the force
 /// scale; their states then differ by at most about that share of the step's displacement,
@@ -80,7 +77,7 @@ json cantilever(int dim, const std::string& model, const std::string& integrator
 
 TEST(DeviceSimulation, CantileverEveryIntegratorAndDimension)
 {
-    REQUIRE_GPU();
+    DIFFIPC_SKIP_WITHOUT_GPU();
     for (int dim : { 2, 3 })
         for (const char* integrator : { "implicit_euler", "bdf2", "newmark", "static" })
             run_both(cantilever(dim, "neo_hookean", integrator, integrator == std::string("static") ? 2 : 8),
@@ -89,7 +86,7 @@ TEST(DeviceSimulation, CantileverEveryIntegratorAndDimension)
 
 TEST(DeviceSimulation, ElasticStudies)
 {
-    REQUIRE_GPU();
+    DIFFIPC_SKIP_WITHOUT_GPU();
     // The repo's elastic example scenes (studies/101, 102) as they are, at the comparison's tolerance.
     for (const char* folder : { "101_cantilever", "102_bar_2d" }) {
         json s = json::parse(test::read_file(std::string(DIFFIPC_SOURCE_DIR) + "/studies/" + folder + "/scene.json"));
@@ -101,7 +98,7 @@ TEST(DeviceSimulation, ElasticStudies)
 
 TEST(DeviceSimulation, EveryMaterialUnderATraction)
 {
-    REQUIRE_GPU();
+    DIFFIPC_SKIP_WITHOUT_GPU();
     for (const char* model : { "linear", "stvk", "neo_hookean", "stable_neo_hookean" })
         for (int dim : { 2, 3 }) {
             json s = cantilever(dim, model, "implicit_euler", 5);
@@ -115,7 +112,7 @@ TEST(DeviceSimulation, EveryMaterialUnderATraction)
 
 TEST(DeviceSimulation, PrescribedStretchLiftsTheConstrainedDofs)
 {
-    REQUIRE_GPU();
+    DIFFIPC_SKIP_WITHOUT_GPU();
     // Static: the free end is pulled 20% by a prescribed displacement (lifting in every step).
     for (int dim : { 2, 3 }) {
         json s = cantilever(dim, "stable_neo_hookean", "static", 3);
@@ -132,7 +129,7 @@ TEST(DeviceSimulation, PrescribedStretchLiftsTheConstrainedDofs)
 
 TEST(DeviceSimulation, FailedStepReportsTheCpuStatusAndKeepsTheCommittedState)
 {
-    REQUIRE_GPU();
+    DIFFIPC_SKIP_WITHOUT_GPU();
     json s = cantilever(3, "neo_hookean", "implicit_euler", 3);
     s["solver"]["max_iterations"] = 1; // one Newton iteration cannot converge this step
     s["device"] = "cpu";
@@ -153,7 +150,7 @@ bool request_density(const std::string& integrator) { return integrator != "stat
 
 TEST(DeviceSimulation, AdjointGradientEqualsTheCpus)
 {
-    REQUIRE_GPU();
+    DIFFIPC_SKIP_WITHOUT_GPU();
     // The adjoint systems of a GPU run are solved on the device (true Hessian, PCG to 1e-12);
     // the gradients of the same objective must match the CPU run's (direct solves) to 1e-6.
     for (int dim : { 2, 3 })
