@@ -12,8 +12,7 @@
 /// - gradients: L values, vertex-major: g[a * dim + i].
 /// - Hessians: L by L row-major, H[(a * dim + i) * L + b * dim + k].
 
-#include "cuda/elastic/material.cuh"
-#include "cuda/elastic/project_psd.cuh"
+#include "cuda/elastic/analytic_eigensystem.cuh"
 
 namespace diffipc::gpu {
 
@@ -82,7 +81,8 @@ DIFFIPC_HD inline void element_gradient(
 }
 
 /// @brief H_(a,i),(b,k) = volume * sum_jl A_(ij),(kl) G_aj G_bl (N/m), A = dP/dF, made positive
-/// semi-definite first (project_psd on the dim^2 by dim^2 A) if `project`.
+/// semi-definite first if `project` (project_stress_derivative: the CPU's project_psd on the
+/// dim^2 by dim^2 A, from the model's closed-form eigensystem).
 /// @param H out: L by L row-major
 template <int dim>
 DIFFIPC_HD inline void element_hessian(MaterialModel model, const double* G, double volume, const double* xe, double mu,
@@ -93,7 +93,7 @@ DIFFIPC_HD inline void element_hessian(MaterialModel model, const double* G, dou
     deformation_gradient<dim>(G, xe, F);
     stress_derivative<dim>(model, F, mu, lambda, A);
     if (project)
-        project_psd<n>(A);
+        project_stress_derivative<dim>(model, F, mu, lambda, A);
     // AG_(ij),(b,k) = sum_l A_(ij),(kl) G_bl, then H_(a,i),(b,k) = volume sum_j G_aj AG_(ij),(b,k).
     for (int b = 0; b <= dim; ++b)
         for (int k = 0; k < dim; ++k) {

@@ -6,7 +6,9 @@
 /// A <- V max(D, 0) V^T. Like Eigen's LLT and SelfAdjointEigenSolver, only the lower
 /// triangle of the input is read. The eigensystem comes from a cyclic Jacobi iteration
 /// (Golub and Van Loan, "Matrix Computations", 4th ed., Algorithm 8.5.3), which works on
-/// the host and the device for every model; no analytic eigensystem is used.
+/// the host and the device for any symmetric matrix. The elastic dP/dF uses the closed-form
+/// eigensystems of analytic_eigensystem.cuh instead (the same projection, far fewer operations);
+/// the contact barrier's pair Hessians use this one.
 ///
 /// Layout: an n by n matrix is row-major, A[r * n + c].
 
