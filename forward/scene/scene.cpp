@@ -622,9 +622,8 @@ void select_device(Scene& scene, const std::string& name, const std::string& fie
         throw InputError(field,
             "\"gpu\" does not support " + what
                 + " yet (issue 17: the GPU path has elasticity, inertia, gravity, tractions, Dirichlet "
-                  "conditions, barrier contact with obstacles and lagged friction, and automatic load stepping of "
-                  "static "
-                  "scenes); use \"cpu\"");
+                  "conditions, barrier contact with obstacles and lagged friction, automatic load stepping and "
+                  "adaptive time stepping); use \"cpu\"");
     };
     if (scene.contact.enabled && scene.contact.penalty)
         refuse("the penalty contact model");
@@ -632,11 +631,11 @@ void select_device(Scene& scene, const std::string& name, const std::string& fie
         refuse("periodic cells");
     if (scene.mass == MassType::CONSISTENT)
         refuse("the consistent mass (\"mass\": \"lumped\" is supported)");
-    // Automatic load stepping of static scenes runs its sub-steps on the device; with the adaptive kappa
-    // the sub-steps' kappa would have to follow the device's, which it does not yet.
-    if (scene.time.adaptive.enabled && scene.time.integrator != IntegratorType::STATIC)
-        refuse("adaptive time stepping of dynamic scenes (time.adaptive with a dynamic integrator)");
-    if (scene.time.adaptive.enabled && scene.contact.enabled && scene.contact.adaptive_kappa)
+    // Automatic load stepping and dynamic sub-stepping run their sub-steps on the device. Past a limit
+    // point, load stepping's displacement control and relaxation run on the CPU's Newton, whose kappa
+    // does not follow the device's adaptive rule.
+    if (scene.time.adaptive.enabled && scene.time.integrator == IntegratorType::STATIC && scene.contact.enabled
+        && scene.contact.adaptive_kappa)
         refuse("automatic load stepping (time.adaptive) with the adaptive kappa (give contact.kappa a number)");
     scene.device = DeviceType::GPU;
 }

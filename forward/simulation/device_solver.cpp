@@ -243,6 +243,12 @@ void DeviceSolver::begin_step(double kappa, const AdaptiveKappa& adaptive, const
 
 double DeviceSolver::kappa() const { return m_impl->contact ? m_impl->contact->kappa() : 0.0; }
 
+void DeviceSolver::set_kappa(double kappa)
+{
+    if (m_impl->contact)
+        m_impl->contact->set_kappa(kappa);
+}
+
 ContactSet DeviceSolver::contacts(const VectorXd& x) const
 {
     ContactSet out;
@@ -446,6 +452,8 @@ void DeviceSolver::begin_step(double, const AdaptiveKappa&, const VectorXd&, con
 }
 
 double DeviceSolver::kappa() const { return 0.0; }
+
+void DeviceSolver::set_kappa(double) { }
 
 ContactSet DeviceSolver::contacts(const VectorXd&) const { return {}; }
 

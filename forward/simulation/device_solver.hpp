@@ -94,6 +94,9 @@ public:
         double weight, const VectorXd& force);
     /// The device contact's kappa (after a solve: the value it ended with).
     double kappa() const;
+    /// @brief Sets the device contact's kappa, leaving the adaptive rule's state of the step as it is:
+    /// what a failed solve of a sub-stepped step restores (as ContactPotential::set_kappa on the CPU).
+    void set_kappa(double kappa);
     /// @brief The active contacts at x (the CPU's ContactPotential::contacts(x): the same pairs in the
     /// same order, with their distance types and squared distances classified on the host).
     ContactSet contacts(const VectorXd& x) const;

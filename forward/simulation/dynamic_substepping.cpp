@@ -47,8 +47,7 @@ NewtonResult Simulator::solve_dynamic_substeps(int k, const NewtonSolver& newton
     const AdaptiveSpec& a = m_scene.time.adaptive;
     const double dt = m_scene.time.dt, t0 = (k - 1) * dt, t1 = k * dt;
     // A failed full solve leaves no trace: start from the committed state and stiffness.
-    if (m_contact)
-        m_contact->set_kappa(kappa_before);
+    restore_kappa(kappa_before);
     VectorXd xj = m_integrator->positions(), vj = m_integrator->velocities(), aj = m_integrator->accelerations();
     double t = t0, h = a.cut * dt;
     NewtonResult total, last;
@@ -83,12 +82,13 @@ NewtonResult Simulator::solve_dynamic_substeps(int k, const NewtonSolver& newton
             settings.max_displacement = m_bbox_diagonal + largest;
         }
         const NewtonSolver solver(m_problem, m_assembler, *m_linear, settings);
-        const double kappa = m_contact ? m_contact->kappa() : 0.0;
+        const double kappa = solve_kappa();
         VectorXd y = xj;
         restart_friction(xj, hs);
-        NewtonResult r = solver.solve(y, target, m_constrained, ws * m_force_scale, hs);
+        // In a GPU run on the device, with the sub-step's inertial target and weight.
+        NewtonResult r = solve_current(solver, y, target, ws, hs, true);
         total.add_costs(r);
-        r = relag_friction(solver, ws, hs, target, y, r, total);
+        r = relag_friction(solver, ws, hs, target, y, r, total, true);
         if (r.status == StepStatus::CONVERGED) {
             record.min_increment = std::min(record.min_increment, hs);
             ++record.substeps;
@@ -108,8 +108,7 @@ NewtonResult Simulator::solve_dynamic_substeps(int k, const NewtonSolver& newton
                 h = std::min(dt, h * a.growth);
             continue;
         }
-        if (m_contact)
-            m_contact->set_kappa(kappa); // a failed sub-step leaves no trace either
+        restore_kappa(kappa); // a failed sub-step leaves no trace either
         if (plan) {
             why = "; its sub-step to t = " + format_number(ts) + " s (given by SimulationParameters::substeps) failed ("
                 + to_string(r.status) + ")";
@@ -127,11 +126,15 @@ NewtonResult Simulator::solve_dynamic_substeps(int k, const NewtonSolver& newton
     if (m_friction) {
         // The data the last solve used, and how far it is from the state it describes.
         std::vector<FrictionContact> used = m_friction->lagged();
-        m_friction->lag(*m_contact, xj);
-        record.friction_residual = force_residual(xj, w_last);
+        lag_friction_at(xj);
+        record.friction_residual = m_device
+            ? m_device->residual(xj, current_inertial_target(), w_last, m_external->force()) / (w_last * m_force_scale)
+            : force_residual(xj, w_last);
         record.friction_converged = record.friction_residual <= m_scene.solver.residual_tolerance;
         record.friction_iterations = 1;
         m_friction->set_lagged(used);
+        if (m_device)
+            m_device->set_friction(*m_friction);
         record.friction = std::move(used);
     }
     x = std::move(xj);

@@ -27,8 +27,7 @@ NewtonResult Simulator::solve_in_substeps(int k, const NewtonSolver& newton, dou
     const double dt = m_scene.time.dt, t0 = (k - 1) * dt, t1 = k * dt;
     const double w = m_integrator->potential_weight();
     // The full step's failed solve leaves no trace: start from the committed state and stiffness.
-    if (m_contact)
-        m_contact->set_kappa(kappa_before);
+    restore_kappa(kappa_before);
     VectorXd committed = m_integrator->positions();
     double t = t0, h = a.cut * dt;
     NewtonResult total, last;
@@ -42,7 +41,7 @@ NewtonResult Simulator::solve_in_substeps(int k, const NewtonSolver& newton, dou
         VectorXd target = committed;
         prescribed_targets_at(k, ts, target);
         m_external->set_force(external_forces(ts));
-        const double kappa = m_contact ? m_contact->kappa() : 0.0;
+        const double kappa = solve_kappa();
         VectorXd y = committed;
         restart_friction(committed, ts - t);
         NewtonResult r = solve_current(newton, y, target, w, step_scale, true);
@@ -58,8 +57,7 @@ NewtonResult Simulator::solve_in_substeps(int k, const NewtonSolver& newton, dou
                 h = std::min(dt, h * a.growth);
             continue;
         }
-        if (m_contact)
-            m_contact->set_kappa(kappa); // a failed sub-step leaves no trace either
+        restore_kappa(kappa); // a failed sub-step leaves no trace either
         ++record.cuts;
         h *= a.cut;
         if (h < a.min_increment * (1 - 1e-12)) {
@@ -106,13 +104,35 @@ void Simulator::restart_friction(const VectorXd& from, double h)
     lag_friction_at(from);
 }
 
+const VectorXd& Simulator::current_inertial_target() const
+{
+    static const VectorXd none;
+    return m_integrator->dynamic() ? m_inertia->target() : none;
+}
+
 NewtonResult Simulator::solve_current(
     const NewtonSolver& newton, VectorXd& y, const VectorXd& target, double w, double step_scale, bool on_device)
 {
-    if (m_device && on_device) // static: no inertial target
-        return m_device->solve(
-            y, VectorXd(), w, m_external->force(), target, w * m_force_scale, step_scale, newton.settings());
+    if (m_device && on_device)
+        return m_device->solve(y, current_inertial_target(), w, m_external->force(), target, w * m_force_scale,
+            step_scale, newton.settings());
     return newton.solve(y, target, m_constrained, w * m_force_scale, step_scale);
+}
+
+double Simulator::solve_kappa() const
+{
+    if (!m_contact)
+        return 0.0;
+    return m_device ? m_device->kappa() : m_contact->kappa();
+}
+
+void Simulator::restore_kappa(double kappa)
+{
+    if (!m_contact)
+        return;
+    m_contact->set_kappa(kappa);
+    if (m_device)
+        m_device->set_kappa(kappa);
 }
 
 NewtonResult Simulator::relag_friction(const NewtonSolver& newton, double w, double step_scale, const VectorXd& target,
@@ -123,12 +143,12 @@ NewtonResult Simulator::relag_friction(const NewtonSolver& newton, double w, dou
         const std::vector<FrictionContact> satisfied = m_friction->lagged();
         lag_friction_at(y);
         const double residual = m_device && on_device
-            ? m_device->residual(y, VectorXd(), w, m_external->force()) / (w * m_force_scale)
+            ? m_device->residual(y, current_inertial_target(), w, m_external->force()) / (w * m_force_scale)
             : force_residual(y, w);
         if (residual <= m_scene.solver.residual_tolerance)
             break;
         VectorXd z = y;
-        const double kappa = m_contact->kappa();
+        const double kappa = on_device ? solve_kappa() : m_contact->kappa();
         NewtonResult again = solve_current(newton, z, target, w, step_scale, on_device);
         total.add_costs(again);
         if (again.status != StepStatus::CONVERGED) {
@@ -136,7 +156,10 @@ NewtonResult Simulator::relag_friction(const NewtonSolver& newton, double w, dou
             m_friction->set_lagged(satisfied);
             if (m_device)
                 m_device->set_friction(*m_friction);
-            m_contact->set_kappa(kappa);
+            if (on_device)
+                restore_kappa(kappa);
+            else
+                m_contact->set_kappa(kappa);
             return again;
         }
         y = std::move(z);

@@ -215,6 +215,7 @@ private:
     /// increment from the last sub-step's state; the sub-steps given in `plan` (their end times),
     /// or chosen by time.adaptive's policy when plan is null. On success x is the state at t_k,
     /// and the record holds its velocities, accelerations, sub-step times and intermediate states.
+    /// In a GPU run the sub-steps are solved on the device (solve_current).
     NewtonResult solve_dynamic_substeps(int k, const NewtonSolver& newton, const std::vector<double>* plan,
         double kappa_before, VectorXd& x, StepRecord& record, std::string& why);
     /// The message of sub-stepping (`what`) in step k that got to time t in `substeps` sub-steps and
@@ -239,12 +240,23 @@ private:
     /// on_device: the re-solves on the GPU path's device (solve_current), as the solve r was.
     NewtonResult relag_friction(const NewtonSolver& newton, double w, double step_scale, const VectorXd& target,
         VectorXd& y, NewtonResult r, NewtonResult& total, bool on_device = false);
-    /// @brief A static solve of the current step problem from y toward `target` (weight w of the
-    /// non-inertial potentials): on the device in a GPU run when on_device, else by `newton`. Load
-    /// stepping's sub-steps run on the device; its displacement control and proximal relaxation past
-    /// a limit point run on the CPU's Newton in either run (their terms are the CPU problem's).
+    /// @brief A solve of the current step problem from y toward `target` (weight w of the
+    /// non-inertial potentials; in a dynamic scene the inertia's current target): on the device in a
+    /// GPU run when on_device, else by `newton` (on the device with its settings). Load stepping's and
+    /// dynamic sub-stepping's sub-steps run on the device; load stepping's displacement control and
+    /// proximal relaxation past a limit point run on the CPU's Newton in either run (their terms are
+    /// the CPU problem's).
     NewtonResult solve_current(
         const NewtonSolver& newton, VectorXd& y, const VectorXd& target, double w, double step_scale, bool on_device);
+    /// The inertia potential's current target in a dynamic scene (the step's or the sub-step's, as
+    /// set last), empty in a static one: what a device solve of the current problem is given.
+    const VectorXd& current_inertial_target() const;
+    /// @brief The barrier stiffness the next solve starts from: the device's in a GPU run (which
+    /// carries it between the step's solves), else the CPU contact's; 0 without contact.
+    double solve_kappa() const;
+    /// @brief Sets the barrier stiffness on the CPU contact and, in a GPU run, on the device: what a
+    /// failed solve of a sub-stepped step restores (the adaptive rule's state is left as it is).
+    void restore_kappa(double kappa);
     void setup_contact();
     void setup_friction();
     /// max |free-dof gradient| / (w f_s) at x, w the weight of the non-inertial potentials

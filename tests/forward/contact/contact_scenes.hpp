@@ -47,6 +47,25 @@ inline nlohmann::json boxes_on_plane(const nlohmann::json& contact)
     return s;
 }
 
+/// A soft box falling onto a plane obstacle that rises at 0.2 m/s (prescribed obstacle dofs),
+/// with gravity and contact (dhat 2e-3, kappa 1e3): it lands during the run.
+inline nlohmann::json falling_box(int dim, const std::string& integrator, double dt, int steps)
+{
+    nlohmann::json s = dim == 2 ? box_scene(2, { 0.2, 0.1 }, { 4, 2 }, "neo_hookean", 2e4, 0.3, 1000)
+                                : box_scene(3, { 0.2, 0.1, 0.2 }, { 2, 1, 2 }, "neo_hookean", 2e4, 0.3, 1000);
+    s["gravity"] = dim == 2 ? nlohmann::json { 0, -9.81 } : nlohmann::json { 0, -9.81, 0 };
+    s["bodies"][0]["translation"] = dim == 2 ? nlohmann::json { 0, 0.01 } : nlohmann::json { 0, 0.01, 0 };
+    s["bodies"][0]["initial_velocity"] = dim == 2 ? nlohmann::json { 0.1, -0.5 } : nlohmann::json { 0.1, -0.5, -0.05 };
+    nlohmann::json plane = { { "point", dim == 2 ? nlohmann::json { 0, 0 } : nlohmann::json { 0, 0, 0 } },
+        { "normal", dim == 2 ? nlohmann::json { 0, 1 } : nlohmann::json { 0, 1, 0 } },
+        { "motion", dim == 2 ? nlohmann::json { 0, "0.2*t" } : nlohmann::json { 0, "0.2*t", 0 } } };
+    s["obstacles"] = { { { "name", "floor" }, { "plane", plane } } };
+    s["contact"] = { { "dhat", 2e-3 }, { "kappa", 1e3 } };
+    s["time"] = { { "integrator", integrator }, { "dt", dt }, { "steps", steps } };
+    s["solver"] = { { "residual_tolerance", 1e-10 } };
+    return s;
+}
+
 /// A neo-Hookean block (0.1 x 0.05 (x 0.1) m) resting 50 um above a horizontal plane, the incline
 /// modelled by gravity tilted by `theta` (rad), with friction coefficient mu (eps_v 1e-3, 10 lagging
 /// iterations), dhat 0.1 mm, implicit Euler with step dt, residual tolerance 1e-8.

@@ -173,12 +173,6 @@ std::vector<Malformed> malformed_cases()
         { "output_misspelled_vtu_key", [](json& s) { s["output"]["vtu_encode"] = "ascii"; }, "vtu_encode" },
         { "mass_unknown", [](json& s) { s["mass"] = "heavy"; }, "mass" },
         { "device_unknown", [](json& s) { s["device"] = "tpu"; }, "device: expected \"cpu\" or \"gpu\", got \"tpu\"" },
-        { "device_gpu_with_adaptive_time_of_a_dynamic_scene",
-            [](json& s) {
-                s["device"] = "gpu";
-                s["time"]["adaptive"] = true;
-            },
-            "device: \"gpu\" does not support adaptive time stepping of dynamic scenes" },
         { "device_gpu_with_load_stepping_and_the_adaptive_kappa",
             [](json& s) {
                 s["device"] = "gpu";
@@ -285,6 +279,10 @@ TEST(Scene, DeviceIsCpuUnlessTheSceneSaysGpu)
     s["time"]["integrator"] = "static";
     s["time"]["adaptive"] = true;
     s["contact"]["kappa"] = 1e6;
+    EXPECT_EQ(parse_scene(s, ".", "<test>").device, DeviceType::GPU);
+    // Adaptive time stepping of a dynamic scene, with the adaptive kappa too.
+    s["time"]["integrator"] = "implicit_euler";
+    s["contact"]["kappa"] = "adaptive";
     EXPECT_EQ(parse_scene(s, ".", "<test>").device, DeviceType::GPU);
     Scene scene = parse_scene(valid_scene(), ".", "<test>");
     select_device(scene, "gpu", "--device");

@@ -4,6 +4,7 @@
 
 #include "forward/common/error.hpp"
 #include "forward/contact/intersection.hpp"
+#include "tests/forward/contact/contact_scenes.hpp"
 #include "tests/forward/test_utils.hpp"
 
 #include <gtest/gtest.h>
@@ -12,27 +13,9 @@
 
 using namespace diffipc;
 using json = nlohmann::json;
+using test::falling_box;
 
 namespace {
-
-/// A soft box falling onto a plane obstacle that rises at 0.2 m/s (prescribed obstacle dofs),
-/// with gravity and contact (dhat 2e-3, kappa 1e3): it lands during the run.
-json falling_box(int dim, const std::string& integrator, double dt, int steps)
-{
-    json s = dim == 2 ? test::box_scene(2, { 0.2, 0.1 }, { 4, 2 }, "neo_hookean", 2e4, 0.3, 1000)
-                      : test::box_scene(3, { 0.2, 0.1, 0.2 }, { 2, 1, 2 }, "neo_hookean", 2e4, 0.3, 1000);
-    s["gravity"] = dim == 2 ? json { 0, -9.81 } : json { 0, -9.81, 0 };
-    s["bodies"][0]["translation"] = dim == 2 ? json { 0, 0.01 } : json { 0, 0.01, 0 };
-    s["bodies"][0]["initial_velocity"] = dim == 2 ? json { 0.1, -0.5 } : json { 0.1, -0.5, -0.05 };
-    json plane = { { "point", dim == 2 ? json { 0, 0 } : json { 0, 0, 0 } },
-        { "normal", dim == 2 ? json { 0, 1 } : json { 0, 1, 0 } },
-        { "motion", dim == 2 ? json { 0, "0.2*t" } : json { 0, "0.2*t", 0 } } };
-    s["obstacles"] = { { { "name", "floor" }, { "plane", plane } } };
-    s["contact"] = { { "dhat", 2e-3 }, { "kappa", 1e3 } };
-    s["time"] = { { "integrator", integrator }, { "dt", dt }, { "steps", steps } };
-    s["solver"] = { { "residual_tolerance", 1e-10 } };
-    return s;
-}
 
 /// No inverted element and no intersection at x, by checks independent of the solver's.
 void expect_valid(const Simulator& sim, const VectorXd& x)
@@ -79,8 +62,8 @@ TEST(DynamicSubstepping, GivenSubstepsRepeatARunWithThoseSteps)
                     for (int j = 1; j < n; ++j) {
                         const StepRecord::SubState& sub = r.path[size_t(j - 1)];
                         EXPECT_NEAR(sub.time, ref.step((k - 1) * n + j).time, 1e-15);
-                        EXPECT_LE((sub.positions - ref.step((k - 1) * n + j).positions).lpNorm<Eigen::Infinity>(),
-                            1e-9);
+                        EXPECT_LE(
+                            (sub.positions - ref.step((k - 1) * n + j).positions).lpNorm<Eigen::Infinity>(), 1e-9);
                     }
                 }
             }
@@ -89,8 +72,8 @@ TEST(DynamicSubstepping, GivenSubstepsRepeatARunWithThoseSteps)
 TEST(DynamicSubstepping, FailedStepsAreSubsteppedValidAndRepeatable)
 {
     // With at most 9 Newton iterations per solve, the landing step fails as one step of 0.04 s
-    // (it takes 12 in 2D, 10 in 3D) and is taken in sub-steps (time.adaptive). Every committed state and sub-state is free of inversions and
-    // intersections by the independent exact checks, the velocity is that of the last sub-step,
+    // (it takes 12 in 2D, 10 in 3D) and is taken in sub-steps (time.adaptive). Every committed state and sub-state is
+    // free of inversions and intersections by the independent exact checks, the velocity is that of the last sub-step,
     // and a run built from the run's parameters() takes the same sub-steps to the same states.
     // Implicit Euler only: under Newmark this landing takes 11 or more iterations at every step
     // size (its sub-steps with Newmark are checked by the test above and the adjoint's).
@@ -117,8 +100,8 @@ TEST(DynamicSubstepping, FailedStepsAreSubsteppedValidAndRepeatable)
                     expect_valid(sim, sub.positions);
                 if (std::string(integrator) == "implicit_euler") {
                     const double h = r.time - r.path.back().time;
-                    EXPECT_LE((r.velocities - (r.positions - r.path.back().positions) / h).lpNorm<Eigen::Infinity>(),
-                        1e-9);
+                    EXPECT_LE(
+                        (r.velocities - (r.positions - r.path.back().positions) / h).lpNorm<Eigen::Infinity>(), 1e-9);
                 }
             }
             Simulator replay(test::make_scene(s), sim.parameters());
