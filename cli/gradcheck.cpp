@@ -10,9 +10,9 @@
 
 namespace diffipc {
 
-int gradcheck(const std::string& problem_path, int directions)
+int gradcheck(const std::string& problem_path, int directions, const std::string& device)
 {
-    const ReducedFunctional rf = ReducedFunctional::load(problem_path);
+    const ReducedFunctional rf = ReducedFunctional::load(problem_path, device);
     const auto& settings = rf.check_settings();
     const int count = directions > 0 ? directions : settings.directions;
     // At the design's start: the entries' "initial" design values through their maps (so a

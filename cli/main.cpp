@@ -137,6 +137,9 @@ int main(int argc, char** argv)
     auto* grad_cmd = app.add_subcommand(
         "gradcheck", "Adjoint gradient of a problem file against finite differences (Taylor table)");
     grad_cmd->add_option("problem", problem_path, "problem file (JSON)")->required();
+    std::string grad_device;
+    grad_cmd->add_option("--device", grad_device,
+        "cpu | gpu: where the load cases' simulations and adjoint solves run, replacing the scenes' \"device\"");
     grad_cmd->add_option("--directions", directions, "random directions (default: the file's, else 2)")
         ->check(CLI::Range(1, 1 << 20));
 
@@ -159,6 +162,9 @@ int main(int argc, char** argv)
         ->add_option("--max-seconds", optimize_options.max_seconds,
             "wall-time budget of the whole run, s, replacing the file's optimizer.max_seconds (0: none)")
         ->check(CLI::Range(0.0, 1e12));
+    opt_cmd->add_option("--device", optimize_options.device,
+        "cpu | gpu: where the load cases' simulations and adjoint solves run, replacing the scenes' \"device\" "
+        "(give it again with --resume)");
     opt_cmd->add_flag("-q,--quiet", optimize_options.quiet, "no progress output");
 
     try {
@@ -197,7 +203,7 @@ int main(int argc, char** argv)
         if (*bench_cmd)
             return run_bench(bench_options);
         if (*grad_cmd)
-            return gradcheck(problem_path, directions);
+            return gradcheck(problem_path, directions, grad_device);
         if (*study_cmd) {
             if (study_options.name.empty() && !study_options.list)
                 throw InputError("study", "name a study (diffipc study --list shows them)");

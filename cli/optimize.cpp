@@ -203,7 +203,7 @@ int optimize(const OptimizeOptions& options)
     if (problem_path.empty())
         throw InputError("problem", "a problem file is required (or --resume DIR)");
 
-    const ReducedFunctional rf = ReducedFunctional::load(problem_path);
+    const ReducedFunctional rf = ReducedFunctional::load(problem_path, options.device);
     OptimizerSettings settings = parse_optimizer_settings(JsonField(rf.optimizer_spec(), "optimizer"));
     settings.lower = rf.design_lower();
     settings.upper = rf.design_upper();

@@ -11,6 +11,7 @@ struct OptimizeOptions {
     bool quiet = false;
     int max_iterations = -1; ///< >= 0: replaces the file's optimizer.max_iterations
     double max_seconds = -1; ///< >= 0: replaces the file's optimizer.max_seconds
+    std::string device; ///< "cpu" or "gpu": replaces the scenes' "device" ("": theirs)
 };
 
 /// @brief `diffipc optimize PROBLEM.json -o DIR` and `diffipc optimize --resume DIR`: runs the

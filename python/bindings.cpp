@@ -94,7 +94,8 @@ Scene scene_from_json_text(const std::string& text, const std::string& base_dire
 }
 
 /// A problem given as a Python dict: through Python's json (no NaN, only JSON types).
-ReducedFunctional reduced_functional_from_dict(const py::dict& document, const py::object& base_directory)
+ReducedFunctional reduced_functional_from_dict(
+    const py::dict& document, const py::object& base_directory, const std::string& device)
 {
     std::string text;
     try {
@@ -109,7 +110,7 @@ ReducedFunctional reduced_functional_from_dict(const py::dict& document, const p
     const std::string base = base_directory.is_none()
         ? std::filesystem::current_path().string()
         : py::str(py::module_::import("os").attr("fspath")(base_directory)).cast<std::string>();
-    return ReducedFunctional(parse_json_text(text, "<dict>"), base, "<dict>");
+    return ReducedFunctional(parse_json_text(text, "<dict>"), base, "<dict>", device);
 }
 
 /// A #V by dim array of finite values, else an InputError (ValueError) naming `what`.
@@ -407,11 +408,17 @@ PYBIND11_MODULE(_diffipc, m)
 
     py::class_<ReducedFunctional>(
         m, "ReducedFunctional", "p -> J(p) and its adjoint gradient dJ/dp for a problem file (docs/problem_format.md).")
-        .def(py::init([](const std::filesystem::path& path) { return ReducedFunctional::load(path.string()); }),
-            py::arg("path"), "Load and validate a problem file; scene paths are relative to it.")
+        .def(py::init([](const std::filesystem::path& path, const std::string& device) {
+            return ReducedFunctional::load(path.string(), device);
+        }),
+            py::arg("path"), py::arg("device") = "",
+            "Load and validate a problem file; scene paths are relative to it. device: \"cpu\" or \"gpu\" runs "
+            "every load case's simulations and adjoint solves there, replacing the scenes' \"device\" (\"\": "
+            "theirs).")
         .def(py::init(&reduced_functional_from_dict), py::arg("problem"), py::arg("base_directory") = py::none(),
+            py::arg("device") = "",
             "A problem as a dict; scene and mesh paths are relative to base_directory (default: the current "
-            "directory).")
+            "directory); device as for a problem file.")
         .def_property_readonly("size", &ReducedFunctional::size, "Number of optimization variables.")
         .def_property_readonly(
             "initial", [](const ReducedFunctional& rf) { return VectorXd(rf.initial()); },

@@ -203,7 +203,8 @@ bool DesignProblem::remesh_if_needed(const VectorXd& x, int iteration, bool forc
         if (!force && !(record.quality_after > record.quality_before))
             return failed("the new mesh's worst quality " + std::to_string(record.quality_after)
                 + " is not above the old one's " + std::to_string(record.quality_before) + "; kept the old mesh");
-        fresh = std::make_unique<ReducedFunctional>(doc, m_functional->base_directory(), "remeshed problem");
+        fresh = std::make_unique<ReducedFunctional>(
+            doc, m_functional->base_directory(), "remeshed problem", m_functional->device_override());
         if (fresh->design_layout() != m_functional->design_layout())
             return failed("the design variables change with the mesh");
         // J and the constraints at x on both meshes: the remesh's discretization change.

@@ -59,10 +59,10 @@ namespace {
 ReducedFunctional::~ReducedFunctional() = default;
 ReducedFunctional::ReducedFunctional(ReducedFunctional&&) noexcept = default;
 
-ReducedFunctional ReducedFunctional::load(const std::string& path)
+ReducedFunctional ReducedFunctional::load(const std::string& path, const std::string& device)
 {
     const json doc = parse_json_text(read_input_file(path, "problem file"), path);
-    return ReducedFunctional(doc, std::filesystem::path(path).parent_path().string(), path);
+    return ReducedFunctional(doc, std::filesystem::path(path).parent_path().string(), path, device);
 }
 
 namespace {
@@ -90,7 +90,9 @@ namespace {
 
 } // namespace
 
-ReducedFunctional::ReducedFunctional(const json& document, const std::string& base_directory, const std::string& source)
+ReducedFunctional::ReducedFunctional(
+    const json& document, const std::string& base_directory, const std::string& source, const std::string& device)
+    : m_device(device)
 {
     if (!document.is_object())
         throw InputError(source, "a problem file is a JSON object");
@@ -148,6 +150,13 @@ ReducedFunctional::ReducedFunctional(const json& document, const std::string& ba
             if (!inline_scene)
                 throw;
             throw in_case(e);
+        }
+        if (!device.empty()) { // before the nominal run below: it runs there too
+            try {
+                select_device(lc->scene, device, "device");
+            } catch (const InputError& e) {
+                throw in_case(e);
+            }
         }
         if (!jc.contains("objective"))
             throw InputError(key("objective"), "missing");

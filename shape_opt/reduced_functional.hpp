@@ -72,10 +72,13 @@ struct Evaluation {
 class ReducedFunctional {
 public:
     /// @brief Loads and validates a problem file; relative scene paths are relative to the file.
+    /// `device`: "cpu" or "gpu" runs every load case's simulations there, replacing the scenes'
+    /// "device" (select_device's checks; errors name "device"); empty: the scenes' own.
     /// @throws InputError naming the field or file.
-    static ReducedFunctional load(const std::string& path);
-    /// @brief From a parsed document; `base_directory` resolves scene paths.
-    ReducedFunctional(const nlohmann::json& document, const std::string& base_directory, const std::string& source);
+    static ReducedFunctional load(const std::string& path, const std::string& device = "");
+    /// @brief From a parsed document; `base_directory` resolves scene paths; `device` as load()'s.
+    ReducedFunctional(const nlohmann::json& document, const std::string& base_directory, const std::string& source,
+        const std::string& device = "");
     ~ReducedFunctional();
     ReducedFunctional(ReducedFunctional&&) noexcept;
 
@@ -131,6 +134,9 @@ public:
     /// The first load case's scene (the mesh every case shares), and load case c's.
     const Scene& scene() const;
     const Scene& scene(size_t c) const;
+    /// The device the scenes were moved to at load ("" if they keep their own): a remeshed problem
+    /// is loaded with it too.
+    const std::string& device_override() const { return m_device; }
     size_t load_cases() const;
 
     /// The problem's "constraints" (empty without).
@@ -161,6 +167,7 @@ private:
     RemeshSettings m_remesh;
     nlohmann::json m_optimizer, m_document;
     std::string m_base_directory;
+    std::string m_device;
 };
 
 } // namespace diffipc

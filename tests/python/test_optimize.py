@@ -212,3 +212,15 @@ def test_bad_optimization_input_names_the_field(cli, tmp_path, mutate, field):
     assert r.returncode == 1, (r.returncode, r.stdout[-500:], r.stderr)
     lines = r.stderr.strip().splitlines()
     assert len(lines) == 1 and field in lines[0], r.stderr
+
+
+@pytest.mark.parametrize("command", ["optimize", "gradcheck"])
+def test_device_flag_is_checked_naming_it(cli, tmp_path, command):
+    """--device replaces the scenes' "device": an unknown one is an error naming it, before any work."""
+    problem = tmp_path / "p.json"
+    problem.write_text(json.dumps(beam_shape_problem()))
+    args = ["-o", tmp_path / "o", "-q"] if command == "optimize" else []
+    r = run(cli, command, problem, "--device", "tpu", *args)
+    assert r.returncode == 1, (r.returncode, r.stdout[-500:], r.stderr)
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 1 and 'device: expected "cpu" or "gpu", got "tpu"' in lines[0], r.stderr

@@ -279,3 +279,28 @@ def test_friction_parameter_errors_name_the_field():
     problem["scene"]["obstacles"][0]["friction"] = {"coefficient": 0.0}
     with pytest.raises(ValueError, match="coefficient 0"):
         diffipc.ReducedFunctional(problem, base_directory=str(STUDIES["303"].parent))
+
+
+def test_device_replaces_the_scenes_device():
+    """device="cpu" is the scenes' own path (the same numbers); a device that is not "cpu" or "gpu",
+    or a scene the GPU path refuses, is an error naming "device" at load; device="gpu" runs there
+    (checked against the CPU on a GPU machine; elsewhere it is the error that says no GPU is usable)."""
+    J = diffipc.ReducedFunctional(STUDIES["302"])
+    value, g = J.evaluate(J.initial)
+    J_cpu = diffipc.ReducedFunctional(STUDIES["302"], device="cpu")
+    value_cpu, g_cpu = J_cpu.evaluate(J_cpu.initial)
+    assert value_cpu == value and np.array_equal(g_cpu, g)
+    with pytest.raises(ValueError, match=r'device: expected "cpu" or "gpu", got "tpu"'):
+        diffipc.ReducedFunctional(STUDIES["302"], device="tpu")
+    problem = json.loads(STUDIES["302"].read_text())
+    problem["scene"]["mass"] = "consistent"
+    with pytest.raises(ValueError, match=r'device: "gpu" does not support the consistent mass'):
+        diffipc.ReducedFunctional(problem, base_directory=STUDIES["302"].parent, device="gpu")
+    try:
+        J_gpu = diffipc.ReducedFunctional(STUDIES["302"], device="gpu")
+    except ValueError as e:
+        assert "device" in str(e) and "CUDA" in str(e), str(e)
+        return
+    value_gpu, g_gpu = J_gpu.evaluate(J_gpu.initial)
+    assert abs(value_gpu - value) <= 1e-6 * abs(value)
+    assert np.linalg.norm(g_gpu - g) <= 1e-6 * np.linalg.norm(g)
