@@ -645,9 +645,10 @@ DeviceNewtonResult DeviceNewton::solve(std::vector<double>& x_host, const std::v
     if (!(settings.residual_tolerance >= 0) || settings.max_iterations < 0 || settings.line_search_max_halvings < 0
         || !(settings.forcing_max > 0) || !(settings.forcing_min > 0) || settings.forcing_min > settings.forcing_max
         || !(settings.inversion_keep >= 0 && settings.inversion_keep < 1) || settings.pcg_max_iterations < 0
-        || !(settings.max_displacement >= 0))
+        || !(settings.max_displacement >= 0) || !(settings.terminal_factor >= 0) || !(settings.terminal_window >= 1))
         throw std::invalid_argument("DeviceNewton::solve: invalid settings (tolerances >= 0, 0 < forcing_min <= "
-                                    "forcing_max, 0 <= inversion_keep < 1, counts >= 0, max_displacement >= 0)");
+                                    "forcing_max, 0 <= inversion_keep < 1, counts >= 0, max_displacement >= 0, "
+                                    "terminal_factor >= 0, terminal_window >= 1)");
 
     const double w = weight;
     m.x.upload(x_host);
@@ -724,6 +725,9 @@ DeviceNewtonResult DeviceNewton::solve(std::vector<double>& x_host, const std::v
         double forcing = settings.forcing_max;
         if (reference_gradient_norm > 0 && std::isfinite(gnorm))
             forcing = std::min(forcing, std::sqrt(gnorm / reference_gradient_norm));
+        if (settings.terminal_factor > 0 && result.residual > 0
+            && result.residual <= settings.terminal_window * settings.residual_tolerance)
+            forcing = std::min(forcing, settings.terminal_factor * settings.residual_tolerance / result.residual);
         forcing = std::max(forcing, settings.forcing_min);
         // Projected Newton converges linearly where elements (or contact pairs) are strongly compressed;
         // once a full step has been accepted, the true Hessian is tried (NewtonSolver's adaptive

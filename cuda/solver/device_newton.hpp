@@ -99,6 +99,14 @@ struct DeviceNewtonSettings {
     /// solves tighten as the residual falls from its peak rather than from the start's.
     double forcing_max = 0.5;
     double forcing_min = 1e-12;
+    /// Near convergence (a residual r within `terminal_window` times the tolerance), the relative
+    /// tolerance is at most terminal_factor * residual_tolerance / r: the last step then lands about
+    /// terminal_factor times the tolerance below it, as the CPU's exact (Cholesky) last step does,
+    /// instead of just under it. The converged state then depends smoothly on the problem's data,
+    /// which finite differences of an objective need (docs/performance.md: without it 405's gradient
+    /// check failed on the GPU). terminal_factor 0: off.
+    double terminal_factor = 1e-2;
+    double terminal_window = 100;
     int pcg_max_iterations = 20000;
     /// The longest step (m) of a free dof one iteration may take (NewtonSettings::max_displacement;
     /// 0: no cap). The line search starts from the capped step.

@@ -493,6 +493,48 @@ TEST(DeviceNewton, RejectsBadInput)
         s->newton->solve(x, {}, 1.0, short_vector, to_std(c->target), 1, 1, gpu_settings()), std::invalid_argument);
     EXPECT_THROW(
         s->newton->solve(x, {}, 0.0, to_std(c->force), to_std(c->target), 1, 1, gpu_settings()), std::invalid_argument);
+    gpu::DeviceNewtonSettings bad = gpu_settings();
+    bad.terminal_window = 0.5;
+    EXPECT_THROW(s->newton->solve(x, {}, 1.0, to_std(c->force), to_std(c->target), 1, 1, bad), std::invalid_argument);
+    bad = gpu_settings();
+    bad.terminal_factor = -1;
+    EXPECT_THROW(s->newton->solve(x, {}, 1.0, to_std(c->force), to_std(c->target), 1, 1, bad), std::invalid_argument);
+}
+
+TEST(DeviceNewton, TheLastStepLandsWellBelowTheTolerance)
+{
+    DIFFIPC_SKIP_WITHOUT_GPU();
+    // With the terminal forcing (DeviceNewtonSettings::terminal_factor) the last linear solve is tight, so
+    // that the converged state sits well below the tolerance, as after the CPU's exact last step; without
+    // it the inexact solves may stop just under the tolerance. The residual is the CPU's own, at the GPU's
+    // state. At least one of the cases must end above a tenth of the tolerance without it (else this test
+    // could not tell the difference).
+    int distinguishing = 0;
+    for (const double tolerance : { 1e-6, 1e-8 })
+        for (const bool dynamic : { true, false }) {
+            auto c = dynamic ? cantilever(MaterialModel::NEO_HOOKEAN, { 16, 4, 4 })
+                             : stretched_strip(MaterialModel::NEO_HOOKEAN, { 20, 4 }, 0.2);
+            double residual[2];
+            int iterations[2];
+            for (const int k : { 0, 1 }) {
+                auto s = make_gpu(*c);
+                std::vector<double> x = to_std(c->start);
+                gpu::DeviceNewtonSettings settings = gpu_settings();
+                settings.residual_tolerance = tolerance;
+                settings.terminal_factor = k == 0 ? 0.0 : 1e-2;
+                const gpu::DeviceNewtonResult r = gpu_solve(*c, *s, x, settings);
+                ASSERT_EQ(r.status, gpu::DeviceStepStatus::CONVERGED);
+                residual[k] = cpu_residual(*c, Eigen::Map<const VectorXd>(x.data(), Index(x.size())));
+                iterations[k] = r.pcg_iterations;
+            }
+            std::printf("  %s, tolerance %.0e: the CPU's residual at the GPU's state %.2e without the terminal "
+                        "forcing (%d PCG iterations), %.2e with it (%d)\n",
+                dynamic ? "cantilever, implicit Euler" : "static strip", tolerance, residual[0], iterations[0],
+                residual[1], iterations[1]);
+            EXPECT_LE(residual[1], 0.1 * tolerance);
+            distinguishing += residual[0] > 0.1 * tolerance;
+        }
+    EXPECT_GT(distinguishing, 0);
 }
 
 // ---- Timing (prints; asserts only that both converge) ----
