@@ -631,12 +631,6 @@ void select_device(Scene& scene, const std::string& name, const std::string& fie
         refuse("periodic cells");
     if (scene.mass == MassType::CONSISTENT)
         refuse("the consistent mass (\"mass\": \"lumped\" is supported)");
-    // Automatic load stepping and dynamic sub-stepping run their sub-steps on the device. Past a limit
-    // point, load stepping's displacement control and relaxation run on the CPU's Newton, whose kappa
-    // does not follow the device's adaptive rule.
-    if (scene.time.adaptive.enabled && scene.time.integrator == IntegratorType::STATIC && scene.contact.enabled
-        && scene.contact.adaptive_kappa)
-        refuse("automatic load stepping (time.adaptive) with the adaptive kappa (give contact.kappa a number)");
     scene.device = DeviceType::GPU;
 }
 

@@ -249,6 +249,8 @@ void DeviceSolver::set_kappa(double kappa)
         m_impl->contact->set_kappa(kappa);
 }
 
+bool DeviceSolver::adaptive_rule_applied() const { return m_impl->adaptive.rule_applied; }
+
 ContactSet DeviceSolver::contacts(const VectorXd& x) const
 {
     ContactSet out;
@@ -454,6 +456,8 @@ void DeviceSolver::begin_step(double, const AdaptiveKappa&, const VectorXd&, con
 double DeviceSolver::kappa() const { return 0.0; }
 
 void DeviceSolver::set_kappa(double) { }
+
+bool DeviceSolver::adaptive_rule_applied() const { return false; }
 
 ContactSet DeviceSolver::contacts(const VectorXd&) const { return {}; }
 

@@ -97,6 +97,9 @@ public:
     /// @brief Sets the device contact's kappa, leaving the adaptive rule's state of the step as it is:
     /// what a failed solve of a sub-stepped step restores (as ContactPotential::set_kappa on the CPU).
     void set_kappa(double kappa);
+    /// With the adaptive kappa: whether this step's balancing rule was applied (at its start, or when
+    /// contact appeared); what the CPU contact takes over for load stepping's CPU fallbacks.
+    bool adaptive_rule_applied() const;
     /// @brief The active contacts at x (the CPU's ContactPotential::contacts(x): the same pairs in the
     /// same order, with their distance types and squared distances classified on the host).
     ContactSet contacts(const VectorXd& x) const;

@@ -63,7 +63,16 @@ NewtonResult Simulator::solve_in_substeps(int k, const NewtonSolver& newton, dou
         if (h < a.min_increment * (1 - 1e-12)) {
             why = substeps_exhausted("automatic load stepping", record.substeps, t, k, ts, r.status);
             // Past a limit point: displacement control, then relaxation from where it got to (or
-            // from the last sub-step).
+            // from the last sub-step), on the CPU's Newton in either run.
+            struct OnCpu {
+                Simulator& sim;
+                explicit OnCpu(Simulator& s)
+                    : sim(s)
+                {
+                    sim.hand_contact_to_cpu();
+                }
+                ~OnCpu() { sim.hand_contact_to_device(); }
+            } on_cpu(*this);
             for (const bool control : { true, false }) {
                 if (!(control ? a.displacement_control : a.relaxation))
                     continue;
@@ -124,6 +133,26 @@ double Simulator::solve_kappa() const
     if (!m_contact)
         return 0.0;
     return m_device ? m_device->kappa() : m_contact->kappa();
+}
+
+void Simulator::hand_contact_to_cpu()
+{
+    if (!m_device || !m_contact || m_fallback_on_cpu)
+        return;
+    m_fallback_on_cpu = true;
+    m_contact->set_kappa(m_device->kappa());
+    if (m_scene.contact.adaptive_kappa)
+        m_contact->set_adaptive(
+            100 * m_kappa_min, m_bbox_diagonal, [this](const VectorXd& y) { return balancing_kappa(y); },
+            m_device->adaptive_rule_applied());
+}
+
+void Simulator::hand_contact_to_device()
+{
+    if (!m_fallback_on_cpu)
+        return;
+    m_fallback_on_cpu = false;
+    m_device->set_kappa(m_contact->kappa());
 }
 
 void Simulator::restore_kappa(double kappa)

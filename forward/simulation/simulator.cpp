@@ -419,7 +419,7 @@ void Simulator::setup_friction()
 
 void Simulator::lag_friction_at(const VectorXd& x)
 {
-    if (!m_device) {
+    if (!m_device || m_fallback_on_cpu) {
         m_friction->lag(*m_contact, x);
         return;
     }

@@ -262,8 +262,14 @@ private:
     /// max |free-dof gradient| / (w f_s) at x, w the weight of the non-inertial potentials
     /// (default: the integrator's).
     /// Lags friction at x (FrictionPotential::lag); on the GPU path from the device's active set and
-    /// kappa, and uploads the lagged data to the device.
+    /// kappa, and uploads the lagged data to the device (during a CPU fallback: on the CPU).
     void lag_friction_at(const VectorXd& x);
+    /// @brief In a GPU run, load stepping's displacement control and relaxation run on the CPU's
+    /// Newton: the CPU contact takes the device's kappa (with the adaptive kappa also the rule, and
+    /// whether it was applied in this step) for them, and friction is lagged on the CPU meanwhile;
+    /// hand_contact_to_device() gives the kappa they ended with back. No-ops without a device.
+    void hand_contact_to_cpu();
+    void hand_contact_to_device();
     double force_residual(const VectorXd& x, double w) const;
     double force_residual(const VectorXd& x) const { return force_residual(x, m_integrator->potential_weight()); }
     /// Adaptive kappa at the start of a step (docs/math.md "Barrier stiffness").
@@ -288,6 +294,7 @@ private:
     std::unique_ptr<TimeIntegrator> m_integrator;
     /// The GPU path's solver (scene "device": "gpu"), else null.
     std::unique_ptr<DeviceSolver> m_device;
+    bool m_fallback_on_cpu = false; ///< between hand_contact_to_cpu() and hand_contact_to_device()
 
     struct DirichletDof {
         Index dof;

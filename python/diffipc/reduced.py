@@ -23,7 +23,9 @@ class ReducedFunctional(_diffipc.ReducedFunctional):
 
     ``ReducedFunctional("problem.json")`` or ``ReducedFunctional(problem_dict,
     base_directory=...)`` (scene and mesh paths in the dict are relative to
-    ``base_directory``, default the current directory). Bad input raises
+    ``base_directory``, default the current directory). ``device="gpu"`` runs
+    every load case's simulations and adjoint solves on the GPU, replacing the
+    scenes' ``"device"`` (``"cpu"`` the CPU; ``""``, the default: theirs). Bad input raises
     ValueError naming the field; a failed forward step or a gradient that cannot
     be computed raises AdjointError and returns nothing.
 
@@ -34,13 +36,15 @@ class ReducedFunctional(_diffipc.ReducedFunctional):
     compiled class.
     """
 
-    def __init__(self, problem, base_directory=None):
+    def __init__(self, problem, base_directory=None, device=""):
+        if not isinstance(device, str):
+            raise TypeError('device must be "cpu", "gpu" or "" (the scenes\' own)')
         if isinstance(problem, dict):
-            super().__init__(problem, None if base_directory is None else os.fspath(base_directory))
+            super().__init__(problem, None if base_directory is None else os.fspath(base_directory), device)
         elif isinstance(problem, (str, os.PathLike)):
             if base_directory is not None:
                 raise TypeError("base_directory applies to a problem dict; a file's scenes are relative to the file")
-            super().__init__(os.fspath(problem))
+            super().__init__(os.fspath(problem), device)
         else:
             raise TypeError("problem must be a path to a JSON problem file or a dict")
         self._last = None  # (p, J, dJ/dp or None) of the last successful evaluation

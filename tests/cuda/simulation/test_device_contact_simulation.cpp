@@ -17,6 +17,8 @@
 #include <cmath>
 #include <cstdio>
 #include <cstring>
+#include <filesystem>
+#include <fstream>
 
 using namespace diffipc;
 using nlohmann::json;
@@ -304,12 +306,46 @@ TEST(DeviceContactSimulation, AutomaticLoadSteppingOfStaticScenes)
             = { { { "body", "block" }, { "region", test::region(top_lo, top_hi) }, { "displacement", motion } } };
         s["time"] = { { "integrator", "static" }, { "dt", 1 }, { "steps", 2 }, { "adaptive", true } };
         s["solver"] = { { "residual_tolerance", 1e-9 }, { "max_iterations", 12 } };
-        const ContactComparison c = run_both(s, std::to_string(dim) + "D block, automatic load stepping", 1e-6);
-        EXPECT_GT(c.gpu_substeps, 0) << dim << "D: the GPU's full steps did not need sub-steps";
-        EXPECT_EQ(c.gpu_fallbacks, 0) << dim << "D: the GPU's sub-steps needed the CPU's fallbacks";
-        std::printf("  %dD block: %d load-stepping sub-steps on the GPU, %d displacement-control and relaxation "
-                    "solves\n",
-            dim, c.gpu_substeps, c.gpu_fallbacks);
+        for (const bool adaptive_kappa : { false, true }) {
+            if (adaptive_kappa)
+                s["contact"]["kappa"] = "adaptive";
+            const ContactComparison c = run_both(s,
+                std::to_string(dim) + "D block, load stepping, kappa " + (adaptive_kappa ? "adaptive" : "1e13"), 1e-6);
+            EXPECT_GT(c.gpu_substeps, 0) << dim << "D: the GPU's full steps did not need sub-steps";
+            EXPECT_EQ(c.gpu_fallbacks, 0) << dim << "D: the GPU's sub-steps needed the CPU's fallbacks";
+            std::printf("  %dD block: %d load-stepping sub-steps on the GPU, %d displacement-control and relaxation "
+                        "solves\n",
+                dim, c.gpu_substeps, c.gpu_fallbacks);
+        }
+    }
+}
+
+TEST(DeviceContactSimulation, LoadSteppingPastALimitPointWithContact)
+{
+    DIFFIPC_SKIP_WITHOUT_GPU();
+    // The shallow arch of LoadStepping.DisplacementControlPassesASnapThroughThatSubstepsCannot snaps
+    // through in step 3 onto a stop (a segment under its apex, an obstacle mesh), with at most 8 Newton
+    // iterations per solve: load stepping's sub-steps (on the device) reach the limit point, then
+    // displacement control and relaxation (on the CPU's Newton, the contact's kappa handed over and
+    // back, with the adaptive kappa also its rule) carry the step to its end on the stop. Both paths must
+    // end on the same equilibria (asserted where their kappas agree, as in run_both).
+    const std::filesystem::path directory = std::filesystem::temp_directory_path() / "diffipc_arch_on_a_stop";
+    std::filesystem::create_directories(directory);
+    {
+        std::ofstream obj(directory / "stop.obj");
+        obj << "v -0.3 0.94 0\nv 0.3 0.94 0\nl 1 2\n";
+    }
+    json s = test::shallow_arch(4, 8, true);
+    s["obstacles"] = { { { "name", "stop" }, { "mesh", { { "file", "stop.obj" } } } } };
+    for (const bool adaptive_kappa : { false, true }) {
+        s["contact"]["kappa"] = adaptive_kappa ? json("adaptive") : json(1e5);
+        const ContactComparison c
+            = run_both(s, std::string("arch snapping onto a stop, kappa ") + (adaptive_kappa ? "adaptive" : "1e5"),
+                1e-6, directory.string());
+        EXPECT_GT(c.gpu_fallbacks, 0) << "the GPU run did not reach the CPU fallbacks";
+        std::printf("  arch on a stop, kappa %s: %d load-stepping sub-steps on the GPU, %d displacement-control and "
+                    "relaxation solves on the CPU\n",
+            adaptive_kappa ? "adaptive" : "1e5", c.gpu_substeps, c.gpu_fallbacks);
     }
 }
 

@@ -173,14 +173,6 @@ std::vector<Malformed> malformed_cases()
         { "output_misspelled_vtu_key", [](json& s) { s["output"]["vtu_encode"] = "ascii"; }, "vtu_encode" },
         { "mass_unknown", [](json& s) { s["mass"] = "heavy"; }, "mass" },
         { "device_unknown", [](json& s) { s["device"] = "tpu"; }, "device: expected \"cpu\" or \"gpu\", got \"tpu\"" },
-        { "device_gpu_with_load_stepping_and_the_adaptive_kappa",
-            [](json& s) {
-                s["device"] = "gpu";
-                s["time"]["integrator"] = "static";
-                s["time"]["adaptive"] = true;
-                s["contact"] = { { "dhat", 1e-3 }, { "kappa", "adaptive" } };
-            },
-            "device: \"gpu\" does not support automatic load stepping (time.adaptive) with the adaptive kappa" },
         { "device_gpu_with_penalty_contact",
             [](json& s) {
                 s["device"] = "gpu";
@@ -275,14 +267,15 @@ TEST(Scene, DeviceIsCpuUnlessTheSceneSaysGpu)
     s.erase("friction");
     s["bodies"][0]["friction"] = { { "coefficient", 0.2 } };
     EXPECT_EQ(parse_scene(s, ".", "<test>").device, DeviceType::GPU);
-    // Automatic load stepping of a static scene with a fixed kappa too.
+    // Automatic load stepping of a static scene, with a fixed and with the adaptive kappa.
     s["time"]["integrator"] = "static";
     s["time"]["adaptive"] = true;
     s["contact"]["kappa"] = 1e6;
     EXPECT_EQ(parse_scene(s, ".", "<test>").device, DeviceType::GPU);
+    s["contact"]["kappa"] = "adaptive";
+    EXPECT_EQ(parse_scene(s, ".", "<test>").device, DeviceType::GPU);
     // Adaptive time stepping of a dynamic scene, with the adaptive kappa too.
     s["time"]["integrator"] = "implicit_euler";
-    s["contact"]["kappa"] = "adaptive";
     EXPECT_EQ(parse_scene(s, ".", "<test>").device, DeviceType::GPU);
     Scene scene = parse_scene(valid_scene(), ".", "<test>");
     select_device(scene, "gpu", "--device");
