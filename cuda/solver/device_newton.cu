@@ -184,15 +184,16 @@ namespace {
     };
     const Ops<1> BOUND_OPS { { MIN } };
 
-    /// Per dof at y: [ (y - xt) m (y - xt) (sum; 0 when static), f (y - x_ref) (sum) ].
+    /// Per dof at y: [ (y - xt) m (y - xt) (sum; 0 when static), f (y - x_ref) (sum) ]; with a consistent
+    /// mass, Md = M (y - xt) replaces m (y - xt).
     struct EnergyTerm {
-        const double *y, *xt, *mass, *f, *reference;
+        const double *y, *xt, *mass, *f, *reference, *Md;
         bool dynamic;
         __device__ void operator()(size_t k, double* v) const
         {
             if (dynamic) {
                 const double d = y[k] - xt[k];
-                v[0] = d * (mass[k] * d);
+                v[0] = Md ? d * Md[k] : d * (mass[k] * d);
             } else {
                 v[0] = 0.0;
             }
@@ -216,15 +217,32 @@ namespace {
 
     // ---- Vector kernels ----
 
-    /// g = M (x - xt) - w f (the inertial and external terms; the elastic one is gathered on top).
+    /// g = M (x - xt) - w f (the inertial and external terms; the elastic one is gathered on top); Md:
+    /// M (x - xt) of a consistent mass, else nullptr (the lumped masses).
     __global__ void inertia_force_gradient(size_t n, bool dynamic, const double* __restrict__ x,
-        const double* __restrict__ xt, const double* __restrict__ mass, const double* __restrict__ f, double w,
-        double* __restrict__ g)
+        const double* __restrict__ xt, const double* __restrict__ mass, const double* __restrict__ Md,
+        const double* __restrict__ f, double w, double* __restrict__ g)
     {
         const size_t k = size_t(blockIdx.x) * blockDim.x + threadIdx.x;
         if (k >= n)
             return;
-        g[k] = (dynamic ? mass[k] * (x[k] - xt[k]) : 0.0) - w * f[k];
+        g[k] = (dynamic ? (Md ? Md[k] : mass[k] * (x[k] - xt[k])) : 0.0) - w * f[k];
+    }
+
+    /// out = a - b.
+    __global__ void difference(size_t n, const double* __restrict__ a, const double* __restrict__ b, double* out)
+    {
+        const size_t k = size_t(blockIdx.x) * blockDim.x + threadIdx.x;
+        if (k < n)
+            out[k] = a[k] - b[k];
+    }
+
+    /// values += mass_values (the consistent mass's blocks, in the same pattern).
+    __global__ void add_values(size_t count, const double* __restrict__ mass_values, double* __restrict__ values)
+    {
+        const size_t k = size_t(blockIdx.x) * blockDim.x + threadIdx.x;
+        if (k < count)
+            values[k] += mass_values[k];
     }
 
     /// The lumped mass on the diagonal of each vertex's diagonal block.
@@ -329,6 +347,9 @@ struct DeviceNewton::Impl {
     DeviceArray<unsigned char> fixed;
     DeviceArray<int> elements, diagonal_slots;
     DeviceBsrMatrix H;
+    DeviceBsrMatrix M; // the consistent mass (H's pattern), when `consistent`
+    bool consistent = false;
+    DeviceArray<double> mass_difference, mass_product; // y - xt and M (y - xt)
     DevicePCG pcg;
     DeviceContact* contact = nullptr;
     DeviceFriction* friction = nullptr; // lagged friction (needs contact)
@@ -344,9 +365,37 @@ struct DeviceNewton::Impl {
     struct Energy {
         double total = 0, inertia = 0, elastic = 0, contact = 0, friction = 0, work = 0;
     };
+    /// M (y - xt) of the consistent mass into mass_product (nullptr: lumped masses, or static).
+    const double* consistent_product(const double* y)
+    {
+        if (!dynamic || !consistent)
+            return nullptr;
+        difference<<<kernel_grid(), THREADS>>>(n, y, xt.data(), mass_difference.data());
+        check_launch("launch of the inertial difference");
+        M.multiply(mass_difference.data(), mass_product.data());
+        return mass_product.data();
+    }
+
+    /// H += the mass matrix (lumped: on the diagonal; consistent: its blocks).
+    void add_mass(DeviceBsrMatrix& target)
+    {
+        if (!dynamic)
+            return;
+        if (consistent) {
+            const size_t count = size_t(M.num_blocks()) * size_t(dim * dim);
+            add_values<<<grid(count), THREADS>>>(count, M.device_values(), target.device_values());
+            check_launch("launch of the consistent mass");
+            return;
+        }
+        add_mass_diagonal<<<kernel_grid(), THREADS>>>(
+            n, dim, diagonal_slots.data(), mass.data(), target.device_values());
+        check_launch("launch of the mass diagonal");
+    }
+
     Energy energy(const DeviceElasticMesh& mesh, const double* y, double w, bool on_segment = false)
     {
-        reduce<2>(EnergyTerm { y, xt.data(), mass.data(), f.data(), reference.data(), dynamic }, n, ENERGY_OPS,
+        const double* Md = consistent_product(y);
+        reduce<2>(EnergyTerm { y, xt.data(), mass.data(), f.data(), reference.data(), Md, dynamic }, n, ENERGY_OPS,
             partials.data(), scalars.data() + S_ENERGY);
         Energy e;
         e.elastic = mesh.energy_device(y);
@@ -448,7 +497,8 @@ struct DeviceNewton::Impl {
     /// the barrier and friction (the balancing rule's gE, as the CPU's, which leaves friction out).
     void gradient(const DeviceElasticMesh& mesh, const double* y, double w, double* out, bool with_contact = true)
     {
-        inertia_force_gradient<<<kernel_grid(), THREADS>>>(n, dynamic, y, xt.data(), mass.data(), f.data(), w, out);
+        const double* Md = consistent_product(y);
+        inertia_force_gradient<<<kernel_grid(), THREADS>>>(n, dynamic, y, xt.data(), mass.data(), Md, f.data(), w, out);
         check_launch("launch of the inertial gradient");
         mesh.add_gradient_device(y, w, out);
         if (contact && with_contact)
@@ -543,6 +593,41 @@ DeviceNewton::DeviceNewton(const DeviceElasticMesh& mesh, const std::vector<doub
     m_impl = impl.release();
 }
 
+void DeviceNewton::set_consistent_mass(
+    const std::vector<int>& rows, const std::vector<int>& cols, const std::vector<double>& values)
+{
+    Impl& m = *m_impl;
+    if (!m.dynamic)
+        throw std::invalid_argument("DeviceNewton::set_consistent_mass: a static solver has no mass");
+    if (rows.size() != cols.size() || rows.size() != values.size())
+        throw std::invalid_argument("DeviceNewton::set_consistent_mass: rows, cols and values differ in size");
+    const int b = m.dim;
+    HostBsrMatrix host;
+    host.block_size = b;
+    host.num_block_rows = m.H.num_block_rows();
+    host.row_offsets = m.H.row_offsets();
+    host.col_indices = m.H.col_indices();
+    host.values.assign(host.col_indices.size() * size_t(b * b), 0.0);
+    for (size_t e = 0; e < rows.size(); ++e) {
+        const int r = rows[e], c = cols[e];
+        if (r < 0 || c < 0 || size_t(r) >= m.n || size_t(c) >= m.n || !std::isfinite(values[e]))
+            throw std::invalid_argument(
+                "DeviceNewton::set_consistent_mass: entry " + std::to_string(e) + " is out of range or not finite");
+        const int br = r / b, bc = c / b;
+        const auto begin = host.col_indices.begin() + host.row_offsets[size_t(br)];
+        const auto end = host.col_indices.begin() + host.row_offsets[size_t(br) + 1];
+        const auto it = std::lower_bound(begin, end, bc);
+        if (it == end || *it != bc)
+            throw std::invalid_argument("DeviceNewton::set_consistent_mass: entry (" + std::to_string(r) + ", "
+                + std::to_string(c) + ") couples vertices outside the Hessian's pattern");
+        host.values[size_t(it - host.col_indices.begin()) * size_t(b * b) + size_t((r % b) * b + c % b)] += values[e];
+    }
+    m.M.upload(host);
+    m.mass_difference.resize(m.n);
+    m.mass_product.resize(m.n);
+    m.consistent = true;
+}
+
 DeviceNewton::~DeviceNewton() { delete m_impl; }
 
 void DeviceNewton::set_constrained(const std::vector<char>& constrained)
@@ -600,11 +685,7 @@ PcgResult DeviceNewton::solve_true_hessian(const std::vector<double>& x_host, do
     m.rhs.upload(b_host);
     m.H.set_zero();
     m_mesh.add_hessian_device(m.x.data(), weight, /*project=*/false, m.H);
-    if (m.dynamic) {
-        add_mass_diagonal<<<m.kernel_grid(), THREADS>>>(
-            n, m.dim, m.diagonal_slots.data(), m.mass.data(), m.H.device_values());
-        check_launch("launch of the mass diagonal");
-    }
+    m.add_mass(m.H);
     if (m_contact) {
         // The barrier's true Hessian of the active set at x (the committed step's set).
         m_contact->update_active(m.x.data());
@@ -744,11 +825,7 @@ DeviceNewtonResult DeviceNewton::solve(std::vector<double>& x_host, const std::v
                 const auto t = Clock::now();
                 m.H.set_zero();
                 m_mesh.add_hessian_device(m.x.data(), w, project, m.H);
-                if (m.dynamic) {
-                    add_mass_diagonal<<<G, THREADS>>>(
-                        n, m.dim, m.diagonal_slots.data(), m.mass.data(), m.H.device_values());
-                    check_launch("launch of the mass diagonal");
-                }
+                m.add_mass(m.H);
                 if (m_contact)
                     m.assemble_contact(w, project);
                 if (lifting)

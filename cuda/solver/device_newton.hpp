@@ -153,6 +153,16 @@ public:
     DeviceNewton(const DeviceNewton&) = delete;
     DeviceNewton& operator=(const DeviceNewton&) = delete;
 
+    /// @brief The consistent mass matrix M in place of the lumped masses (a dynamic solver only):
+    /// scalar entries (row, col, value) of the #dofs square matrix, summed where repeated; every
+    /// entry must couple two vertices of one element (the Hessian's block pattern). The inertial
+    /// energy, gradient and Hessian (search and adjoint matrices) then use M; the lumped masses
+    /// given at construction only say that the solver is dynamic.
+    /// @throws std::invalid_argument for a static solver, an index out of range, an entry outside the
+    ///         pattern or a non-finite value
+    void set_consistent_mass(
+        const std::vector<int>& rows, const std::vector<int>& cols, const std::vector<double>& values);
+
     /// @brief Sets the constrained (Dirichlet) dofs: #dofs flags, nonzero = constrained (none until set).
     /// @throws std::invalid_argument on a size mismatch
     void set_constrained(const std::vector<char>& constrained);

@@ -621,7 +621,8 @@ void select_device(Scene& scene, const std::string& name, const std::string& fie
     const auto refuse = [&](const std::string& what) {
         throw InputError(field,
             "\"gpu\" does not support " + what
-                + " yet (issue 17: the GPU path has elasticity, inertia, gravity, tractions, Dirichlet "
+                + " yet (issue 17: the GPU path has elasticity, inertia (lumped or consistent mass), gravity, "
+                  "tractions, Dirichlet "
                   "conditions, barrier contact with obstacles and lagged friction, automatic load stepping and "
                   "adaptive time stepping); use \"cpu\"");
     };
@@ -629,8 +630,6 @@ void select_device(Scene& scene, const std::string& name, const std::string& fie
         refuse("the penalty contact model");
     if (scene.periodic.enabled)
         refuse("periodic cells");
-    if (scene.mass == MassType::CONSISTENT)
-        refuse("the consistent mass (\"mass\": \"lumped\" is supported)");
     scene.device = DeviceType::GPU;
 }
 

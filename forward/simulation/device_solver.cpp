@@ -205,6 +205,19 @@ DeviceSolver::DeviceSolver(const ElasticPotential& elastic, const InertiaPotenti
                 mass[size_t(v * dim + a)] = lumped[v];
     }
     m_impl->newton = std::make_unique<gpu::DeviceNewton>(m_impl->mesh, mass);
+    if (inertia && inertia->consistent()) {
+        // The consistent mass matrix (#dofs square, the mesh's element couplings) in place of the lumped one.
+        const SparseMatrixd& M = inertia->consistent_matrix();
+        std::vector<int> rows, cols;
+        std::vector<double> values;
+        for (Index j = 0; j < M.outerSize(); ++j)
+            for (SparseMatrixd::InnerIterator it(M, j); it; ++it) {
+                rows.push_back(int(it.row()));
+                cols.push_back(int(it.col()));
+                values.push_back(it.value());
+            }
+        m_impl->newton->set_consistent_mass(rows, cols, values);
+    }
     m_impl->newton->set_constrained(constrained);
     // The CPU's energy measures the external work from the rest positions and its round-off
     // allowance counts the neo-Hookean models' cancelling terms: the same here.

@@ -293,8 +293,8 @@ def test_device_replaces_the_scenes_device():
     with pytest.raises(ValueError, match=r'device: expected "cpu" or "gpu", got "tpu"'):
         diffipc.ReducedFunctional(STUDIES["302"], device="tpu")
     problem = json.loads(STUDIES["302"].read_text())
-    problem["scene"]["mass"] = "consistent"
-    with pytest.raises(ValueError, match=r'device: "gpu" does not support the consistent mass'):
+    problem["scene"]["contact"] = {"dhat": 1e-3, "model": "penalty", "penalty_stiffness": 1e6}
+    with pytest.raises(ValueError, match=r'device: "gpu" does not support the penalty contact model'):
         diffipc.ReducedFunctional(problem, base_directory=STUDIES["302"].parent, device="gpu")
     try:
         J_gpu = diffipc.ReducedFunctional(STUDIES["302"], device="gpu")

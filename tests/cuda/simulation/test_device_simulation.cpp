@@ -84,6 +84,19 @@ TEST(DeviceSimulation, CantileverEveryIntegratorAndDimension)
                 std::to_string(dim) + "D " + integrator);
 }
 
+TEST(DeviceSimulation, ConsistentMass)
+{
+    DIFFIPC_SKIP_WITHOUT_GPU();
+    // "mass": "consistent": the device's inertial energy, gradient and Hessian from the consistent mass
+    // matrix (DeviceNewton::set_consistent_mass), every dynamic integrator, 2D and 3D.
+    for (int dim : { 2, 3 })
+        for (const char* integrator : { "implicit_euler", "bdf2", "newmark" }) {
+            json s = cantilever(dim, "neo_hookean", integrator, 8);
+            s["mass"] = "consistent";
+            run_both(s, std::to_string(dim) + "D " + integrator + ", consistent mass");
+        }
+}
+
 TEST(DeviceSimulation, ElasticStudies)
 {
     DIFFIPC_SKIP_WITHOUT_GPU();
@@ -154,8 +167,11 @@ TEST(DeviceSimulation, AdjointGradientEqualsTheCpus)
     // The adjoint systems of a GPU run are solved on the device (true Hessian, PCG to 1e-12);
     // the gradients of the same objective must match the CPU run's (direct solves) to 1e-6.
     for (int dim : { 2, 3 })
-        for (const char* integrator : { "implicit_euler", "bdf2", "static" }) {
-            json s = cantilever(dim, "neo_hookean", integrator, 4);
+        for (const char* integrator : { "implicit_euler", "bdf2", "static", "implicit_euler consistent" }) {
+            const bool consistent = std::string(integrator) == "implicit_euler consistent";
+            json s = cantilever(dim, "neo_hookean", consistent ? "implicit_euler" : integrator, 4);
+            if (consistent)
+                s["mass"] = "consistent"; // the device's adjoint matrix with the consistent mass
             std::vector<double> lo(size_t(dim), -1.0), hi(size_t(dim), 2.0);
             lo[0] = hi[0] = 1.0;
             s["neumann"] = { { { "body", 0 }, { "region", test::region(lo, hi) },

@@ -179,12 +179,6 @@ std::vector<Malformed> malformed_cases()
                 s["contact"] = { { "dhat", 1e-3 }, { "model", "penalty" }, { "penalty_stiffness", 1e6 } };
             },
             "device: \"gpu\" does not support the penalty contact model" },
-        { "device_gpu_with_consistent_mass",
-            [](json& s) {
-                s["device"] = "gpu";
-                s["mass"] = "consistent";
-            },
-            "device: \"gpu\" does not support the consistent mass" },
         { "duplicate_body_name", [](json& s) { s["bodies"].push_back(s["bodies"][0]); }, "bodies[1].name" },
         { "region_max_below_min",
             [](json& s) {
@@ -274,8 +268,9 @@ TEST(Scene, DeviceIsCpuUnlessTheSceneSaysGpu)
     EXPECT_EQ(parse_scene(s, ".", "<test>").device, DeviceType::GPU);
     s["contact"]["kappa"] = "adaptive";
     EXPECT_EQ(parse_scene(s, ".", "<test>").device, DeviceType::GPU);
-    // Adaptive time stepping of a dynamic scene, with the adaptive kappa too.
+    // Adaptive time stepping of a dynamic scene, with the adaptive kappa too; the consistent mass.
     s["time"]["integrator"] = "implicit_euler";
+    s["mass"] = "consistent";
     EXPECT_EQ(parse_scene(s, ".", "<test>").device, DeviceType::GPU);
     Scene scene = parse_scene(valid_scene(), ".", "<test>");
     select_device(scene, "gpu", "--device");
