@@ -37,9 +37,12 @@ struct BarrierPair {
 
 /// The barrier's parameters (ContactSettings' kappa, dhat, min_distance).
 struct BarrierSettings {
-    double kappa = 1; ///< barrier stiffness
+    double kappa = 1; ///< barrier stiffness (the penalty's stiffness, N/m, with `penalty`)
     double dhat = 1e-3; ///< activation distance (m)
     double dmin = 0; ///< minimum separation (m)
+    /// The penalty baseline instead of the barrier (pair_barrier.cuh, PairModel). So far only
+    /// HostBarrier evaluates it; the device's barrier does not.
+    bool penalty = false;
 };
 
 struct BarrierPairs {

@@ -51,17 +51,26 @@ void HostBarrier::check_x(size_t n) const
             + " entries, expected #V * dim = " + std::to_string(m_rest.size()));
 }
 
+PairModel HostBarrier::model() const
+{
+    PairModel model;
+    model.penalty = m_settings.penalty;
+    model.dmin2 = m_settings.dmin * m_settings.dmin;
+    model.shat = barrier_activation(m_settings.dhat, m_settings.dmin);
+    model.dhat = m_settings.dhat;
+    return model;
+}
+
 double HostBarrier::energy(const std::vector<double>& x) const
 {
     check_x(x.size());
-    const double dmin2 = m_settings.dmin * m_settings.dmin;
-    const double shat = barrier_activation(m_settings.dhat, m_settings.dmin);
+    const PairModel pair_model = model();
     double sum = 0;
     vec3 points[4], normal;
     for (int p = 0; p < m_pairs.num_pairs; ++p) {
         load_pair(m_pairs, m_normals, x, p, points, normal);
-        sum += pair_barrier(PairKind(m_pairs.kind[size_t(p)]), m_dim, points, normal, m_pairs.eps_x[size_t(p)], dmin2,
-            shat, nullptr, nullptr);
+        sum += pair_energy(PairKind(m_pairs.kind[size_t(p)]), m_dim, points, normal, m_pairs.eps_x[size_t(p)],
+            pair_model, nullptr, nullptr);
     }
     return std::isfinite(sum) ? m_settings.kappa * sum : std::numeric_limits<double>::infinity();
 }
@@ -70,14 +79,13 @@ std::vector<double> HostBarrier::gradient(const std::vector<double>& x, double w
 {
     check_x(x.size());
     const int dim = m_dim, np = m_pairs.num_pairs, L = 4 * dim;
-    const double dmin2 = m_settings.dmin * m_settings.dmin;
-    const double shat = barrier_activation(m_settings.dhat, m_settings.dmin);
+    const PairModel pair_model = model();
     // Per-pair local gradients, item-major (pair p's vertex a at (p 4 + a) dim).
     std::vector<double> local(size_t(np) * size_t(L), 0.0);
     vec3 points[4], normal;
     for (int p = 0; p < np; ++p) {
         load_pair(m_pairs, m_normals, x, p, points, normal);
-        pair_barrier(PairKind(m_pairs.kind[size_t(p)]), dim, points, normal, m_pairs.eps_x[size_t(p)], dmin2, shat,
+        pair_energy(PairKind(m_pairs.kind[size_t(p)]), dim, points, normal, m_pairs.eps_x[size_t(p)], pair_model,
             local.data() + size_t(p) * size_t(L), nullptr);
     }
     const double scale = weight * m_settings.kappa;
@@ -96,16 +104,15 @@ HostBsrMatrix HostBarrier::hessian(const std::vector<double>& x, bool project, d
 {
     check_x(x.size());
     const int dim = m_dim, np = m_pairs.num_pairs, L = 4 * dim;
-    const double dmin2 = m_settings.dmin * m_settings.dmin;
-    const double shat = barrier_activation(m_settings.dhat, m_settings.dmin);
+    const PairModel pair_model = model();
     const double scale = weight * m_settings.kappa;
     // Per-pair local Hessians, n by n row-major at stride L^2 (n = #vertices * dim <= L).
     std::vector<double> local(size_t(np) * size_t(L * L), 0.0);
     vec3 points[4], normal;
     for (int p = 0; p < np; ++p) {
         load_pair(m_pairs, m_normals, x, p, points, normal);
-        pair_barrier_hessian(PairKind(m_pairs.kind[size_t(p)]), dim, points, normal, m_pairs.eps_x[size_t(p)], dmin2,
-            shat, project, scale, local.data() + size_t(p) * size_t(L * L));
+        pair_energy_hessian(PairKind(m_pairs.kind[size_t(p)]), dim, points, normal, m_pairs.eps_x[size_t(p)],
+            pair_model, project, scale, local.data() + size_t(p) * size_t(L * L));
     }
     HostBsrMatrix H;
     H.block_size = dim;

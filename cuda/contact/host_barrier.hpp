@@ -15,6 +15,8 @@
 
 namespace diffipc::gpu {
 
+struct PairModel; // pair_barrier.cuh
+
 class HostBarrier {
 public:
     /// @brief The mesh's rest positions (#V * dim, for the mollifier thresholds) and the planes'
@@ -25,7 +27,8 @@ public:
     void set_pairs(const std::vector<BarrierPair>& pairs);
     const BarrierPairs& pairs() const { return m_pairs; }
 
-    /// @brief B(x) = kappa sum_k m_k b_k, summed in pair order; +inf if a pair intersects.
+    /// @brief B(x) = kappa sum_k m_k b_k, summed in pair order; +inf if a pair intersects (the
+    /// barrier; the penalty, BarrierSettings::penalty, is finite everywhere).
     double energy(const std::vector<double>& x) const;
     /// @brief weight * kappa * dB/dx (#V * dim): per-pair gradients gathered per vertex in pair order.
     std::vector<double> gradient(const std::vector<double>& x, double weight = 1.0) const;
@@ -35,6 +38,8 @@ public:
 
 private:
     void check_x(size_t n) const;
+    /// The pair model of the settings (pair_barrier.cuh).
+    PairModel model() const;
 
     int m_dim = 0;
     std::vector<double> m_rest, m_normals;

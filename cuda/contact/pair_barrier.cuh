@@ -1,7 +1,8 @@
 #pragma once
 /// @file pair_barrier.cuh
-/// The barrier energy of one contact pair, its gradient and its (projected) Hessian on the host
-/// and the device: the port of ContactPotential::local_distance and local_barrier
+/// The barrier energy of one contact pair (or the penalty baseline's, PairModel), its gradient and
+/// its (projected) Hessian on the host and the device: the port of ContactPotential::local_distance
+/// and local_barrier
 /// (forward/contact/contact_potential.cpp) and of the per-pair PSD projection of its
 /// add_hessian. Per pair, without kappa:
 ///   B_k = m_k b(s_k - dmin^2, shat),  shat = (2 dmin + dhat) dhat,
@@ -131,16 +132,94 @@ namespace pair_barrier_detail {
     }
 } // namespace pair_barrier_detail
 
-/// @brief ContactPotential::local_barrier for the barrier model: the energy m b(s - dmin^2, shat)
-/// of one pair without kappa, and where the pointers are given its gradient and (true) Hessian
-/// in the pair's local dofs (n = #vertices * dim; Hessian n by n row-major).
+/// @brief forward/contact/penalty's P(sqrt(s)) = 1/2 (dhat - d)^2 for d < dhat (0 beyond) and its
+/// first two derivatives in s; a distance below 1e-9 dhat is taken as 1e-9 dhat, as on the CPU.
+struct PenaltyTerms {
+    double value = 0, first = 0, second = 0;
+};
+DIFFIPC_HD inline PenaltyTerms penalty_of_squared_distance(double s, double dhat)
+{
+    PenaltyTerms p;
+    if (!(s < dhat * dhat))
+        return p;
+    const double d = fmax(sqrt(fmax(s, 0.0)), 1e-9 * dhat);
+    const double gap = dhat - d;
+    p.value = 0.5 * gap * gap;
+    p.first = -gap / (2 * d);
+    p.second = dhat / (4 * d * d * d);
+    return p;
+}
+
+/// The model of a pair's energy (ContactSettings): IPC's barrier m b(s - dmin^2, shat), or the
+/// penalty baseline (`"model": "penalty"`): m P(s - dmin^2) for the distance pairs and 1/2 (dhat - h)^2
+/// on the signed height h of a vertex-plane pair (it pushes back a vertex that passed the plane).
+struct PairModel {
+    bool penalty = false;
+    double dmin2 = 0; ///< dmin^2 (m^2)
+    double shat = 0; ///< the barrier's barrier_activation(dhat, dmin) (m^2)
+    double dhat = 0; ///< the penalty's activation distance (m)
+};
+
+namespace pair_barrier_detail {
+
+    /// grad = m e1 gs (+ e gm), hess = m (e2 gs gs^T + e1 Hs) (+ e1 (gm gs^T + gs gm^T) + e Hm), with
+    /// e, e1, e2 the outer function and its derivatives in s (local dofs, n of them).
+    DIFFIPC_HD inline void chain_rule(int n, bool mollified, double m, double e, double e1, double e2, const double* gs,
+        const double* Hs, const double* gm, const double* Hm, double* grad, double* hess)
+    {
+        if (grad)
+            for (int k = 0; k < n; ++k) {
+                grad[k] = m * e1 * gs[k];
+                if (mollified)
+                    grad[k] += e * gm[k];
+            }
+        if (hess)
+            for (int i = 0; i < n; ++i)
+                for (int j = 0; j < n; ++j) {
+                    double v = m * ((e2 * gs[i]) * gs[j] + e1 * Hs[i * n + j]);
+                    if (mollified)
+                        v += e1 * (gm[i] * gs[j] + gs[i] * gm[j]) + e * Hm[i * n + j];
+                    hess[i * n + j] = v;
+                }
+    }
+
+    /// ContactPotential::plane_penalty: 1/2 (dhat - h)^2 for h < dhat, h = (x_v - x_plane) . n, with
+    /// dh/d(x_v, x_plane) = (n, -n) and the Hessian (dh)(dh)^T inside the layer.
+    DIFFIPC_HD inline double plane_penalty(
+        int dim, const vec3* points, const vec3& normal, double dhat, double* grad, double* hess)
+    {
+        const vec3 d = points[0] - points[1];
+        const double h = d.x * normal.x + d.y * normal.y + (dim == 3 ? d.z * normal.z : 0.0);
+        const double gap = h < dhat ? dhat - h : 0.0;
+        const double nc[3] = { normal.x, normal.y, normal.z };
+        double dh[6];
+        for (int i = 0; i < dim; ++i) {
+            dh[i] = nc[i];
+            dh[dim + i] = -nc[i];
+        }
+        const int n = 2 * dim;
+        for (int k = 0; grad && k < n; ++k)
+            grad[k] = -gap * dh[k];
+        for (int i = 0; hess && i < n; ++i)
+            for (int j = 0; j < n; ++j)
+                hess[i * n + j] = gap > 0 ? dh[i] * dh[j] : 0.0;
+        return 0.5 * gap * gap;
+    }
+
+} // namespace pair_barrier_detail
+
+/// @brief ContactPotential::local_barrier: the energy of one pair without kappa under `model`, and
+/// where the pointers are given its gradient and (true) Hessian in the pair's local dofs
+/// (n = #vertices * dim; Hessian n by n row-major).
 /// @param dim     2 or 3
 /// @param points, normal, eps_x  as in pair_distance
-/// @param dmin2   dmin^2 (m^2), @param shat barrier_activation(dhat, dmin) (m^2)
-/// @return +inf for an intersecting pair (s - dmin^2 <= 0); grad and hess are NaN then
-DIFFIPC_HD inline double pair_barrier(PairKind kind, int dim, const vec3* points, const vec3& normal, double eps_x,
-    double dmin2, double shat, double* grad, double* hess)
+/// @return the barrier: +inf for an intersecting pair (s - dmin^2 <= 0), grad and hess NaN then;
+///         the penalty is finite everywhere
+DIFFIPC_HD inline double pair_energy(PairKind kind, int dim, const vec3* points, const vec3& normal, double eps_x,
+    const PairModel& model, double* grad, double* hess)
 {
+    if (model.penalty && kind == PairKind::VERTEX_PLANE)
+        return pair_barrier_detail::plane_penalty(dim, points, normal, model.dhat, grad, hess);
     const int nv = pair_num_vertices(kind), n = nv * dim;
     const bool mollified = kind == PairKind::EDGE_EDGE;
     double s = 0, m = 1;
@@ -149,53 +228,61 @@ DIFFIPC_HD inline double pair_barrier(PairKind kind, int dim, const vec3* points
     const bool derivatives = grad || hess;
     pair_distance(kind, points, normal, eps_x, s, m, derivatives ? gs : nullptr, hess ? Hs : nullptr,
         derivatives && mollified ? gm : nullptr, hess && mollified ? Hm : nullptr);
-    const double z = s - dmin2;
-    if (!(z > 0)) {
+    const double z = s - model.dmin2;
+    if (!model.penalty && !(z > 0)) {
         for (int k = 0; grad && k < n; ++k)
             grad[k] = NAN;
         for (int k = 0; hess && k < n * n; ++k)
             hess[k] = NAN;
         return INFINITY;
     }
-    const double b = barrier(z, shat);
+    double e, e1 = 0, e2 = 0;
+    if (model.penalty) {
+        const PenaltyTerms p = penalty_of_squared_distance(z, model.dhat);
+        e = p.value;
+        e1 = p.first;
+        e2 = p.second;
+    } else {
+        e = barrier(z, model.shat);
+        if (derivatives)
+            e1 = barrier_first_derivative(z, model.shat);
+        if (hess)
+            e2 = barrier_second_derivative(z, model.shat);
+    }
     if (!derivatives)
-        return m * b;
+        return m * e;
     if (dim == 2) {
         pair_barrier_detail::compress_2d(nv, gs, hess ? Hs : nullptr);
         if (mollified)
             pair_barrier_detail::compress_2d(nv, gm, hess ? Hm : nullptr);
     }
-    const double b1 = barrier_first_derivative(z, shat);
-    if (grad)
-        for (int k = 0; k < n; ++k) {
-            grad[k] = m * b1 * gs[k];
-            if (mollified)
-                grad[k] += b * gm[k];
-        }
-    if (hess) {
-        const double b2 = barrier_second_derivative(z, shat);
-        for (int i = 0; i < n; ++i)
-            for (int j = 0; j < n; ++j) {
-                double v = m * ((b2 * gs[i]) * gs[j] + b1 * Hs[i * n + j]);
-                if (mollified)
-                    v += b1 * (gm[i] * gs[j] + gs[i] * gm[j]) + b * Hm[i * n + j];
-                hess[i * n + j] = v;
-            }
-    }
-    return m * b;
+    pair_barrier_detail::chain_rule(n, mollified, m, e, e1, e2, gs, Hs, gm, Hm, grad, hess);
+    return m * e;
 }
 
-/// @brief The pair's Hessian as ContactPotential::add_hessian assembles it: pair_barrier's
+/// @brief ContactPotential::local_barrier for the barrier model: pair_energy with the barrier
+/// m b(s - dmin^2, shat).
+/// @param dmin2   dmin^2 (m^2), @param shat barrier_activation(dhat, dmin) (m^2)
+DIFFIPC_HD inline double pair_barrier(PairKind kind, int dim, const vec3* points, const vec3& normal, double eps_x,
+    double dmin2, double shat, double* grad, double* hess)
+{
+    PairModel model;
+    model.dmin2 = dmin2;
+    model.shat = shat;
+    return pair_energy(kind, dim, points, normal, eps_x, model, grad, hess);
+}
+
+/// @brief The pair's Hessian as ContactPotential::add_hessian assembles it: pair_energy's
 /// Hessian, projected to positive semi-definite if `project` (the CPU's project_psd: unchanged if
 /// it has a Cholesky factorization, else V max(D, 0) V^T, here by cyclic Jacobi,
 /// cuda/elastic/project_psd.cuh), then times `scale` (kappa times the potential weight).
-/// NaN (not projected) for an intersecting pair.
+/// NaN (not projected) for an intersecting pair of the barrier.
 /// @param hess out: n by n row-major (n = #vertices * dim)
-/// @return the pair's energy without kappa (+inf if intersecting)
-DIFFIPC_HD inline double pair_barrier_hessian(PairKind kind, int dim, const vec3* points, const vec3& normal,
-    double eps_x, double dmin2, double shat, bool project, double scale, double* hess)
+/// @return the pair's energy without kappa (+inf if an intersecting barrier pair)
+DIFFIPC_HD inline double pair_energy_hessian(PairKind kind, int dim, const vec3* points, const vec3& normal,
+    double eps_x, const PairModel& model, bool project, double scale, double* hess)
 {
-    const double e = pair_barrier(kind, dim, points, normal, eps_x, dmin2, shat, nullptr, hess);
+    const double e = pair_energy(kind, dim, points, normal, eps_x, model, nullptr, hess);
     const int n = pair_num_vertices(kind) * dim;
     if (project && is_finite(e)) {
         switch (n) {
@@ -218,6 +305,16 @@ DIFFIPC_HD inline double pair_barrier_hessian(PairKind kind, int dim, const vec3
     for (int k = 0; k < n * n; ++k)
         hess[k] *= scale;
     return e;
+}
+
+/// @brief pair_energy_hessian with the barrier model.
+DIFFIPC_HD inline double pair_barrier_hessian(PairKind kind, int dim, const vec3* points, const vec3& normal,
+    double eps_x, double dmin2, double shat, bool project, double scale, double* hess)
+{
+    PairModel model;
+    model.dmin2 = dmin2;
+    model.shat = shat;
+    return pair_energy_hessian(kind, dim, points, normal, eps_x, model, project, scale, hess);
 }
 
 } // namespace diffipc::gpu
