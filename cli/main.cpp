@@ -15,6 +15,7 @@
 #include "forward/common/threads.hpp"
 #include "forward/io/output.hpp"
 #include "forward/scene/scene.hpp"
+#include "forward/simulation/device_solver.hpp"
 #include "forward/simulation/simulator.hpp"
 
 #include <CLI/CLI.hpp>
@@ -52,7 +53,11 @@ std::string version_text()
     } catch (const InputError& e) {
         return std::string("diffipc " DIFFIPC_VERSION "\ndiffipc: error: ") + e.what() + "\n";
     }
-    return "diffipc " DIFFIPC_VERSION "\n" + describe(thread_config());
+    std::string why;
+    const std::string gpu = DeviceSolver::available(&why)
+        ? DeviceSolver::describe_device() + " (\"device\": \"gpu\" runs there)"
+        : "none usable: " + why + " (\"device\": \"gpu\" is refused)";
+    return "diffipc " DIFFIPC_VERSION "\n" + describe(thread_config()) + "gpu: " + gpu + "\n";
 }
 
 } // namespace
@@ -71,7 +76,8 @@ int main(int argc, char** argv)
            "threads for TBB, OpenBLAS and OpenMP (default: DIFFIPC_THREADS, else the file's \"threads\", else the "
            "cores this process may use)")
         ->check(CLI::Range(1, 4096));
-    auto* info_cmd = app.add_subcommand("info", "Print the version and the effective thread configuration");
+    auto* info_cmd = app.add_subcommand(
+        "info", "Print the version, the effective thread configuration and the GPU (if one is usable)");
 
     SimulateOptions sim_options;
     auto* sim_cmd

@@ -88,3 +88,12 @@ def test_python_set_threads_and_info():
     assert diffipc.thread_info()["tbb"] == 2
     info = diffipc.set_threads(0)
     assert info["threads"] == info["cores"]["usable"]
+
+
+def test_info_says_whether_a_gpu_is_usable(cli):
+    """`diffipc info` ends with the GPU the "device": "gpu" scenes would run on, or why there is none."""
+    r = run(cli, "info")
+    assert r.returncode == 0, r.stderr
+    line = r.stdout.strip().splitlines()[-1]
+    assert line.startswith("gpu: "), r.stdout
+    assert ("runs there" in line) != ("is refused" in line), line
