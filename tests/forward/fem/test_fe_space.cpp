@@ -4,6 +4,8 @@
 #include <Eigen/Dense>
 #include <gtest/gtest.h>
 
+#include <limits>
+
 using namespace diffipc;
 
 namespace {
@@ -25,6 +27,37 @@ TEST(FESpace, MassesSumToTotalMass)
         EXPECT_NEAR(space.lumped_masses(rho).sum(), 1200.0 * volume, 1e-9);
         // Each component of the consistent mass carries the total mass once.
         EXPECT_NEAR(SparseMatrixd(space.consistent_mass(rho)).sum(), dim * 1200.0 * volume, 1e-9);
+    }
+}
+
+TEST(FESpace, MinVolumeRatioIsTheSmallestElementRatio)
+{
+    // Against a plain loop over the elements (their signed volumes from the cross product, independent of
+    // the code under test), on a large enough mesh for the parallel loop to split, with one element
+    // inverted: the same value bit for bit.
+    for (int dim : { 2, 3 }) {
+        const Mesh m = cube(dim, dim == 2 ? 120 : 24);
+        const FESpace space(m);
+        VectorXd x = flatten(m.rest_positions) + 1e-3 * test::random_vector(m.num_dofs(), 5);
+        const Index flipped = m.elements(m.num_elements() / 3, 0);
+        x[flipped * dim] += 0.2; // moves one vertex across its neighbours: inverted elements
+        const Positions P = unflatten(x, dim);
+        double expected = std::numeric_limits<double>::infinity();
+        for (Index e = 0; e < m.num_elements(); ++e) {
+            double v;
+            if (dim == 2) {
+                const Eigen::Vector2d a = P.row(m.elements(e, 0)), b = P.row(m.elements(e, 1)),
+                                      c = P.row(m.elements(e, 2));
+                v = 0.5 * ((b - a)[0] * (c - a)[1] - (b - a)[1] * (c - a)[0]);
+            } else {
+                const Eigen::Vector3d a = P.row(m.elements(e, 0)), b = P.row(m.elements(e, 1)),
+                                      c = P.row(m.elements(e, 2)), d = P.row(m.elements(e, 3));
+                v = (b - a).cross(c - a).dot(d - a) / 6.0;
+            }
+            expected = std::min(expected, v / space.rest_volumes()[size_t(e)]);
+        }
+        EXPECT_LT(expected, 0) << "the test's deformation inverts no element";
+        EXPECT_EQ(space.min_volume_ratio(x), expected) << dim << "D";
     }
 }
 
