@@ -115,71 +115,59 @@ DIFFIPC_HD inline void singular_value_eigendata(
     MaterialModel model, const double* s, double mu, double lambda, double* Hs, double* twist, double* flip)
 {
     // other[i]: the product of the singular values other than s_i (J / s_i without the division).
-    double J = 1, other[dim];
+    double J = 1, other[dim], trE = 0;
     for (int i = 0; i < dim; ++i) {
         J *= s[i];
+        trE += 0.5 * (s[i] * s[i] - 1);
         other[i] = 1;
         for (int k = 0; k < dim; ++k)
             if (k != i)
                 other[i] *= s[k];
     }
+    // The models' scalars, once: StVK's S_i = 2 mu E_i + lambda tr E (E_i = (s_i^2 - 1) / 2); the
+    // neo-Hookean's a = lambda ln J - mu (psi_i = mu s_i + a / s_i); the stable neo-Hookean's
+    // c = lambda' (J - 1) - mu (psi_i = mu s_i + c other_i).
+    const double a = model == MaterialModel::NEO_HOOKEAN ? lambda * log(J) - mu : 0.0;
+    const double lp = lambda + mu, c = lp * (J - 1) - mu;
+    double S[dim];
+    for (int i = 0; i < dim; ++i)
+        S[i] = mu * (s[i] * s[i] - 1) + lambda * trE;
+    // r(i, j): d other[i] / d s_j for i != j (the third singular value in 3D, 1 in 2D).
+    const auto r = [&](int i, int j) { return dim == 3 ? s[3 - i - j] : 1.0; };
     int pair = 0;
     for (int i = 0; i < dim; ++i)
-        for (int j = i + 1; j < dim; ++j, ++pair) {
-            // r: d other[i] / d s_j for i != j (the third singular value in 3D, 1 in 2D)
-            const double r = dim == 3 ? s[3 - i - j] : 1.0;
+        for (int j = i + 1; j < dim; ++j, ++pair)
             switch (model) {
-            case MaterialModel::STVK: {
-                // psi_i = S_i s_i, S_i = 2 mu E_i + lambda tr E, E_i = (s_i^2 - 1) / 2
-                double trE = 0;
-                for (int k = 0; k < dim; ++k)
-                    trE += 0.5 * (s[k] * s[k] - 1);
-                const double Si = mu * (s[i] * s[i] - 1) + lambda * trE, Sj = mu * (s[j] * s[j] - 1) + lambda * trE;
-                twist[pair] = 0.5 * (Si + Sj) + 0.5 * mu * (s[i] - s[j]) * (s[i] - s[j]);
-                flip[pair] = 0.5 * (Si + Sj) + 0.5 * mu * (s[i] + s[j]) * (s[i] + s[j]);
+            case MaterialModel::STVK:
+                twist[pair] = 0.5 * (S[i] + S[j]) + 0.5 * mu * (s[i] - s[j]) * (s[i] - s[j]);
+                flip[pair] = 0.5 * (S[i] + S[j]) + 0.5 * mu * (s[i] + s[j]) * (s[i] + s[j]);
                 break;
-            }
             case MaterialModel::NEO_HOOKEAN: {
-                // psi_i = mu s_i + a / s_i, a = lambda ln J - mu
-                const double a = lambda * log(J) - mu, t = a / (s[i] * s[j]);
+                const double t = a / (s[i] * s[j]);
                 twist[pair] = mu + t;
                 flip[pair] = mu - t;
                 break;
             }
-            case MaterialModel::STABLE_NEO_HOOKEAN: {
-                // psi_i = mu s_i + c other_i, c = lambda' (J - 1) - mu
-                const double c = (lambda + mu) * (J - 1) - mu;
-                twist[pair] = mu + c * r;
-                flip[pair] = mu - c * r;
+            case MaterialModel::STABLE_NEO_HOOKEAN:
+                twist[pair] = mu + c * r(i, j);
+                flip[pair] = mu - c * r(i, j);
                 break;
-            }
             default:
                 twist[pair] = flip[pair] = NAN;
             }
-        }
     for (int i = 0; i < dim; ++i)
         for (int j = 0; j < dim; ++j) {
             double h = NAN;
             switch (model) {
-            case MaterialModel::STVK: {
-                double trE = 0;
-                for (int k = 0; k < dim; ++k)
-                    trE += 0.5 * (s[k] * s[k] - 1);
-                h = i == j ? mu * (s[i] * s[i] - 1) + lambda * trE + (2 * mu + lambda) * s[i] * s[i]
-                           : lambda * s[i] * s[j];
+            case MaterialModel::STVK:
+                h = i == j ? S[i] + (2 * mu + lambda) * s[i] * s[i] : lambda * s[i] * s[j];
                 break;
-            }
-            case MaterialModel::NEO_HOOKEAN: {
-                const double a = lambda * log(J) - mu;
+            case MaterialModel::NEO_HOOKEAN:
                 h = i == j ? mu + (lambda - a) / (s[i] * s[i]) : lambda / (s[i] * s[j]);
                 break;
-            }
-            case MaterialModel::STABLE_NEO_HOOKEAN: {
-                const double lp = lambda + mu, c = lp * (J - 1) - mu;
-                h = i == j ? mu + lp * other[i] * other[i]
-                           : lp * other[i] * other[j] + c * (dim == 3 ? s[3 - i - j] : 1.0);
+            case MaterialModel::STABLE_NEO_HOOKEAN:
+                h = i == j ? mu + lp * other[i] * other[i] : lp * other[i] * other[j] + c * r(i, j);
                 break;
-            }
             default:
                 break;
             }

@@ -132,7 +132,7 @@ double Simulator::solve_kappa() const
 {
     if (!m_contact)
         return 0.0;
-    return m_device ? m_device->kappa() : m_contact->kappa();
+    return m_device && !m_fallback_on_cpu ? m_device->kappa() : m_contact->kappa();
 }
 
 void Simulator::hand_contact_to_cpu()
@@ -177,7 +177,7 @@ NewtonResult Simulator::relag_friction(const NewtonSolver& newton, double w, dou
         if (residual <= m_scene.solver.residual_tolerance)
             break;
         VectorXd z = y;
-        const double kappa = on_device ? solve_kappa() : m_contact->kappa();
+        const double kappa = solve_kappa();
         NewtonResult again = solve_current(newton, z, target, w, step_scale, on_device);
         total.add_costs(again);
         if (again.status != StepStatus::CONVERGED) {
@@ -185,10 +185,7 @@ NewtonResult Simulator::relag_friction(const NewtonSolver& newton, double w, dou
             m_friction->set_lagged(satisfied);
             if (m_device)
                 m_device->set_friction(*m_friction);
-            if (on_device)
-                restore_kappa(kappa);
-            else
-                m_contact->set_kappa(kappa);
+            restore_kappa(kappa);
             return again;
         }
         y = std::move(z);

@@ -252,7 +252,8 @@ private:
     /// set last), empty in a static one: what a device solve of the current problem is given.
     const VectorXd& current_inertial_target() const;
     /// @brief The barrier stiffness the next solve starts from: the device's in a GPU run (which
-    /// carries it between the step's solves), else the CPU contact's; 0 without contact.
+    /// carries it between the step's solves), else (and during a CPU fallback) the CPU contact's; 0
+    /// without contact.
     double solve_kappa() const;
     /// @brief Sets the barrier stiffness on the CPU contact and, in a GPU run, on the device: what a
     /// failed solve of a sub-stepped step restores (the adaptive rule's state is left as it is).

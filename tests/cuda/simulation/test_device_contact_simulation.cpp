@@ -149,6 +149,19 @@ ContactComparison run_both(json s, const std::string& name, double tolerance, co
     return c;
 }
 
+/// Box b thrown across box a (mu 0.3, eps_v 1e-3, `iterations` lagging solves; vertex-face and edge-edge
+/// friction), box a on the plane, gravity, the adaptive kappa.
+json sliding_boxes(int iterations, int steps, double tolerance)
+{
+    json s = test::boxes_on_plane({ { "dhat", 1e-3 }, { "kappa", "adaptive" } });
+    s["gravity"] = { 0, -9.81, 0 };
+    s["bodies"][1]["initial_velocity"] = { 0.5, 0, 0.2 };
+    s["friction"] = { { "coefficient", 0.3 }, { "eps_v", 1e-3 }, { "iterations", iterations } };
+    s["time"]["steps"] = steps;
+    s["solver"] = { { "residual_tolerance", tolerance } };
+    return s;
+}
+
 std::string study_folder(const std::string& folder) { return std::string(DIFFIPC_SOURCE_DIR) + "/studies/" + folder; }
 
 /// A contact study's scene with `steps` steps and a residual tolerance of at most 1e-8 (the studies'
@@ -256,13 +269,7 @@ TEST(DeviceContactSimulation, FrictionScenes2DAnd3D)
     rings["solver"] = { { "residual_tolerance", 1e-9 } };
     run_adaptive_then_fixed(rings, "2D rings with friction", 1e-6);
     // Box b slides across box a (vertex-face and edge-edge friction), box a on the plane.
-    json boxes = test::boxes_on_plane({ { "dhat", 1e-3 }, { "kappa", "adaptive" } });
-    boxes["gravity"] = { 0, -9.81, 0 };
-    boxes["bodies"][1]["initial_velocity"] = { 0.5, 0, 0.2 };
-    boxes["friction"] = { { "coefficient", 0.3 }, { "eps_v", 1e-3 }, { "iterations", 2 } };
-    boxes["time"]["steps"] = 10;
-    boxes["solver"] = { { "residual_tolerance", 1e-9 } };
-    run_adaptive_then_fixed(boxes, "3D boxes with friction", 1e-6);
+    run_adaptive_then_fixed(sliding_boxes(2, 10, 1e-9), "3D boxes with friction", 1e-6);
     // The friction study: a block sliding down a slope (mu = 0.2, up to 5 lagging solves per step).
     run_study("207_block_on_slope", 30, "207 block on slope (2D, friction)", 1e-6);
     // 202's head-on boxes with friction (self-contact of every 3D kind, 1,068 pairs), kappa fixed. Its step 3
@@ -523,12 +530,7 @@ TEST(DeviceContactSimulation, AdjointGradientEqualsTheCpus)
     rings_friction["friction"] = { { "coefficient", 0.5 }, { "eps_v", 1e-3 }, { "iterations", 1 } };
     // 202 with friction has several equilibria at its impact step (FrictionScenes2DAnd3D): box b sliding
     // across box a instead, kappa fixed at the adaptive rule's largest value on the CPU.
-    json boxes_friction = test::boxes_on_plane({ { "dhat", 1e-3 }, { "kappa", "adaptive" } });
-    boxes_friction["gravity"] = { 0, -9.81, 0 };
-    boxes_friction["bodies"][1]["initial_velocity"] = { 0.5, 0, 0.2 };
-    boxes_friction["friction"] = { { "coefficient", 0.3 }, { "eps_v", 1e-3 }, { "iterations", 1 } };
-    boxes_friction["time"]["steps"] = 6;
-    boxes_friction["solver"] = { { "residual_tolerance", 1e-10 } };
+    json boxes_friction = sliding_boxes(1, 6, 1e-10);
     {
         Simulator probe(test::make_scene(boxes_friction));
         probe.run();
