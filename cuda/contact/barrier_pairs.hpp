@@ -40,8 +40,7 @@ struct BarrierSettings {
     double kappa = 1; ///< barrier stiffness (the penalty's stiffness, N/m, with `penalty`)
     double dhat = 1e-3; ///< activation distance (m)
     double dmin = 0; ///< minimum separation (m)
-    /// The penalty baseline instead of the barrier (pair_barrier.cuh, PairModel). So far only
-    /// HostBarrier evaluates it; the device's barrier does not.
+    /// The penalty baseline instead of the barrier (pair_barrier.cuh, PairModel).
     bool penalty = false;
 };
 

@@ -30,7 +30,7 @@ namespace {
         const int* plane;
         const double* eps_x;
         const double* normals; // #planes * 3
-        double dmin2, shat;
+        PairModel model; // the barrier's dmin^2 and shat, or the penalty's dhat
     };
 
     __device__ PairKind load_pair(const PairArrays& P, int p, const double* x, vec3* points, vec3& normal)
@@ -54,7 +54,7 @@ namespace {
             return;
         vec3 points[4], normal;
         const PairKind kind = load_pair(P, p, x, points, normal);
-        out[p] = pair_barrier(kind, P.dim, points, normal, P.eps_x[p], P.dmin2, P.shat, nullptr, nullptr);
+        out[p] = pair_energy(kind, P.dim, points, normal, P.eps_x[p], P.model, nullptr, nullptr);
     }
 
     /// Local gradient k (= a dim + i) of pair p at k np + p.
@@ -66,7 +66,7 @@ namespace {
         vec3 points[4], normal;
         const PairKind kind = load_pair(P, p, x, points, normal);
         double g[PAIR_MAX_DOFS];
-        pair_barrier(kind, P.dim, points, normal, P.eps_x[p], P.dmin2, P.shat, g, nullptr);
+        pair_energy(kind, P.dim, points, normal, P.eps_x[p], P.model, g, nullptr);
         const int n = pair_num_vertices(kind) * P.dim;
         for (int k = 0; k < n; ++k)
             out[size_t(k) * P.np + p] = g[k];
@@ -82,7 +82,7 @@ namespace {
         vec3 points[4], normal;
         const PairKind kind = load_pair(P, p, x, points, normal);
         double H[PAIR_MAX_DOFS * PAIR_MAX_DOFS];
-        pair_barrier_hessian(kind, P.dim, points, normal, P.eps_x[p], P.dmin2, P.shat, project, scale, H);
+        pair_energy_hessian(kind, P.dim, points, normal, P.eps_x[p], P.model, project, scale, H);
         const int n = pair_num_vertices(kind) * P.dim, L = 4 * P.dim;
         for (int r = 0; r < n; ++r)
             for (int c = 0; c < n; ++c)
@@ -146,8 +146,13 @@ namespace {
         const DeviceArray<int>& vertices, const DeviceArray<int>& plane, const DeviceArray<double>& eps_x,
         const DeviceArray<double>& normals)
     {
+        PairModel model;
+        model.penalty = s.penalty;
+        model.dmin2 = s.dmin * s.dmin;
+        model.shat = barrier_activation(s.dhat, s.dmin);
+        model.dhat = s.dhat;
         return PairArrays { pairs.num_pairs, pairs.dim, kind.data(), vertices.data(), plane.data(), eps_x.data(),
-            normals.data(), s.dmin * s.dmin, barrier_activation(s.dhat, s.dmin) };
+            normals.data(), model };
     }
 } // namespace
 

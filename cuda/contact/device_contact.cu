@@ -169,9 +169,10 @@ namespace {
         out[k] = classify(L, k, x, radius, dmin, d, g) ? d : INFINITY;
     }
 
-    /// energy[k] = m b(s - dmin^2, shat) of an active candidate (+inf if it intersects), 0 otherwise.
+    /// energy[k] = the pair energy of an active candidate (the barrier m b(s - dmin^2, shat), +inf if it
+    /// intersects; or the penalty's), 0 otherwise.
     __global__ void candidate_energies(CandidateList L, const double* __restrict__ x, double radius, double dmin,
-        double shat, double* __restrict__ out)
+        PairModel model, double* __restrict__ out)
     {
         const size_t k = size_t(blockIdx.x) * blockDim.x + threadIdx.x;
         if (k >= L.size())
@@ -185,7 +186,7 @@ namespace {
         vec3 points[4], normal;
         double eps_x;
         candidate_geometry(L, c, x, points, normal, eps_x);
-        out[k] = pair_barrier(c.kind, L.dim, points, normal, eps_x, dmin * dmin, shat, nullptr, nullptr);
+        out[k] = pair_energy(c.kind, L.dim, points, normal, eps_x, model, nullptr, nullptr);
     }
 
     /// The kept candidates as pairs: kind, 4 vertices (-1 unused), plane.
@@ -316,7 +317,7 @@ DeviceContact::DeviceContact(const CollisionMeshData& mesh, const std::vector<do
         d.num_planes = 0; // no plane pairs (and no division by zero in load_candidate)
     d.plane_vertices.upload(plane_vertices);
     d.barrier.upload(d.dim, rest, normals);
-    d.barrier.set_settings(BarrierSettings { settings.kappa, settings.dhat, settings.min_distance });
+    d.barrier.set_settings(BarrierSettings { settings.kappa, settings.dhat, settings.min_distance, settings.penalty });
     d.partials.resize(REDUCTION_PARTIALS);
     d.scalar.resize(1);
     d.kept_count.resize(1);
@@ -343,7 +344,7 @@ double DeviceContact::energy(const double* d_y, bool on_segment)
 {
     Impl& d = *m_impl;
     DeviceCandidates candidates;
-    if (on_segment) {
+    if (on_segment && !d.settings.penalty) { // the penalty has no step bound, so no segment
         candidates = d.bound.segment_candidates();
     } else {
         const auto t = Clock::now();
@@ -356,8 +357,13 @@ double DeviceContact::energy(const double* d_y, bool on_segment)
     double sum = 0;
     if (n > 0) {
         ensure(d.values, n);
-        candidate_energies<<<grid(n), THREADS>>>(L, d_y, d.active_radius(), d.settings.min_distance,
-            barrier_activation(d.settings.dhat, d.settings.min_distance), d.values.data());
+        PairModel model;
+        model.penalty = d.settings.penalty;
+        model.dmin2 = d.settings.min_distance * d.settings.min_distance;
+        model.shat = barrier_activation(d.settings.dhat, d.settings.min_distance);
+        model.dhat = d.settings.dhat;
+        candidate_energies<<<grid(n), THREADS>>>(
+            L, d_y, d.active_radius(), d.settings.min_distance, model, d.values.data());
         check_launch("launch of the candidate barrier energies");
         deterministic_sum(d.values.data(), n, d.partials.data(), d.scalar.data());
         detail::copy_device_to_host(&sum, d.scalar.data(), sizeof(double));
@@ -470,6 +476,8 @@ const DeviceBsrMatrix& DeviceContact::hessian() const { return m_impl->hessian; 
 
 StepBoundResult DeviceContact::max_step(const double* d_x, const double* d_p)
 {
+    if (m_impl->settings.penalty)
+        return StepBoundResult {}; // the penalty baseline has no CCD: every step is admissible (alpha 1)
     const auto t = Clock::now();
     StepBoundResult r = m_impl->bound.max_step(d_x, d_p);
     add_time(t, m_impl->times.ccd);

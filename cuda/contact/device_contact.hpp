@@ -23,7 +23,7 @@
 /// Layouts: positions, gradients and steps are #V * dim doubles in GPU memory, flattened
 /// vertex-major (xyzxyz), metres; rest positions likewise on the host.
 ///
-/// Not here (yet): the penalty model, periodic images, the shape derivative. Friction is DeviceFriction
+/// Not here (yet): periodic images, the shape derivative. Friction is DeviceFriction
 /// (device_friction.hpp), a potential of its own on the lagged pairs.
 /// Host code; this header compiles with a plain C++ compiler (no CUDA headers).
 
@@ -45,6 +45,9 @@ struct DeviceContactSettings {
     double min_distance = 0; ///< dmin (m)
     int ccd_max_iterations = 1000000;
     double ccd_rescaling = 0.9;
+    /// The penalty baseline (ContactSettings::penalty; kappa is then its stiffness, N/m): pair energies of
+    /// pair_barrier.cuh's PairModel, finite for intersecting pairs; max_step() certifies every step (no CCD).
+    bool penalty = false;
 };
 
 /// Wall time (s) of the contact work since the last reset_times() (the CPU's ContactTimes).

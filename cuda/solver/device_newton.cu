@@ -10,6 +10,8 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
+#include <cstdlib>
 #include <limits>
 #include <memory>
 #include <stdexcept>
@@ -25,6 +27,8 @@ namespace {
     // NewtonSolver's constants (forward/solver/newton.cpp).
     constexpr double ROUNDOFF_STEP = 128 * EPS;
     constexpr double ENERGY_RESOLUTION = 1e-10;
+    constexpr double EXTENSION_RATIO = 0.9;
+    constexpr int MAX_EXTENSIONS = 12;
 
     int grid(size_t n) { return int((n + THREADS - 1) / THREADS); }
 
@@ -342,7 +346,7 @@ struct DeviceNewton::Impl {
     int dim = 0, ne = 0, nv = 0;
     bool dynamic = false;
     double material_scale = 0;
-    DeviceArray<double> mass, x, trial, xt, f, target, reference, g, g_trial, p, pD, rhs, coupling;
+    DeviceArray<double> mass, x, trial, longer, xt, f, target, reference, g, g_trial, p, pD, rhs, coupling;
     DeviceArray<double> partials, scalars;
     DeviceArray<unsigned char> fixed;
     DeviceArray<int> elements, diagonal_slots;
@@ -472,6 +476,37 @@ struct DeviceNewton::Impl {
         return alpha;
     }
 
+    /// NewtonSolver::extend on the device. The full step trial = x + p was accepted with new_energy; tries
+    /// x + 2p, x + 4p, ... (built in `longer`) while the energy keeps falling (Armijo against the start)
+    /// and the step bound admits the longer step. Returns the step length taken; trial then holds that
+    /// state and new_energy its energy.
+    double extend(const DeviceElasticMesh& mesh, double w, double length, const DeviceNewtonSettings& s,
+        double start_energy, double slope, double& new_energy, DeviceNewtonResult& result)
+    {
+        const int G = grid(n);
+        double alpha = 1.0;
+        for (int k = 0; k < MAX_EXTENSIONS; ++k) {
+            const double a = 2 * alpha;
+            if (s.max_displacement > 0 && a * length > s.max_displacement)
+                break;
+            scale_into<<<G, THREADS>>>(n, a, p.data(), longer.data());
+            check_launch("launch of an extended step");
+            bool unresolved = false;
+            if (max_step(x.data(), longer.data(), s.inversion_keep, unresolved) < 1.0)
+                break;
+            step<<<G, THREADS>>>(n, x.data(), a, p.data(), longer.data());
+            check_launch("launch of an extended step");
+            const double e = energy(mesh, longer.data(), w, true).total;
+            if (!(e < new_energy) || e > start_energy + s.armijo * a * slope)
+                break;
+            alpha = a;
+            new_energy = e;
+            std::swap(trial, longer);
+        }
+        result.extended_steps += alpha > 1.0;
+        return alpha;
+    }
+
     /// The balancing products at x with weight w (the active set at x must be current).
     ContactBalance balance(const DeviceElasticMesh& mesh, double w)
     {
@@ -581,8 +616,8 @@ DeviceNewton::DeviceNewton(const DeviceElasticMesh& mesh, const std::vector<doub
         impl->mass.upload(lumped_mass);
     impl->elements.upload(elements);
     impl->diagonal_slots.upload(diagonal);
-    for (auto* v : { &impl->x, &impl->trial, &impl->xt, &impl->f, &impl->target, &impl->reference, &impl->g,
-             &impl->g_trial, &impl->p, &impl->pD, &impl->rhs, &impl->coupling })
+    for (auto* v : { &impl->x, &impl->trial, &impl->longer, &impl->xt, &impl->f, &impl->target, &impl->reference,
+             &impl->g, &impl->g_trial, &impl->p, &impl->pD, &impl->rhs, &impl->coupling })
         v->resize(n);
     impl->reference.set_zero();
     impl->fixed.resize(n);
@@ -777,6 +812,16 @@ DeviceNewtonResult DeviceNewton::solve(std::vector<double>& x_host, const std::v
     double reference_gradient_norm = 0; // |g_free,0|_2 of the forcing (DeviceNewtonSettings)
     bool full_step_taken = false;
     int true_hessian_pause = 0;
+    // True-Hessian steps that lower neither the energy beyond its round-off nor the residual by a tenth:
+    // near a bifurcation (two boxes meeting face to face) the true Hessian's step can jump between two
+    // states of equal energy, each step accepted within the energy's round-off. After STALLS such steps in
+    // a row the projected matrix is used for stall_pause iterations, doubled at each recurrence.
+    constexpr int STALLS = 3;
+    bool last_true = false;
+    double last_gmax = INFINITY, last_drop = INFINITY, last_roundoff = 0;
+    int stalls = 0, stall_pause = 2;
+    // DIFFIPC_NEWTON_TRACE=1: one line per iteration on stderr (a diagnostic for failing steps).
+    static const bool trace = std::getenv("DIFFIPC_NEWTON_TRACE") != nullptr;
 
     for (int it = 0;; ++it) {
         double gs[4];
@@ -814,6 +859,14 @@ DeviceNewtonResult DeviceNewton::solve(std::vector<double>& x_host, const std::v
         // once a full step has been accepted, the true Hessian is tried (NewtonSolver's adaptive
         // projection): kept if PCG meets no negative curvature and its step descends, otherwise the
         // projected matrix is used and the true one skipped for the next two iterations.
+        stalls = last_true && gmax > 0.9 * last_gmax && last_drop <= last_roundoff ? stalls + 1 : 0;
+        if (stalls >= STALLS) {
+            true_hessian_pause = std::max(true_hessian_pause, stall_pause);
+            stall_pause *= 2;
+            stalls = 0;
+        }
+        last_gmax = gmax;
+        last_true = false;
         const bool try_true = settings.adaptive_projection && full_step_taken && !lifting && true_hessian_pause == 0;
         if (true_hessian_pause > 0)
             --true_hessian_pause;
@@ -854,6 +907,7 @@ DeviceNewtonResult DeviceNewton::solve(std::vector<double>& x_host, const std::v
                 }
                 if (kept) {
                     ++result.true_hessian_steps;
+                    last_true = true;
                     break;
                 }
                 true_hessian_pause = 2;
@@ -975,8 +1029,18 @@ DeviceNewtonResult DeviceNewton::solve(std::vector<double>& x_host, const std::v
             phase_end(t_ls, result.line_search_time);
             return finish(DeviceStepStatus::LINE_SEARCH_EXHAUSTED);
         }
+        // NewtonSolver's rule. It compares the energy's decrease with -g.p, which equals p^T A p for the
+        // exact step of the search matrix A; PCG's inexact step, started from zero, keeps that identity (its
+        // residual is orthogonal to the Krylov space that holds p). Not where the predicted decrease is below
+        // the energy's resolution: there the decrease is round-off (a last step of the 2D falling box in
+        // AdaptiveTimeSteppingOfDynamicScenes was extended 4x on such noise).
+        if (settings.step_extension && alpha == 1.0 && !lifting && !unresolvable && !result.roundoff_limited
+            && energy - new_energy > EXTENSION_RATIO * -slope)
+            alpha = m.extend(m_mesh, w, length, settings, energy, slope, new_energy, result);
         full_step_taken = alpha >= 1.0;
         result.newton_step = alpha * pmax / step_scale;
+        last_drop = energy - new_energy;
+        last_roundoff = roundoff;
         std::swap(m.x, m.trial); // x = the accepted trial; trial = the old x, no longer needed
         m.active_current = active_at_trial;
         if (lifting && alpha >= 1.0) {
@@ -997,6 +1061,13 @@ DeviceNewtonResult DeviceNewton::solve(std::vector<double>& x_host, const std::v
         end_iteration();
         phase_end(t_ls, result.line_search_time);
         result.iterations = it + 1;
+        if (trace)
+            std::fprintf(stderr,
+                "  device newton %3d: residual %.3e forcing %.1e alpha %.3e energy %.15e step %.2e; totals: pcg %d, "
+                "true-Hessian steps %d, cuts %d, kappa updates %d%s\n",
+                it, gmax / force_scale, forcing, alpha, energy, result.newton_step, result.pcg_iterations,
+                result.true_hessian_steps, result.line_search_cuts, result.kappa_updates,
+                last_true ? ", true Hessian" : "");
     }
 }
 

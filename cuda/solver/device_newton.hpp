@@ -115,6 +115,10 @@ struct DeviceNewtonSettings {
     /// no negative curvature and its step descends; else the projected one, and the true one is
     /// skipped for two iterations).
     bool adaptive_projection = true;
+    /// NewtonSettings::step_extension: a full step along which the energy fell by more than 0.9 of the
+    /// linear prediction is tried at 2, 4, ... 4096 times its length while the energy keeps falling (Armijo
+    /// against the start) and the step bound admits it (docs/math.md, "Step extension").
+    bool step_extension = true;
 };
 
 /// The adaptive stiffness' balancing products at a state (Simulator::balancing_kappa): with gE the
@@ -134,6 +138,7 @@ struct DeviceNewtonResult {
     int pcg_iterations = 0; ///< summed over the Newton iterations
     int pcg_capped = 0; ///< PCG solves that stopped at pcg_max_iterations (their iterate was used)
     int gradient_steps = 0; ///< iterations that fell back to the negative gradient
+    int extended_steps = 0; ///< accepted steps lengthened by the step extension
     bool roundoff_limited = false;
     /// Wall time (s) per phase, measured with device synchronization at phase ends.
     double assembly_time = 0, solve_time = 0, line_search_time = 0;

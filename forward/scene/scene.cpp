@@ -626,8 +626,6 @@ void select_device(Scene& scene, const std::string& name, const std::string& fie
                   "conditions, barrier contact with obstacles and lagged friction, automatic load stepping and "
                   "adaptive time stepping); use \"cpu\"");
     };
-    if (scene.contact.enabled && scene.contact.penalty)
-        refuse("the penalty contact model");
     if (scene.periodic.enabled)
         refuse("periodic cells");
     scene.device = DeviceType::GPU;

@@ -63,7 +63,7 @@ public:
     /// @param constrained  #dofs Dirichlet flags
     /// @param contact      the scene's contact potential (barrier model, no periodic images), or nullptr
     /// @throws InputError naming "device" when this build has no CUDA or no GPU is present, or the
-    ///         contact is one the device does not have (penalty, periodic images)
+    ///         contact is one the device does not have (periodic images)
     DeviceSolver(const ElasticPotential& elastic, const InertiaPotential* inertia, const std::vector<char>& constrained,
         const ContactPotential* contact = nullptr);
     ~DeviceSolver();

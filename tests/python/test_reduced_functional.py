@@ -293,8 +293,12 @@ def test_device_replaces_the_scenes_device():
     with pytest.raises(ValueError, match=r'device: expected "cpu" or "gpu", got "tpu"'):
         diffipc.ReducedFunctional(STUDIES["302"], device="tpu")
     problem = json.loads(STUDIES["302"].read_text())
-    problem["scene"]["contact"] = {"dhat": 1e-3, "model": "penalty", "penalty_stiffness": 1e6}
-    with pytest.raises(ValueError, match=r'device: "gpu" does not support the penalty contact model'):
+    problem["scene"] = {"dimension": 2, "bodies": [{"mesh": {"box": {"min": [0, 0], "max": [1, 0.8], "cells": [4, 3]}},
+                                                    "material": {"model": "neo_hookean", "E": 1e5, "nu": 0.3,
+                                                                 "density": 1000}}],
+                        "periodic": {"gradient": [["-0.2*t", 0], [0, None]]},
+                        "time": {"integrator": "static", "dt": 0.05, "steps": 3}}
+    with pytest.raises(ValueError, match=r'device: "gpu" does not support periodic cells'):
         diffipc.ReducedFunctional(problem, base_directory=STUDIES["302"].parent, device="gpu")
     try:
         J_gpu = diffipc.ReducedFunctional(STUDIES["302"], device="gpu")

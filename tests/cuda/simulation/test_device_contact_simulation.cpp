@@ -36,6 +36,7 @@ struct ContactComparison {
     int kappa_differs = 0; ///< steps whose kappa differs between the paths
     int gpu_substeps = 0; ///< load-stepping sub-steps of the GPU run
     int gpu_fallbacks = 0; ///< its displacement-control and relaxation solves (on the CPU's Newton)
+    int intersecting[2] = { 0, 0 }; ///< penalty: committed states with intersecting surfaces (CPU, GPU run)
 };
 
 /// Runs the scene on both paths; checks every committed GPU state independently (no intersection,
@@ -53,6 +54,8 @@ ContactComparison run_both(json s, const std::string& name, double tolerance, co
 {
     s.erase("output");
     const double residual_tolerance = s["solver"].value("residual_tolerance", 1e-8);
+    // The penalty baseline lets surfaces pass through each other: no separation checks then.
+    const bool penalty = s["contact"].value("model", std::string()) == "penalty";
     s["device"] = "cpu";
     Simulator cpu(parse_scene(s, directory, name));
     cpu.run();
@@ -83,10 +86,17 @@ ContactComparison run_both(json s, const std::string& name, double tolerance, co
         c.gpu_fallbacks += rb.control_steps + rb.relaxation_steps;
         // Independent checks of the GPU's committed state (CPU code, not the GPU's).
         const VectorXd& x = rb.positions;
-        EXPECT_EQ(find_intersection(contact.collision_mesh(), unflatten(x, gpu.scene().dim), true), "")
-            << name << " step " << k;
+        if (!penalty) {
+            EXPECT_EQ(find_intersection(contact.collision_mesh(), unflatten(x, gpu.scene().dim), true), "")
+                << name << " step " << k;
+            EXPECT_GT(contact.min_distance(x, 1e-2 * size), dmin) << name << " step " << k;
+        } else {
+            const int dim = gpu.scene().dim;
+            c.intersecting[0]
+                += !find_intersection(contact.collision_mesh(), unflatten(ra.positions, dim), true).empty();
+            c.intersecting[1] += !find_intersection(contact.collision_mesh(), unflatten(x, dim), true).empty();
+        }
         EXPECT_GT(gpu.space().min_volume_ratio(x), 0) << name << " step " << k;
-        EXPECT_GT(contact.min_distance(x, 1e-2 * size), dmin) << name << " step " << k;
         // The recorded active set is the CPU's at the same state: same pairs, order, types.
         const ContactSet& expected = contact.contacts(x);
         bool same = expected.size() == rb.contacts.size();
@@ -141,6 +151,9 @@ ContactComparison run_both(json s, const std::string& name, double tolerance, co
                 "iterations CPU %d, GPU %d (%ld PCG); kappa differs in %d steps\n",
         name.c_str(), c.steps, c.max_active, c.worst, size, c.worst_step, c.worst_step_index, c.cpu_residual,
         c.cpu_iterations, c.gpu_iterations, gpu.device_solver()->total_pcg_iterations(), c.kappa_differs);
+    if (penalty)
+        std::printf("    states with intersecting surfaces: CPU %d, GPU %d of %d\n", c.intersecting[0],
+            c.intersecting[1], c.steps);
     if (tolerance > 0) {
         EXPECT_LE(c.worst_step, tolerance) << name;
         if (c.kappa_differs == 0 && along_run)
@@ -227,14 +240,13 @@ TEST(DeviceContactSimulation, ContactStudies)
     DIFFIPC_SKIP_WITHOUT_GPU();
     run_study("201_ring_on_plane", 20, "201 ring on plane (2D)", 1e-6);
     run_study("204_ring_pile", 30, "204 ring pile (2D)", 1e-6);
-    // 202 with the adaptive stiffness fails on the GPU at step 9 (NEWTON_EXHAUSTED, residual 3.7e-4
-    // after 100 iterations), after its kappa took another path than the CPU's; 8 steps here. Its step 4
-    // (kappa fixed at the adaptive run's 1.12e12, tolerance 1e-8) is a bifurcation: the CPU alone, with
-    // solver.hessian_projection "always" instead of "adaptive", is 1.7e-9 of the size from its default
-    // run after step 3 and 3.2e-4 after step 4, while tightening its tolerance to 1e-11 moves it by at
-    // most 7.6e-11 (measured with diffipc simulate). The GPU's Newton (other search matrices) lands on
-    // either branch, so the steps from the same start are asserted and the trajectory printed.
-    run_study("202_boxes_head_on", 8, "202 boxes head on (3D)", 1e-6, false);
+    // 202 as shipped (20 steps, the adaptive stiffness). Its step 4 (kappa fixed at the adaptive run's
+    // 1.12e12, tolerance 1e-8) is a bifurcation: the CPU alone, with solver.hessian_projection "always"
+    // instead of "adaptive", is 1.7e-9 of the size from its default run after step 3 and 3.2e-4 after step
+    // 4, while tightening its tolerance to 1e-11 moves it by at most 7.6e-11 (measured with diffipc
+    // simulate). The GPU's Newton (other search matrices) lands on either branch, so the steps from the
+    // same start are asserted and the trajectory printed.
+    run_study("202_boxes_head_on", 20, "202 boxes head on (3D)", 1e-6, false);
     run_study("203_box_squeeze", 10, "203 box squeeze (3D, moving planes)", 1e-6);
     // The thin plate wrinkles on the sphere: its steps have several equilibria (the GPU's step 7 ends
     // 1.3 mm from the CPU's from the same start, both at the CPU's residual tolerance; the CPU's own
@@ -440,6 +452,84 @@ TEST(DeviceContactSimulation, AdaptiveTimeSteppingOfDynamicScenes)
             EXPECT_LT(e_lame, 1e-6) << name;
         }
     }
+}
+
+TEST(DeviceContactSimulation, PenaltyContact)
+{
+    DIFFIPC_SKIP_WITHOUT_GPU();
+    // The penalty baseline ("model": "penalty"): pair energies of PairModel's penalty on the device, no CCD
+    // (every step admissible), finite energies where surfaces pass through each other. Both paths on the
+    // test scenes of TestScenes2DAnd3D with the penalty instead of the barrier; the GPU's states checked
+    // for inversion, the CPU's active set and the CPU's residual (run_both, without its separation checks),
+    // and each state for intersecting surfaces (find_intersection) on both paths.
+    const json penalty = { { "dhat", 1e-3 }, { "model", "penalty" }, { "penalty_stiffness", 1e7 } };
+    json settling = test::rings_on_plane(penalty);
+    settling["gravity"] = { 0, -9.81 };
+    json thrown = settling;
+    thrown["bodies"][0]["initial_velocity"] = { 0.5, -0.5 };
+    json boxes = test::boxes_on_plane(penalty);
+    boxes["gravity"] = { 0, -9.81, 0 };
+    for (json* s : { &settling, &thrown, &boxes }) {
+        (*s)["time"]["steps"] = 10;
+        (*s)["solver"] = { { "residual_tolerance", 1e-9 } };
+    }
+    // Rings settling under gravity stay within the penalty's layer on both paths. (With the elastic
+    // scenes' loose forcing, 0.5, the GPU's steps passed through in 4 of 10 steps, 1.2e-3 of the size
+    // from the CPU's: DeviceSolver's PENALTY_FORCING_MAX.)
+    const ContactComparison settled = run_both(settling, "2D rings settling, penalty", 1e-6);
+    EXPECT_EQ(settled.intersecting[0], 0);
+    EXPECT_EQ(settled.intersecting[1], 0);
+    // Ring a thrown at ring b at 0.5 m/s: without CCD its vertices pass through ring b's edges, on both
+    // paths alike (the penalty's failure mode, shown by study 503), and the states agree.
+    const ContactComparison crossed = run_both(thrown, "2D rings thrown, penalty", 1e-6);
+    EXPECT_GT(crossed.intersecting[0], 0) << "the thrown ring no longer passes through: pick a faster throw";
+    EXPECT_EQ(crossed.intersecting[0], crossed.intersecting[1]);
+    // The boxes' symmetry-breaking instability on the frictionless plane (TestScenes2DAnd3D): printed (the
+    // CPU alone moves by 2.9e-5 of the size when its tolerance is tightened 100 times).
+    const ContactComparison stacked = run_both(boxes, "3D boxes on a plane, penalty", -1);
+    EXPECT_EQ(stacked.intersecting[1], 0);
+}
+
+TEST(DeviceContactSimulation, StepExtensionOnTheDevice)
+{
+    DIFFIPC_SKIP_WITHOUT_GPU();
+    // 202 as shipped: after the impact the boxes' contact faces creep along a soft mode, one short projected
+    // step per iteration (its step 9 took the GPU's Newton 100 iterations without the extension). The
+    // device's step extension (solver.step_extension, NewtonSolver's rule) lengthens those steps: fewer
+    // Newton iterations in all, every step converged; the states themselves are compared with the CPU's in
+    // ContactStudies.
+    int iterations[2] = { 0, 0 };
+    for (const bool extension : { false, true }) {
+        json s = study_scene("202_boxes_head_on", 20);
+        s["solver"]["step_extension"] = extension;
+        s["device"] = "gpu";
+        Simulator sim(parse_scene(s, study_folder("202_boxes_head_on"), "202"));
+        const Trajectory& t = sim.run();
+        ASSERT_EQ(t.final_status, StepStatus::CONVERGED) << "extension " << extension << ": " << t.failure_message;
+        for (int k = 1; k <= t.committed(); ++k)
+            iterations[extension] += t.step(k).newton_iterations;
+    }
+    std::printf("  202 on the GPU: %d Newton iterations without the step extension, %d with it\n", iterations[0],
+        iterations[1]);
+    EXPECT_LT(iterations[1], iterations[0]);
+}
+
+TEST(DeviceContactSimulation, TrueHessianCyclesAreBroken)
+{
+    DIFFIPC_SKIP_WITHOUT_GPU();
+    // 202 as shipped (tolerance 1e-7) without the step extension: at its step 4 (the bifurcation) the
+    // true Hessian's steps jumped between two states of equal energy (within its round-off), the residual
+    // stuck at 8.5e-5 for 60 iterations until NEWTON_EXHAUSTED. DeviceNewton then switches to the
+    // projected matrix (STALLS): the first 8 steps converge (measured: without that rule step 4 fails).
+    json s = json::parse(test::read_file(study_folder("202_boxes_head_on") + "/scene.json"));
+    s.erase("output");
+    s["time"]["steps"] = 8;
+    s["solver"]["step_extension"] = false;
+    s["device"] = "gpu";
+    Simulator sim(parse_scene(s, study_folder("202_boxes_head_on"), "202"));
+    const Trajectory& t = sim.run();
+    EXPECT_EQ(t.final_status, StepStatus::CONVERGED) << t.failure_message;
+    EXPECT_EQ(t.committed(), 8);
 }
 
 TEST(DeviceContactSimulation, FailedStepReportsTheCpuStatusAndKeepsTheCommittedState)

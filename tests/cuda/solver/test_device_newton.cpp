@@ -183,7 +183,7 @@ NewtonSettings cpu_settings(int max_iterations = 100)
     NewtonSettings s;
     s.residual_tolerance = TOLERANCE;
     s.max_iterations = max_iterations;
-    // The GPU solver always projects and never extends a step: the CPU does the same here.
+    // Both solvers always project and never extend a step here.
     s.adaptive_projection = false;
     s.step_extension = false;
     return s;
@@ -194,6 +194,7 @@ gpu::DeviceNewtonSettings gpu_settings(int max_iterations = 100)
     gpu::DeviceNewtonSettings s;
     s.residual_tolerance = TOLERANCE;
     s.max_iterations = max_iterations;
+    s.step_extension = false;
     return s;
 }
 

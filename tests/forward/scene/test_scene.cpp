@@ -173,12 +173,12 @@ std::vector<Malformed> malformed_cases()
         { "output_misspelled_vtu_key", [](json& s) { s["output"]["vtu_encode"] = "ascii"; }, "vtu_encode" },
         { "mass_unknown", [](json& s) { s["mass"] = "heavy"; }, "mass" },
         { "device_unknown", [](json& s) { s["device"] = "tpu"; }, "device: expected \"cpu\" or \"gpu\", got \"tpu\"" },
-        { "device_gpu_with_penalty_contact",
+        { "device_gpu_with_periodic_cells",
             [](json& s) {
+                s = test::compressed_periodic_cell(3, "static");
                 s["device"] = "gpu";
-                s["contact"] = { { "dhat", 1e-3 }, { "model", "penalty" }, { "penalty_stiffness", 1e6 } };
             },
-            "device: \"gpu\" does not support the penalty contact model" },
+            "device: \"gpu\" does not support periodic cells" },
         { "duplicate_body_name", [](json& s) { s["bodies"].push_back(s["bodies"][0]); }, "bodies[1].name" },
         { "region_max_below_min",
             [](json& s) {
@@ -271,6 +271,9 @@ TEST(Scene, DeviceIsCpuUnlessTheSceneSaysGpu)
     // Adaptive time stepping of a dynamic scene, with the adaptive kappa too; the consistent mass.
     s["time"]["integrator"] = "implicit_euler";
     s["mass"] = "consistent";
+    EXPECT_EQ(parse_scene(s, ".", "<test>").device, DeviceType::GPU);
+    // The penalty contact baseline.
+    s["contact"] = { { "dhat", 1e-3 }, { "model", "penalty" }, { "penalty_stiffness", 1e6 } };
     EXPECT_EQ(parse_scene(s, ".", "<test>").device, DeviceType::GPU);
     Scene scene = parse_scene(valid_scene(), ".", "<test>");
     select_device(scene, "gpu", "--device");
