@@ -1,0 +1,117 @@
+#include "cuda/periodic/reduced_operator.hpp"
+
+#include "cuda/common/device.hpp"
+
+#include <stdexcept>
+#include <string>
+
+namespace diffipc::gpu {
+
+namespace {
+
+    constexpr int THREADS = 256;
+
+    int grid(size_t n) { return int((n + THREADS - 1) / THREADS); }
+
+    /// y = x with the fixed entries zeroed (fixed may be null).
+    __global__ void masked_copy_kernel(
+        size_t n, const double* __restrict__ x, const unsigned char* __restrict__ fixed, double* __restrict__ y)
+    {
+        const size_t k = size_t(blockIdx.x) * blockDim.x + threadIdx.x;
+        if (k < n)
+            y[k] = fixed && fixed[k] ? 0.0 : x[k];
+    }
+
+    __global__ void zero_fixed_kernel(size_t n, const unsigned char* __restrict__ fixed, double* __restrict__ y)
+    {
+        const size_t k = size_t(blockIdx.x) * blockDim.x + threadIdx.x;
+        if (k < n && fixed[k])
+            y[k] = 0.0;
+    }
+
+    /// Block c of out (dim^2 values) = the sum of the class's vertices' diagonal blocks, in vertex order.
+    __global__ void class_blocks_kernel(PeriodicView m, const double* __restrict__ full, double* __restrict__ out)
+    {
+        const int b2 = m.dim * m.dim;
+        const int k = blockIdx.x * blockDim.x + threadIdx.x;
+        if (k >= m.num_classes * b2)
+            return;
+        const int c = k / b2, e = k % b2;
+        double s = 0;
+        for (int r = m.class_start[c]; r < m.class_start[c + 1]; ++r)
+            s += full[m.class_vertices[r] * b2 + e];
+        out[k] = s;
+    }
+
+    /// Column k of macro block i: out[(C + i) dim^2 + j dim + k] = y[macro_dof(i, j)], j = 0 .. dim - 1.
+    __global__ void macro_column_kernel(
+        PeriodicView m, int i, int k, const double* __restrict__ y, double* __restrict__ out)
+    {
+        const int j = threadIdx.x;
+        if (j < m.dim)
+            out[(m.num_classes + i) * m.dim * m.dim + j * m.dim + k] = y[macro_dof(m, i, j)];
+    }
+
+} // namespace
+
+void ReducedOperator::bind(const DeviceLinearOperator& A, DevicePeriodicMap& map)
+{
+    if (A.block_size() != map.dim() || A.num_block_rows() != map.num_vertices())
+        throw std::invalid_argument("ReducedOperator::bind: the operator has " + std::to_string(A.num_block_rows())
+            + " block rows of " + std::to_string(A.block_size()) + ", the periodic map "
+            + std::to_string(map.num_vertices()) + " vertices in " + std::to_string(map.dim()) + "D");
+    m_A = &A;
+    m_map = &map;
+    const size_t nq = size_t(map.num_reduced()), nx = size_t(A.size());
+    m_q.resize(nq);
+    m_x.resize(nx);
+    m_y.resize(nx);
+    m_unit.resize(nq);
+    m_column.resize(nq);
+    m_full_diagonal.resize(size_t(map.num_vertices()) * size_t(map.dim() * map.dim()));
+}
+
+void ReducedOperator::multiply(const double* d_x, double* d_y, const unsigned char* d_fixed) const
+{
+    if (!m_A)
+        throw std::logic_error("ReducedOperator::multiply: not bound");
+    const size_t nq = m_q.size();
+    const double* x = d_x;
+    if (d_fixed) {
+        masked_copy_kernel<<<grid(nq), THREADS>>>(nq, d_x, d_fixed, m_q.data());
+        check_cuda(cudaGetLastError(), "launch of the reduced product's masked copy");
+        x = m_q.data();
+    }
+    m_map->expand(x, m_x.data(), false);
+    m_A->multiply(m_x.data(), m_y.data(), nullptr);
+    m_map->reduce(m_y.data(), d_y);
+    if (d_fixed) {
+        zero_fixed_kernel<<<grid(nq), THREADS>>>(nq, d_fixed, d_y);
+        check_cuda(cudaGetLastError(), "launch of the reduced product's fixed entries");
+    }
+}
+
+void ReducedOperator::diagonal_blocks(double* d_out) const
+{
+    if (!m_A)
+        throw std::logic_error("ReducedOperator::diagonal_blocks: not bound");
+    const PeriodicView& m = m_map->view();
+    const int d = m.dim, b2 = d * d;
+    m_A->diagonal_blocks(m_full_diagonal.data());
+    class_blocks_kernel<<<grid(size_t(m.num_classes) * size_t(b2)), THREADS>>>(m, m_full_diagonal.data(), d_out);
+    check_cuda(cudaGetLastError(), "launch of the reduced class blocks");
+    std::vector<double> unit(m_unit.size(), 0.0);
+    for (int i = 0; i < d; ++i)
+        for (int k = 0; k < d; ++k) {
+            const size_t e = size_t(macro_dof(m, i, k));
+            unit[e] = 1.0;
+            m_unit.upload(unit);
+            unit[e] = 0.0;
+            multiply(m_unit.data(), m_column.data(), nullptr);
+            macro_column_kernel<<<1, 32>>>(m, i, k, m_column.data(), d_out);
+            check_cuda(cudaGetLastError(), "launch of a reduced macro column");
+        }
+    check_cuda(cudaDeviceSynchronize(), "the reduced diagonal blocks");
+}
+
+} // namespace diffipc::gpu
