@@ -6,7 +6,7 @@
 /// deterministic: each class sums its vertices in increasing order, each of the dim^2 macro entries is a
 /// reduction.hpp sum (a fixed tree), so two calls give the same bits.
 ///
-/// A building block: the device Newton does not use it yet (periodic scenes are still refused on the GPU).
+/// DeviceNewton's periodic mode (set_periodic) uses it.
 /// Host code; this header compiles with a plain C++ compiler (no CUDA headers).
 
 #include "cuda/linalg/device_array.hpp"

@@ -15,7 +15,7 @@
 ///   (a cell one element thick across a periodic axis); there the preconditioner is that approximation.
 /// - a macro row's block is exact: each of its dim columns is a product P^T A P e, dim^2 products in all.
 ///
-/// A building block: the device Newton does not use it yet (periodic scenes are still refused on the GPU).
+/// DeviceNewton's periodic mode (set_periodic) uses it.
 /// Host code; this header compiles with a plain C++ compiler (no CUDA headers).
 
 #include "cuda/linalg/device_array.hpp"

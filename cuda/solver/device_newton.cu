@@ -3,6 +3,8 @@
 #include "cuda/common/device.hpp"
 #include "cuda/contact/sum_operator.hpp"
 #include "cuda/elastic/material.cuh"
+#include "cuda/periodic/device_periodic_map.hpp"
+#include "cuda/periodic/reduced_operator.hpp"
 #include "cuda/solver/inversion_bound.cuh"
 
 #include <cuda_runtime.h>
@@ -358,6 +360,59 @@ struct DeviceNewton::Impl {
     DeviceContact* contact = nullptr;
     DeviceFriction* friction = nullptr; // lagged friction (needs contact)
     SumOperator sum; // H + the contact Hessian (+ the friction Hessian)
+
+    // A periodic cell (set_periodic): the unknowns are its q, whose vectors mirror the position-space
+    // ones below; without it the unknowns are the positions and these accessors return those.
+    DevicePeriodicMap* periodic = nullptr;
+    size_t nq = 0;
+    ReducedOperator reduced; // P^T (the Newton matrix) P
+    DevicePCG pcg_q; // with q's fixed mask
+    DeviceArray<unsigned char> fixed_q;
+    DeviceArray<double> q, trial_q, longer_q, target_q, g_q, g_trial_q, p_q, pD_q, rhs_q, coupling_q;
+    size_t nu() const { return periodic ? nq : n; }
+    DeviceArray<double>& u() { return periodic ? q : x; }
+    DeviceArray<double>& u_trial() { return periodic ? trial_q : trial; }
+    DeviceArray<double>& u_target() { return periodic ? target_q : target; }
+    DeviceArray<double>& u_g() { return periodic ? g_q : g; }
+    DeviceArray<double>& u_g_trial() { return periodic ? g_trial_q : g_trial; }
+    DeviceArray<double>& u_p() { return periodic ? p_q : p; }
+    DeviceArray<double>& u_pD() { return periodic ? pD_q : pD; }
+    DeviceArray<double>& u_rhs() { return periodic ? rhs_q : rhs; }
+    DeviceArray<double>& u_coupling() { return periodic ? coupling_q : coupling; }
+    const unsigned char* u_fixed() const { return periodic ? fixed_q.data() : fixed.data(); }
+    DevicePCG& u_pcg() { return periodic ? pcg_q : pcg; }
+    /// The Newton matrix in the unknowns (bind_unknowns() first).
+    const DeviceLinearOperator& u_system(const DeviceContact* with_contact) const
+    {
+        return periodic ? static_cast<const DeviceLinearOperator&>(reduced) : system(with_contact);
+    }
+    void bind_unknowns(const DeviceContact* with_contact)
+    {
+        if (periodic)
+            reduced.bind(system(with_contact), *periodic);
+    }
+    /// A position-space gradient into the unknowns' (P^T g; nothing to do without a cell).
+    void gradient_to_unknowns(const DeviceArray<double>& gx, DeviceArray<double>& gu)
+    {
+        if (periodic)
+            periodic->reduce(gx.data(), gu.data());
+    }
+    /// The unknowns' step p_u into positions (p = P p_q; p is p_u without a cell).
+    void step_to_positions()
+    {
+        if (periodic)
+            periodic->expand(p_q.data(), p.data(), false);
+    }
+    /// The state at u + alpha p_u into (into_u, into_x): x + alpha p without a cell, else
+    /// q + alpha p_q and X + P of it (as the CPU's PeriodicPotential evaluates its trials).
+    void make_trial(double alpha, DeviceArray<double>& into_u, DeviceArray<double>& into_x);
+    /// The accepted trial becomes the iterate.
+    void accept_trial()
+    {
+        std::swap(x, trial);
+        if (periodic)
+            std::swap(q, trial_q);
+    }
     bool active_current = false; // the contact's active set was built at x's current contents
     DeviceArray<double> gb; // the barrier gradient (balancing)
     double w = 1; // the weight of the solve in progress (or of balance_at)
@@ -494,14 +549,15 @@ struct DeviceNewton::Impl {
             bool unresolved = false;
             if (max_step(x.data(), longer.data(), s.inversion_keep, unresolved) < 1.0)
                 break;
-            step<<<G, THREADS>>>(n, x.data(), a, p.data(), longer.data());
-            check_launch("launch of an extended step");
+            make_trial(a, periodic ? longer_q : longer, longer);
             const double e = energy(mesh, longer.data(), w, true).total;
             if (!(e < new_energy) || e > start_energy + s.armijo * a * slope)
                 break;
             alpha = a;
             new_energy = e;
             std::swap(trial, longer);
+            if (periodic)
+                std::swap(trial_q, longer_q);
         }
         result.extended_steps += alpha > 1.0;
         return alpha;
@@ -556,21 +612,35 @@ struct DeviceNewton::Impl {
         return bound;
     }
 
-    /// [max |g_free|, g not finite] at g_trial.
-    void residual_of(const double* gv, double* out)
+    /// [max |g_free|, g not finite] of the position-space gradient g_trial, in the unknowns.
+    void residual_of_trial(double* out)
     {
-        reduce<2>(ResidualTerm { gv, fixed.data() }, n, RESIDUAL_OPS, partials.data(), scalars.data() + S_RESIDUAL);
+        gradient_to_unknowns(g_trial, u_g_trial());
+        reduce<2>(ResidualTerm { u_g_trial().data(), u_fixed() }, nu(), RESIDUAL_OPS, partials.data(),
+            scalars.data() + S_RESIDUAL);
         detail::copy_device_to_host(out, scalars.data() + S_RESIDUAL, 2 * sizeof(double));
     }
 
-    /// [slope g.p, |p|_inf, |p_free|_inf, |x|_inf, p not finite].
+    /// [slope g.p, |p|_inf, |p_free|_inf, |u|_inf, p not finite] in the unknowns.
     void direction_scalars(double* out)
     {
-        reduce<5>(DirectionTerm { g.data(), p.data(), x.data(), fixed.data() }, n, DIRECTION_OPS, partials.data(),
-            scalars.data() + S_DIRECTION);
+        reduce<5>(DirectionTerm { u_g().data(), u_p().data(), u().data(), u_fixed() }, nu(), DIRECTION_OPS,
+            partials.data(), scalars.data() + S_DIRECTION);
         detail::copy_device_to_host(out, scalars.data() + S_DIRECTION, 5 * sizeof(double));
     }
 };
+
+void DeviceNewton::Impl::make_trial(double alpha, DeviceArray<double>& into_u, DeviceArray<double>& into_x)
+{
+    if (!periodic) {
+        step<<<grid(n), THREADS>>>(n, x.data(), alpha, p.data(), into_x.data());
+        check_launch("launch of a Newton step");
+        return;
+    }
+    step<<<grid(nq), THREADS>>>(nq, q.data(), alpha, p_q.data(), into_u.data());
+    check_launch("launch of a Newton step");
+    periodic->expand(into_u.data(), into_x.data(), true);
+}
 
 DeviceNewton::DeviceNewton(const DeviceElasticMesh& mesh, const std::vector<double>& lumped_mass)
     : m_mesh(mesh)
@@ -710,6 +780,8 @@ PcgResult DeviceNewton::solve_true_hessian(const std::vector<double>& x_host, do
     std::vector<double>* product)
 {
     Impl& m = *m_impl;
+    if (m.periodic)
+        throw std::logic_error("DeviceNewton::solve_true_hessian: not built yet for a periodic cell");
     const size_t n = m.n;
     if (x_host.size() != n || b_host.size() != n)
         throw std::invalid_argument("DeviceNewton::solve_true_hessian: x and b need #dofs = " + std::to_string(n)
@@ -738,11 +810,36 @@ PcgResult DeviceNewton::solve_true_hessian(const std::vector<double>& x_host, do
     return r;
 }
 
+namespace {
+
+    /// The checks of solve() and solve_periodic() before any GPU work.
+    void check_solve_arguments(
+        const char* who, double weight, double force_scale, double step_scale, const DeviceNewtonSettings& settings)
+    {
+        for (const double s : { weight, force_scale, step_scale })
+            if (!(s > 0) || !std::isfinite(s))
+                throw std::invalid_argument(std::string("DeviceNewton::") + who
+                    + ": weight, force_scale and step_scale must be positive and finite");
+        if (!(settings.residual_tolerance >= 0) || settings.max_iterations < 0 || settings.line_search_max_halvings < 0
+            || !(settings.forcing_max > 0) || !(settings.forcing_min > 0) || settings.forcing_min > settings.forcing_max
+            || !(settings.inversion_keep >= 0 && settings.inversion_keep < 1) || settings.pcg_max_iterations < 0
+            || !(settings.max_displacement >= 0) || !(settings.terminal_factor >= 0)
+            || !(settings.terminal_window >= 1))
+            throw std::invalid_argument(std::string("DeviceNewton::") + who
+                + ": invalid settings (tolerances >= 0, 0 < forcing_min <= forcing_max, 0 <= inversion_keep < 1, "
+                  "counts >= 0, max_displacement >= 0, terminal_factor >= 0, terminal_window >= 1)");
+    }
+
+} // namespace
+
 DeviceNewtonResult DeviceNewton::solve(std::vector<double>& x_host, const std::vector<double>& inertial_target,
     double weight, const std::vector<double>& force, const std::vector<double>& target_host, double force_scale,
     double step_scale, const DeviceNewtonSettings& settings)
 {
     Impl& m = *m_impl;
+    if (m.periodic)
+        throw std::logic_error(
+            "DeviceNewton::solve: a periodic cell's solver (set_periodic) solves with solve_periodic");
     const size_t n = m.n;
     auto check_size = [n](const std::vector<double>& v, const char* name) {
         if (v.size() != n)
@@ -754,35 +851,60 @@ DeviceNewtonResult DeviceNewton::solve(std::vector<double>& x_host, const std::v
     check_size(target_host, "target");
     if (m.dynamic)
         check_size(inertial_target, "inertial_target");
-    for (const double s : { weight, force_scale, step_scale })
-        if (!(s > 0) || !std::isfinite(s))
-            throw std::invalid_argument("DeviceNewton::solve: weight, force_scale and step_scale must be positive "
-                                        "and finite");
-    if (!(settings.residual_tolerance >= 0) || settings.max_iterations < 0 || settings.line_search_max_halvings < 0
-        || !(settings.forcing_max > 0) || !(settings.forcing_min > 0) || settings.forcing_min > settings.forcing_max
-        || !(settings.inversion_keep >= 0 && settings.inversion_keep < 1) || settings.pcg_max_iterations < 0
-        || !(settings.max_displacement >= 0) || !(settings.terminal_factor >= 0) || !(settings.terminal_window >= 1))
-        throw std::invalid_argument("DeviceNewton::solve: invalid settings (tolerances >= 0, 0 < forcing_min <= "
-                                    "forcing_max, 0 <= inversion_keep < 1, counts >= 0, max_displacement >= 0, "
-                                    "terminal_factor >= 0, terminal_window >= 1)");
-
-    const double w = weight;
+    check_solve_arguments("solve", weight, force_scale, step_scale, settings);
     m.x.upload(x_host);
+    m.target.upload(target_host);
+    const DeviceNewtonResult result = iterate(inertial_target, weight, force, force_scale, step_scale, settings);
+    if (result.status == DeviceStepStatus::CONVERGED)
+        detail::copy_device_to_host(x_host.data(), m.x.data(), n * sizeof(double));
+    return result;
+}
+
+DeviceNewtonResult DeviceNewton::solve_periodic(std::vector<double>& q_host, const std::vector<double>& target_q,
+    const std::vector<double>& inertial_target, double weight, const std::vector<double>& force, double force_scale,
+    double step_scale, const DeviceNewtonSettings& settings)
+{
+    Impl& m = *m_impl;
+    if (!m.periodic)
+        throw std::logic_error("DeviceNewton::solve_periodic: no periodic cell (set_periodic)");
+    if (q_host.size() != m.nq || target_q.size() != m.nq)
+        throw std::invalid_argument("DeviceNewton::solve_periodic: q and target_q need the cell's "
+            + std::to_string(m.nq) + " reduced unknowns");
+    if (force.size() != m.n || (m.dynamic && inertial_target.size() != m.n))
+        throw std::invalid_argument(
+            "DeviceNewton::solve_periodic: force and inertial_target need #dofs = " + std::to_string(m.n) + " entries");
+    check_solve_arguments("solve_periodic", weight, force_scale, step_scale, settings);
+    m.q.upload(q_host);
+    m.target_q.upload(target_q);
+    m.periodic->expand(m.q.data(), m.x.data(), true);
+    const DeviceNewtonResult result = iterate(inertial_target, weight, force, force_scale, step_scale, settings);
+    if (result.status == DeviceStepStatus::CONVERGED)
+        detail::copy_device_to_host(q_host.data(), m.q.data(), m.nq * sizeof(double));
+    return result;
+}
+
+DeviceNewtonResult DeviceNewton::iterate(const std::vector<double>& inertial_target, double weight,
+    const std::vector<double>& force, double force_scale, double step_scale, const DeviceNewtonSettings& settings)
+{
+    Impl& m = *m_impl;
+    const size_t n = m.n;
+    const double w = weight;
     if (m.dynamic)
         m.xt.upload(inertial_target);
     m.f.upload(force);
-    m.target.upload(target_host);
     m.contact = m_contact;
     m.active_current = false;
     m.w = weight;
+    m.bind_unknowns(m_contact);
     const int G = m.kernel_grid();
-    const unsigned char* fixed = m.fixed.data();
+    // The unknowns: the positions, or a periodic cell's q (Impl's u_ accessors).
+    const size_t nu = m.nu();
+    const int Gu = grid(nu);
+    const unsigned char* fixed = m.u_fixed();
 
     DeviceNewtonResult result;
     auto finish = [&](DeviceStepStatus status) {
         result.status = status;
-        if (status == DeviceStepStatus::CONVERGED)
-            detail::copy_device_to_host(x_host.data(), m.x.data(), n * sizeof(double));
         return result;
     };
 
@@ -829,8 +951,9 @@ DeviceNewtonResult DeviceNewton::solve(std::vector<double>& x_host, const std::v
             const auto t = Clock::now();
             m.activate_at_x();
             m.gradient(m_mesh, m.x.data(), w, m.g.data());
-            reduce<4>(GradientTerm { m.g.data(), m.x.data(), m.target.data(), fixed, m.pD.data() }, n, GRADIENT_OPS,
-                m.partials.data(), m.scalars.data() + S_GRADIENT);
+            m.gradient_to_unknowns(m.g, m.u_g());
+            reduce<4>(GradientTerm { m.u_g().data(), m.u().data(), m.u_target().data(), fixed, m.u_pD().data() }, nu,
+                GRADIENT_OPS, m.partials.data(), m.scalars.data() + S_GRADIENT);
             detail::copy_device_to_host(gs, m.scalars.data() + S_GRADIENT, sizeof(gs));
             phase_end(t, result.assembly_time);
         }
@@ -882,19 +1005,20 @@ DeviceNewtonResult DeviceNewton::solve(std::vector<double>& x_host, const std::v
                 if (m_contact)
                     m.assemble_contact(w, project);
                 if (lifting)
-                    m.system(m_contact).multiply(m.pD.data(), m.coupling.data(), nullptr);
-                newton_rhs<<<G, THREADS>>>(n, m.g.data(), lifting ? m.coupling.data() : nullptr, m.rhs.data());
+                    m.u_system(m_contact).multiply(m.u_pD().data(), m.u_coupling().data(), nullptr);
+                newton_rhs<<<Gu, THREADS>>>(
+                    nu, m.u_g().data(), lifting ? m.u_coupling().data() : nullptr, m.u_rhs().data());
                 check_launch("launch of the Newton right-hand side");
                 phase_end(t, result.assembly_time);
             }
             PcgResult pcg;
             {
                 const auto t = Clock::now();
-                m.pcg.settings() = PcgSettings { forcing, settings.pcg_max_iterations };
-                pcg = m.pcg.solve_device(m.system(m_contact), m.rhs.data(), m.p.data());
+                m.u_pcg().settings() = PcgSettings { forcing, settings.pcg_max_iterations };
+                pcg = m.u_pcg().solve_device(m.u_system(m_contact), m.u_rhs().data(), m.u_p().data());
                 result.pcg_iterations += pcg.iterations;
                 result.pcg_capped += !pcg.converged && !pcg.breakdown;
-                set_prescribed<<<G, THREADS>>>(n, fixed, m.pD.data(), m.p.data());
+                set_prescribed<<<Gu, THREADS>>>(nu, fixed, m.u_pD().data(), m.u_p().data());
                 check_launch("launch of the prescribed step");
                 phase_end(t, result.solve_time);
             }
@@ -925,8 +1049,8 @@ DeviceNewtonResult DeviceNewton::solve(std::vector<double>& x_host, const std::v
             // The remaining correction is within a few hundred ulps of the largest position, below what
             // the energy resolves: still taken while it halves the residual (NewtonSolver's rule).
             const auto t = Clock::now();
-            step<<<G, THREADS>>>(n, m.x.data(), 1.0, m.p.data(), m.trial.data());
-            check_launch("launch of a Newton step");
+            m.step_to_positions();
+            m.make_trial(1.0, m.u_trial(), m.trial);
             bool unresolved = false;
             bool improves = m.max_step(m.x.data(), m.p.data(), settings.inversion_keep, unresolved) >= 1.0;
             const double trial_energy = improves ? m.energy(m_mesh, m.trial.data(), w, true).total : INFINITY;
@@ -938,7 +1062,7 @@ DeviceNewtonResult DeviceNewton::solve(std::vector<double>& x_host, const std::v
                     m.active_current = false;
                 }
                 m.gradient(m_mesh, m.trial.data(), w, m.g_trial.data());
-                m.residual_of(m.g_trial.data(), rs);
+                m.residual_of_trial(rs);
                 improves = rs[1] == 0 && rs[0] < 0.5 * gmax;
             }
             phase_end(t, result.line_search_time);
@@ -946,7 +1070,7 @@ DeviceNewtonResult DeviceNewton::solve(std::vector<double>& x_host, const std::v
                 result.roundoff_limited = true;
                 return finish(DeviceStepStatus::CONVERGED);
             }
-            std::swap(m.x, m.trial);
+            m.accept_trial();
             m.active_current = m_contact != nullptr; // built at the trial, now x
             energy = trial_energy;
             result.newton_step = pmax / step_scale;
@@ -964,7 +1088,7 @@ DeviceNewtonResult DeviceNewton::solve(std::vector<double>& x_host, const std::v
             // Not a descent direction (PCG on a nearly singular matrix): the negative gradient, scaled to
             // the rejected step's length.
             const double scale = gmax > 0 && pmax > 0 ? pmax / gmax : 1.0;
-            gradient_direction<<<G, THREADS>>>(n, fixed, m.g.data(), scale, m.p.data());
+            gradient_direction<<<Gu, THREADS>>>(nu, fixed, m.u_g().data(), scale, m.u_p().data());
             check_launch("launch of the gradient direction");
             m.direction_scalars(ds);
             slope = ds[0];
@@ -972,6 +1096,7 @@ DeviceNewtonResult DeviceNewton::solve(std::vector<double>& x_host, const std::v
             ++result.gradient_steps;
         }
 
+        m.step_to_positions();
         const auto t_ls = Clock::now();
         double alpha;
         bool unresolved = false;
@@ -998,8 +1123,7 @@ DeviceNewtonResult DeviceNewton::solve(std::vector<double>& x_host, const std::v
         const bool unresolvable = !lifting
             && std::abs(alpha * slope) < std::max(ENERGY_RESOLUTION * std::abs(energy), 1e3 * EPS * magnitude);
         for (int h = 0; h <= settings.line_search_max_halvings && alpha > 0; ++h, alpha *= 0.5) {
-            step<<<G, THREADS>>>(n, m.x.data(), alpha, m.p.data(), m.trial.data());
-            check_launch("launch of a Newton step");
+            m.make_trial(alpha, m.u_trial(), m.trial);
             new_energy = m.energy(m_mesh, m.trial.data(), w, true).total;
             if (!std::isfinite(new_energy))
                 continue;
@@ -1015,7 +1139,7 @@ DeviceNewtonResult DeviceNewton::solve(std::vector<double>& x_host, const std::v
                 }
                 m.gradient(m_mesh, m.trial.data(), w, m.g_trial.data());
                 double rs[2];
-                m.residual_of(m.g_trial.data(), rs);
+                m.residual_of_trial(rs);
                 if (rs[1] == 0 && rs[0] < 0.5 * gmax) {
                     accepted = true;
                     active_at_trial = m_contact != nullptr;
@@ -1041,18 +1165,22 @@ DeviceNewtonResult DeviceNewton::solve(std::vector<double>& x_host, const std::v
         result.newton_step = alpha * pmax / step_scale;
         last_drop = energy - new_energy;
         last_roundoff = roundoff;
-        std::swap(m.x, m.trial); // x = the accepted trial; trial = the old x, no longer needed
+        m.accept_trial(); // x = the accepted trial; trial = the old x, no longer needed
         m.active_current = active_at_trial;
         if (lifting && alpha >= 1.0) {
             // x_D + (target - x_D) need not round to target: snap so lifting ends exactly, unless the
             // snapped state is invalid (then the rounding stays for one more iteration).
             detail::copy_device_to_device(m.trial.data(), m.x.data(), n * sizeof(double));
-            snap_to_target<<<G, THREADS>>>(n, fixed, m.target.data(), m.x.data());
+            if (m.periodic)
+                detail::copy_device_to_device(m.trial_q.data(), m.q.data(), nu * sizeof(double));
+            snap_to_target<<<Gu, THREADS>>>(nu, fixed, m.u_target().data(), m.u().data());
             check_launch("launch of the lifting snap");
+            if (m.periodic)
+                m.periodic->expand(m.q.data(), m.x.data(), true);
             m.active_current = false;
             energy = m.energy(m_mesh, m.x.data(), w).total;
             if (!std::isfinite(energy)) {
-                std::swap(m.x, m.trial);
+                m.accept_trial(); // back to the unsnapped state
                 energy = new_energy;
             }
         } else {
@@ -1075,8 +1203,38 @@ DeviceNewtonResult DeviceNewton::solve(std::vector<double>& x_host, const std::v
 
 namespace diffipc::gpu {
 
+void DeviceNewton::set_periodic(DevicePeriodicMap* map, const std::vector<char>& fixed_q)
+{
+    Impl& m = *m_impl;
+    if (!map)
+        throw std::invalid_argument("DeviceNewton::set_periodic: no map");
+    if (m_contact)
+        throw std::logic_error(
+            "DeviceNewton::set_periodic: contact with periodic images is not built on the device yet");
+    if (map->dim() != m_mesh.dim() || size_t(map->num_vertices()) * size_t(map->dim()) != m.n)
+        throw std::invalid_argument("DeviceNewton::set_periodic: the map has " + std::to_string(map->num_vertices())
+            + " vertices in " + std::to_string(map->dim()) + "D, the mesh " + std::to_string(m.n) + " dofs");
+    const size_t nq = size_t(map->num_reduced());
+    if (fixed_q.size() != nq)
+        throw std::invalid_argument("DeviceNewton::set_periodic: " + std::to_string(fixed_q.size())
+            + " flags, expected the cell's " + std::to_string(nq) + " reduced unknowns");
+    m.periodic = map;
+    m.nq = nq;
+    std::vector<unsigned char> flags(nq);
+    for (size_t k = 0; k < nq; ++k)
+        flags[k] = fixed_q[k] ? 1 : 0;
+    m.fixed_q.upload(flags);
+    m.pcg_q.set_fixed_dofs(fixed_q);
+    for (auto* v :
+        { &m.q, &m.trial_q, &m.longer_q, &m.target_q, &m.g_q, &m.g_trial_q, &m.p_q, &m.pD_q, &m.rhs_q, &m.coupling_q })
+        v->resize(nq);
+}
+
 void DeviceNewton::set_contact(DeviceContact* contact)
 {
+    if (contact && m_impl->periodic)
+        throw std::logic_error(
+            "DeviceNewton::set_contact: contact with periodic images is not built on the device yet");
     if (contact && size_t(contact->num_dofs()) != m_impl->n)
         throw std::invalid_argument("DeviceNewton::set_contact: the contact has " + std::to_string(contact->num_dofs())
             + " dofs, the mesh " + std::to_string(m_impl->n));
@@ -1103,7 +1261,7 @@ double DeviceNewton::residual_at(const std::vector<double>& x, const std::vector
     m.load_state("residual_at", m_contact, x, inertial_target, weight, force);
     m.gradient(m_mesh, m.x.data(), weight, m.g_trial.data());
     double rs[2];
-    m.residual_of(m.g_trial.data(), rs);
+    m.residual_of_trial(rs);
     return rs[1] != 0 ? std::numeric_limits<double>::quiet_NaN() : rs[0];
 }
 

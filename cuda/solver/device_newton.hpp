@@ -66,6 +66,7 @@
 #include "cuda/linalg/bsr_matrix.hpp"
 #include "cuda/linalg/device_array.hpp"
 #include "cuda/linalg/device_pcg.hpp"
+#include "cuda/periodic/device_periodic_map.hpp"
 
 #include <functional>
 #include <vector>
@@ -201,6 +202,27 @@ public:
         const std::vector<double>& force, const std::vector<double>& target, double force_scale, double step_scale,
         const DeviceNewtonSettings& settings);
 
+    /// @brief Makes this the solver of a periodic cell (cuda/periodic/device_periodic_map.hpp; the CPU's
+    /// PeriodicCell): its unknowns are the cell's q = [w, L G], positions x = X + P q. The gradient and the
+    /// Newton matrix enter as P^T g and P^T A P (ReducedOperator), the residual, the fixed mask and the
+    /// lifting are q's, and the line search, the inversion bound and the energies work on X + P q, as the
+    /// CPU's PeriodicPotential does. Then only solve_periodic() solves. Contact with periodic images is
+    /// not built yet (std::logic_error with contact set; cuda/README.md, "Periodic cells on the device").
+    /// @param map the cell's map over the mesh's vertices (must outlive the solver)
+    /// @param fixed_q map->num_reduced() flags: q's constrained entries (the pinned class, G's prescribed ones)
+    /// @throws std::invalid_argument on a size or dimension mismatch
+    void set_periodic(DevicePeriodicMap* map, const std::vector<char>& fixed_q);
+
+    /// @brief PeriodicCell::solve's Newton solve on the device (set_periodic() first): minimizes E(X + P q)
+    /// over q's free entries after lifting its constrained ones to target_q.
+    /// @param q        in: start; out: last iterate if CONVERGED, unchanged otherwise (num_reduced())
+    /// @param target_q num_reduced(), the constrained entries' values at the end of the step
+    /// @param inertial_target, weight, force, force_scale, step_scale, settings as solve()'s (positions)
+    /// @throws std::logic_error without set_periodic(); std::invalid_argument as solve()
+    DeviceNewtonResult solve_periodic(std::vector<double>& q, const std::vector<double>& target_q,
+        const std::vector<double>& inertial_target, double weight, const std::vector<double>& force, double force_scale,
+        double step_scale, const DeviceNewtonSettings& settings);
+
     /// @brief Solves the adjoint system of a converged step on the device: (M + w (H_Psi(x) + H_B(x))) y
     /// = b on the free dofs, H_Psi the true (unprojected) elastic Hessian at x, H_B the contact barrier's
     /// true Hessian of the active set at x (with the contact's current kappa; none without contact), M
@@ -257,6 +279,10 @@ public:
     const DeviceElasticMesh& mesh() const { return m_mesh; }
 
 private:
+    /// The Newton loop of solve() and solve_periodic(), from the state they uploaded.
+    DeviceNewtonResult iterate(const std::vector<double>& inertial_target, double weight,
+        const std::vector<double>& force, double force_scale, double step_scale, const DeviceNewtonSettings& settings);
+
     struct Impl;
     const DeviceElasticMesh& m_mesh;
     Impl* m_impl;

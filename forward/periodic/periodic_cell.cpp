@@ -48,12 +48,12 @@ VectorXd PeriodicCell::prescribed_values(double t, const MatrixXd* given, int k)
     return values;
 }
 
-NewtonResult PeriodicCell::solve(VectorXd& x, VectorXd& G, double t, const NewtonSettings& settings,
-    double force_scale, double step_scale, const VectorXd* given)
+void PeriodicCell::step_unknowns(
+    const VectorXd& x, const VectorXd& G, double t, const VectorXd* given, VectorXd& q, VectorXd& target) const
 {
     const int d = m_scene.dim;
-    VectorXd q = m_map.reduced(x, G);
-    VectorXd target = q;
+    q = m_map.reduced(x, G);
+    target = q;
     const VectorXd values = given ? *given : prescribed_values(t);
     for (int i = 0; i < d; ++i) {
         target[m_map.fluctuation_dof(m_pinned, i)] = 0;
@@ -63,6 +63,13 @@ NewtonResult PeriodicCell::solve(VectorXd& x, VectorXd& G, double t, const Newto
     }
     if (!target.allFinite())
         throw InputError("periodic.gradient", "not finite at t = " + format_number(t) + " s");
+}
+
+NewtonResult PeriodicCell::solve(VectorXd& x, VectorXd& G, double t, const NewtonSettings& settings, double force_scale,
+    double step_scale, const VectorXd* given)
+{
+    VectorXd q, target;
+    step_unknowns(x, G, t, given, q, target);
     const NewtonSolver newton(m_reduced, m_assembler, m_linear, settings);
     NewtonResult r = newton.solve(q, target, m_constrained, force_scale, step_scale);
     if (r.status == StepStatus::CONVERGED) {

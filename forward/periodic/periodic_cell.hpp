@@ -23,6 +23,8 @@ public:
     PeriodicCell(const Scene& scene, const Problem& full, SparseAssembler& full_assembler);
 
     const PeriodicMap& map() const { return m_map; }
+    /// The cell's vertex classes.
+    const PeriodicPairing& pairing() const { return m_scene.periodic.pairing; }
     /// The class whose fluctuation is fixed at zero (rigid translation removed): the class of the
     /// vertex nearest the box's lower corner.
     Index pinned_class() const { return m_pinned; }
@@ -38,6 +40,12 @@ public:
     /// components instead of the expressions.
     NewtonResult solve(VectorXd& x, VectorXd& G, double t, const NewtonSettings& settings, double force_scale,
         double step_scale, const VectorXd* given = nullptr);
+    /// @brief solve()'s unknowns: q at the committed x and G, and its target (the pinned class at 0,
+    /// G's prescribed components at their values at t; the free entries q's). What the GPU's solve of
+    /// the step (DeviceSolver::solve_periodic) takes too.
+    /// @throws InputError naming periodic.gradient if a prescribed value is not finite
+    void step_unknowns(
+        const VectorXd& x, const VectorXd& G, double t, const VectorXd* given, VectorXd& q, VectorXd& target) const;
     /// G's prescribed components at time t (d^2 values, 0 in the free ones): row k - 1 of
     /// `given` if not null, else the scene's expressions.
     VectorXd prescribed_values(double t, const MatrixXd* given = nullptr, int k = 0) const;

@@ -46,6 +46,8 @@ public:
     /// dE/dG (d^2 values, row-major) of a full-space gradient g = dE/dx: sum_v g_v (X_v - X_o)^T.
     VectorXd macro_derivative(const VectorXd& g) const { return m_length * reduce(g).tail(m_dim * m_dim); }
     double length() const { return m_length; }
+    /// X_o.
+    const VectorXd& origin() const { return m_origin; }
     /// P q.
     VectorXd expand(const VectorXd& q) const { return m_P * q; }
     /// P^T g: a full-space gradient (or any covector) in the reduced unknowns.

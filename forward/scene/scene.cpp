@@ -626,8 +626,8 @@ void select_device(Scene& scene, const std::string& name, const std::string& fie
                   "conditions, barrier contact with obstacles and lagged friction, automatic load stepping and "
                   "adaptive time stepping); use \"cpu\"");
     };
-    if (scene.periodic.enabled)
-        refuse("periodic cells");
+    if (scene.periodic.enabled && scene.contact.enabled)
+        refuse("periodic cells with contact (contact across the cell's boundary)");
     scene.device = DeviceType::GPU;
 }
 

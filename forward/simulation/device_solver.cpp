@@ -12,6 +12,7 @@
 #include "cuda/contact/device_contact.hpp"
 #include "cuda/contact/device_friction.hpp"
 #include "cuda/elastic/device_elastic_mesh.hpp"
+#include "cuda/periodic/device_periodic_map.hpp"
 #include "cuda/solver/device_newton.hpp"
 #endif
 
@@ -105,6 +106,7 @@ struct DeviceSolver::Impl {
     std::unique_ptr<gpu::DeviceContact> contact;
     std::unique_ptr<gpu::DeviceFriction> friction; // made by the first set_friction()
     std::unique_ptr<gpu::DeviceNewton> newton;
+    std::unique_ptr<gpu::DevicePeriodicMap> periodic; // set_periodic()
     std::vector<double> rest;
     std::vector<double> x, target, inertial_target, force;
     AdaptiveState adaptive;
@@ -345,34 +347,100 @@ ContactTimes DeviceSolver::contact_times() const
 
 DeviceSolver::~DeviceSolver() = default;
 
+namespace {
+
+    /// NewtonSettings as the device Newton takes them, with the linear solves' forcing capped where the
+    /// scene's terms need it (friction, the penalty: the comments say why).
+    gpu::DeviceNewtonSettings device_settings(
+        const NewtonSettings& settings, const gpu::DeviceFriction* friction, const gpu::DeviceContact* contact)
+    {
+        gpu::DeviceNewtonSettings s;
+        s.residual_tolerance = settings.residual_tolerance;
+        s.max_iterations = settings.max_iterations;
+        s.line_search_max_halvings = settings.line_search_max_halvings;
+        s.armijo = settings.armijo;
+        s.max_displacement = settings.max_displacement;
+        s.adaptive_projection = settings.adaptive_projection;
+        s.step_extension = settings.step_extension;
+        // Sticking friction's tangential stiffness (mu lambda 2 / (eps_v h)) is orders above the elastic one,
+        // and block-Jacobi PCG solved to the elastic scenes' loose forcing leaves its modes' error in the
+        // direction: 202's head-on boxes with friction stall at NEWTON_EXHAUSTED with forcing_max 0.5 and
+        // converge with 0.1 or 0.01; the 53k-tet friction slabs take 7.0 Newton iterations per step with 0.5,
+        // 5.0 with 0.1 and 4.5 with 0.01, the fastest (docs/performance.md).
+        constexpr double FRICTION_FORCING_MAX = 0.01;
+        if (friction && friction->num_pairs() > 0)
+            s.forcing_max = std::min(s.forcing_max, FRICTION_FORCING_MAX);
+        // The penalty has no CCD to bound a step: a loose direction that leaves the stiff penalty modes
+        // unresolved steps vertices through the surfaces they press on, where the penalty on the unsigned
+        // distance then holds them on the wrong side. Rings settling onto each other (PenaltyContact) pass
+        // through in 4 of 10 GPU steps with forcing_max 0.5 and in none with 0.01, as on the CPU, whose
+        // trajectory the GPU's then follows to 4e-11 (with fewer Newton iterations: 52 against 86).
+        constexpr double PENALTY_FORCING_MAX = 0.01;
+        if (contact && contact->settings().penalty)
+            s.forcing_max = std::min(s.forcing_max, PENALTY_FORCING_MAX);
+        return s;
+    }
+
+    /// The device solve's result as NewtonResult (NewtonSolver::solve's meaning of every field).
+    NewtonResult host_result(const gpu::DeviceNewtonResult& r)
+    {
+        NewtonResult result;
+        result.status = to_status(r.status);
+        result.iterations = r.iterations;
+        result.residual = r.residual;
+        result.newton_step = r.newton_step;
+        result.line_search_cuts = r.line_search_cuts;
+        result.roundoff_limited = r.roundoff_limited;
+        result.gradient_steps = r.gradient_steps;
+        result.extended_steps = r.extended_steps;
+        result.true_hessian_steps = r.true_hessian_steps;
+        result.times.assembly = r.assembly_time;
+        result.times.solve = r.solve_time;
+        result.times.line_search = r.line_search_time;
+        return result;
+    }
+
+} // namespace
+
+void DeviceSolver::set_periodic(const PeriodicCell& cell)
+{
+    Impl& d = *m_impl;
+    const PeriodicMap& map = cell.map();
+    const VectorXi& classes = cell.pairing().vertex_class;
+    d.periodic = std::make_unique<gpu::DevicePeriodicMap>(map.dim(),
+        std::vector<int>(classes.data(), classes.data() + classes.size()), d.rest,
+        std::vector<double>(map.origin().data(), map.origin().data() + map.dim()), map.length());
+    d.newton->set_periodic(d.periodic.get(), cell.constrained());
+}
+
+NewtonResult DeviceSolver::solve_periodic(VectorXd& q, const VectorXd& target, const VectorXd& inertial_target,
+    double weight, const VectorXd& force, double force_scale, double step_scale, const NewtonSettings& settings)
+{
+    Impl& d = *m_impl;
+    const gpu::DeviceNewtonSettings s = device_settings(settings, nullptr, nullptr);
+    d.weight = weight;
+    std::vector<double> q_host(q.data(), q.data() + q.size());
+    d.force.assign(force.data(), force.data() + force.size());
+    if (inertial_target.size() == force.size())
+        d.inertial_target.assign(inertial_target.data(), inertial_target.data() + inertial_target.size());
+    else
+        d.inertial_target.assign(size_t(force.size()), 0.0);
+    const gpu::DeviceNewtonResult r
+        = d.newton->solve_periodic(q_host, std::vector<double>(target.data(), target.data() + target.size()),
+            d.inertial_target, weight, d.force, force_scale, step_scale, s);
+    NewtonResult result = host_result(r);
+    m_last_pcg_iterations = r.pcg_iterations;
+    m_total_pcg_iterations += r.pcg_iterations;
+    if (result.status == StepStatus::CONVERGED)
+        q = Eigen::Map<const VectorXd>(q_host.data(), q.size());
+    return result;
+}
+
 NewtonResult DeviceSolver::solve(VectorXd& x, const VectorXd& inertial_target, double weight, const VectorXd& force,
     const VectorXd& target, double force_scale, double step_scale, const NewtonSettings& settings)
 {
-    gpu::DeviceNewtonSettings s;
-    s.residual_tolerance = settings.residual_tolerance;
-    s.max_iterations = settings.max_iterations;
-    s.line_search_max_halvings = settings.line_search_max_halvings;
-    s.armijo = settings.armijo;
-    s.max_displacement = settings.max_displacement;
-    s.adaptive_projection = settings.adaptive_projection;
-    s.step_extension = settings.step_extension;
     Impl& d = *m_impl;
-    // Sticking friction's tangential stiffness (mu lambda 2 / (eps_v h)) is orders above the elastic one,
-    // and block-Jacobi PCG solved to the elastic scenes' loose forcing leaves its modes' error in the
-    // direction: 202's head-on boxes with friction stall at NEWTON_EXHAUSTED with forcing_max 0.5 and
-    // converge with 0.1 or 0.01; the 53k-tet friction slabs take 7.0 Newton iterations per step with 0.5,
-    // 5.0 with 0.1 and 4.5 with 0.01, the fastest (docs/performance.md).
-    constexpr double FRICTION_FORCING_MAX = 0.01;
-    if (d.friction && d.friction->num_pairs() > 0)
-        s.forcing_max = std::min(s.forcing_max, FRICTION_FORCING_MAX);
-    // The penalty has no CCD to bound a step: a loose direction that leaves the stiff penalty modes
-    // unresolved steps vertices through the surfaces they press on, where the penalty on the unsigned
-    // distance then holds them on the wrong side. Rings settling onto each other (PenaltyContact) pass
-    // through in 4 of 10 GPU steps with forcing_max 0.5 and in none with 0.01, as on the CPU, whose
-    // trajectory the GPU's then follows to 4e-11 (with fewer Newton iterations: 52 against 86).
-    constexpr double PENALTY_FORCING_MAX = 0.01;
-    if (d.contact && d.contact->settings().penalty)
-        s.forcing_max = std::min(s.forcing_max, PENALTY_FORCING_MAX);
+    const gpu::DeviceNewtonSettings s = device_settings(settings, d.friction.get(), d.contact.get());
     d.weight = weight;
     d.x.assign(x.data(), x.data() + x.size());
     d.target.assign(target.data(), target.data() + target.size());
@@ -383,19 +451,7 @@ NewtonResult DeviceSolver::solve(VectorXd& x, const VectorXd& inertial_target, d
         d.inertial_target.assign(size_t(x.size()), 0.0);
     const gpu::DeviceNewtonResult r
         = d.newton->solve(d.x, d.inertial_target, weight, d.force, d.target, force_scale, step_scale, s);
-    NewtonResult result;
-    result.status = to_status(r.status);
-    result.iterations = r.iterations;
-    result.residual = r.residual;
-    result.newton_step = r.newton_step;
-    result.line_search_cuts = r.line_search_cuts;
-    result.roundoff_limited = r.roundoff_limited;
-    result.gradient_steps = r.gradient_steps;
-    result.extended_steps = r.extended_steps;
-    result.true_hessian_steps = r.true_hessian_steps;
-    result.times.assembly = r.assembly_time;
-    result.times.solve = r.solve_time;
-    result.times.line_search = r.line_search_time;
+    NewtonResult result = host_result(r);
     m_last_pcg_iterations = r.pcg_iterations;
     m_total_pcg_iterations += r.pcg_iterations;
     if (d.contact) {
@@ -471,6 +527,14 @@ NewtonResult DeviceSolver::solve(
 bool DeviceSolver::solve_adjoint(const VectorXd&, double, const VectorXd&, VectorXd&, int*, double, VectorXd*)
 {
     return false;
+}
+
+void DeviceSolver::set_periodic(const PeriodicCell&) { }
+
+NewtonResult DeviceSolver::solve_periodic(
+    VectorXd&, const VectorXd&, const VectorXd&, double, const VectorXd&, double, double, const NewtonSettings&)
+{
+    return {};
 }
 
 void DeviceSolver::begin_step(double, const AdaptiveKappa&, const VectorXd&, const VectorXd&, double, const VectorXd&)

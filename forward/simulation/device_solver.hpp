@@ -26,6 +26,7 @@
 
 #include "forward/contact/contact_potential.hpp"
 #include "forward/contact/friction/friction_potential.hpp"
+#include "forward/periodic/periodic_cell.hpp"
 #include "forward/potentials/elastic_potential.hpp"
 #include "forward/potentials/inertia_potential.hpp"
 #include "forward/solver/newton.hpp"
@@ -78,6 +79,16 @@ public:
     /// @param force           #dofs external force f (N)
     NewtonResult solve(VectorXd& x, const VectorXd& inertial_target, double weight, const VectorXd& force,
         const VectorXd& target, double force_scale, double step_scale, const NewtonSettings& settings);
+
+    /// @brief Makes the device solve a periodic cell's steps (a DevicePeriodicMap of the cell's classes,
+    /// q's constrained entries; cuda/solver/device_newton.hpp, set_periodic): then solve_periodic()
+    /// solves, not solve(). Contact across the cell's boundary is not on the device (the constructor
+    /// refuses it).
+    void set_periodic(const PeriodicCell& cell);
+    /// @brief PeriodicCell::solve's Newton solve on the device: q and target as PeriodicCell::step_unknowns
+    /// gives them, the other arguments and the result as solve()'s. q is changed only when CONVERGED.
+    NewtonResult solve_periodic(VectorXd& q, const VectorXd& target, const VectorXd& inertial_target, double weight,
+        const VectorXd& force, double force_scale, double step_scale, const NewtonSettings& settings);
 
     /// The adaptive stiffness' parameters (Simulator::update_kappa_for_step's).
     struct AdaptiveKappa {

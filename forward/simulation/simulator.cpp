@@ -277,9 +277,12 @@ Simulator::Simulator(Scene scene, const SimulationParameters& parameters)
         }
     }
     m_integrator->initialize(x0, v0, a0);
-    if (m_scene.device == DeviceType::GPU)
+    if (m_scene.device == DeviceType::GPU) {
         m_device = std::make_unique<DeviceSolver>(
             *m_elastic, m_integrator->dynamic() ? m_inertia.get() : nullptr, m_constrained, m_contact.get());
+        if (m_periodic)
+            m_device->set_periodic(*m_periodic);
+    }
     m_trajectory.initial_time = 0;
     m_trajectory.initial_positions = x0;
     m_trajectory.initial_velocities = v0;
@@ -709,8 +712,19 @@ StepStatus Simulator::step()
         VectorXd given;
         if (m_overrides.macro_gradient.rows() >= index)
             given = m_overrides.macro_gradient.row(index - 1).transpose();
-        result = m_periodic->solve(
-            x, record.macro_gradient, t_next, settings, w * m_force_scale, step_scale, given.size() ? &given : nullptr);
+        if (m_device) {
+            VectorXd q, target_q;
+            m_periodic->step_unknowns(x, record.macro_gradient, t_next, given.size() ? &given : nullptr, q, target_q);
+            result = m_device->solve_periodic(
+                q, target_q, inertial_target, w, m_external->force(), w * m_force_scale, step_scale, settings);
+            if (result.status == StepStatus::CONVERGED) {
+                x = m_periodic->map().positions(q);
+                record.macro_gradient = m_periodic->map().macro_gradient(q);
+            }
+        } else {
+            result = m_periodic->solve(x, record.macro_gradient, t_next, settings, w * m_force_scale, step_scale,
+                given.size() ? &given : nullptr);
+        }
     } else if (m_device) {
         result = m_device->solve(
             x, inertial_target, w, m_external->force(), target, w * m_force_scale, step_scale, settings);

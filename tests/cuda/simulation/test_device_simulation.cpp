@@ -11,6 +11,7 @@
 
 #include <cmath>
 #include <cstdio>
+#include <memory>
 
 using namespace diffipc;
 using nlohmann::json;
@@ -160,6 +161,53 @@ TEST(DeviceSimulation, FailedStepReportsTheCpuStatusAndKeepsTheCommittedState)
 }
 
 bool request_density(const std::string& integrator) { return integrator != "static"; }
+
+TEST(DeviceSimulation, PeriodicCellsWithoutContact)
+{
+    DIFFIPC_SKIP_WITHOUT_GPU();
+    // A periodic cell (the CPU's periodic tests' compressed cell: G(0, 0) = -0.2 t prescribed, the other
+    // diagonal components free, gravity) solved in its reduced unknowns on the device
+    // (DeviceSolver::solve_periodic): the states and the macro gradients of every step against the CPU's;
+    // the adjoint gradients of the two runs (the periodic adjoint solves on the CPU, from each run's states).
+    for (int dim : { 2, 3 })
+        for (const char* integrator : { "static", "implicit_euler" }) {
+            const std::string name = std::to_string(dim) + "D periodic cell, " + integrator;
+            json s = test::compressed_periodic_cell(dim, integrator);
+            std::unique_ptr<Simulator> sims[2];
+            ParameterGradient g[2];
+            for (int k = 0; k < 2; ++k) {
+                s["device"] = k == 0 ? "cpu" : "gpu";
+                sims[k] = std::make_unique<Simulator>(test::make_scene(s));
+                sims[k]->run();
+                ASSERT_EQ(sims[k]->trajectory().final_status, StepStatus::CONVERGED)
+                    << name << " " << k << ": " << sims[k]->trajectory().failure_message;
+                const StateSeed seed = test::random_position_seed(*sims[k], sims[k]->trajectory().committed());
+                ParameterRequest request;
+                request.rest_positions = request.lame = true;
+                g[k] = adjoint_gradient(*sims[k], seed, request);
+            }
+            const Trajectory &a = sims[0]->trajectory(), &b = sims[1]->trajectory();
+            ASSERT_EQ(a.committed(), b.committed()) << name;
+            double dx = 0, largest = 0, dG = 0, largest_G = 0;
+            for (int k = 1; k <= a.committed(); ++k) {
+                dx = std::max(dx, (a.step(k).positions - b.step(k).positions).lpNorm<Eigen::Infinity>());
+                largest = std::max(largest, (a.step(k).positions - a.initial_positions).lpNorm<Eigen::Infinity>());
+                dG = std::max(dG, (a.step(k).macro_gradient - b.step(k).macro_gradient).lpNorm<Eigen::Infinity>());
+                largest_G = std::max(largest_G, a.step(k).macro_gradient.lpNorm<Eigen::Infinity>());
+                EXPECT_LE(b.step(k).residual, s["solver"]["residual_tolerance"].get<double>()) << name << " step " << k;
+            }
+            const double e_shape = test::relative_difference(g[1].rest_positions, g[0].rest_positions);
+            const double e_mu = test::relative_difference(g[1].mu, g[0].mu);
+            std::printf("  %-32s %d steps: states within %.1e of the largest displacement %.3e m, G within %.1e of "
+                        "|G| %.3f; adjoint gradient GPU run against CPU run: shape %.1e, mu %.1e\n",
+                name.c_str(), a.committed(), dx / largest, largest, dG / largest_G, largest_G, e_shape, e_mu);
+            EXPECT_GT(largest, 0) << name;
+            EXPECT_LE(dx, RELATIVE_TOLERANCE * largest) << name;
+            EXPECT_LE(dG, RELATIVE_TOLERANCE * largest_G) << name;
+            EXPECT_LT(e_shape, 1e-6) << name;
+            EXPECT_LT(e_mu, 1e-6) << name;
+        }
+}
 
 TEST(DeviceSimulation, AdjointGradientEqualsTheCpus)
 {
