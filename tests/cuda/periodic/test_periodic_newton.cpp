@@ -13,6 +13,7 @@
 #include "forward/solver/linear_solver.hpp"
 #include "forward/solver/newton.hpp"
 #include "tests/cuda/elastic_test_utils.hpp"
+#include "tests/cuda/periodic/periodic_test_utils.hpp"
 
 #include <gtest/gtest.h>
 
@@ -30,12 +31,10 @@ TEST(DevicePeriodicNewton, HeterogeneousCellUnderCompressionAsOnTheCpu)
         // not used: both solves start from rest, q = 0.
         const test::ElasticBox box = test::make_elastic_box(
             d, d == 2 ? std::vector<int> { 6, 5 } : std::vector<int> { 3, 3, 3 }, -1, 0, 0, 41 + unsigned(d));
-        PeriodicBox cell;
-        cell.lower = box.mesh.rest_positions.colwise().minCoeff().transpose();
-        cell.upper = box.mesh.rest_positions.colwise().maxCoeff().transpose();
-        const PeriodicPairing pairing = pair_periodic_vertices(box.mesh, cell, 1e-9, "mesh");
-        const double L = (cell.upper - cell.lower).maxCoeff();
-        const PeriodicMap map(box.mesh, pairing, cell.lower, L);
+        test::BoxCell cell(box.mesh);
+        const PeriodicPairing& pairing = cell.pairing;
+        const PeriodicMap& map = *cell.map;
+        const double L = cell.length;
         const Index nq = map.num_reduced();
 
         // q's constraints: the lower corner's class, G(0, 0) = -0.1 (10% compression), the shear entries 0.
@@ -69,12 +68,9 @@ TEST(DevicePeriodicNewton, HeterogeneousCellUnderCompressionAsOnTheCpu)
         // GPU.
         gpu::DeviceElasticMesh mesh;
         mesh.upload(d, box.rest_flat(), box.elements_flat(), box.model_codes(), box.mu_vector(), box.lambda_vector());
-        gpu::DevicePeriodicMap device_map(d,
-            std::vector<int>(pairing.vertex_class.data(), pairing.vertex_class.data() + pairing.vertex_class.size()),
-            box.rest_flat(), std::vector<double>(cell.lower.data(), cell.lower.data() + d), L);
         gpu::DeviceNewton solver(mesh, {});
         solver.set_material_scale(box.model_codes(), box.mu_vector());
-        solver.set_periodic(&device_map, fixed);
+        solver.set_periodic(&cell.device(box.rest_flat()), fixed);
         gpu::DeviceNewtonSettings settings;
         settings.residual_tolerance = TOLERANCE;
         std::vector<double> q(size_t(nq), 0.0);
@@ -111,15 +107,10 @@ TEST(DevicePeriodicNewton, MisuseIsRefused)
 {
     DIFFIPC_SKIP_WITHOUT_GPU();
     const test::ElasticBox box = test::make_elastic_box(2, { 3, 2 }, -1, 0, 0, 5);
-    PeriodicBox cell;
-    cell.lower = box.mesh.rest_positions.colwise().minCoeff().transpose();
-    cell.upper = box.mesh.rest_positions.colwise().maxCoeff().transpose();
-    const PeriodicPairing pairing = pair_periodic_vertices(box.mesh, cell, 1e-9, "mesh");
+    test::BoxCell cell(box.mesh);
     gpu::DeviceElasticMesh mesh;
     mesh.upload(2, box.rest_flat(), box.elements_flat(), box.model_codes(), box.mu_vector(), box.lambda_vector());
-    gpu::DevicePeriodicMap device_map(2,
-        std::vector<int>(pairing.vertex_class.data(), pairing.vertex_class.data() + pairing.vertex_class.size()),
-        box.rest_flat(), { 0, 0 }, 1.0);
+    gpu::DevicePeriodicMap& device_map = cell.device(box.rest_flat());
     gpu::DeviceNewton solver(mesh, {});
     std::vector<double> q(size_t(device_map.num_reduced()), 0.0), x = box.rest_flat();
     const std::vector<double> zero(x.size(), 0.0);

@@ -8,6 +8,7 @@
 #include "cuda/periodic/reduced_operator.hpp"
 #include "forward/periodic/periodic_map.hpp"
 #include "tests/cuda/elastic_test_utils.hpp"
+#include "tests/cuda/periodic/periodic_test_utils.hpp"
 #include "tests/forward/test_utils.hpp"
 
 #include <Eigen/Cholesky>
@@ -24,22 +25,16 @@ TEST(ReducedOperator, ProductsBlocksAndSolvesEqualTheCpus)
         SCOPED_TRACE(d);
         const test::ElasticBox box = test::make_elastic_box(
             d, d == 2 ? std::vector<int> { 6, 4 } : std::vector<int> { 3, 3, 2 }, -1, 0.15, 0.1, 31 + unsigned(d));
-        PeriodicBox cell;
-        cell.lower = box.mesh.rest_positions.colwise().minCoeff().transpose();
-        cell.upper = box.mesh.rest_positions.colwise().maxCoeff().transpose();
-        const PeriodicPairing pairing = pair_periodic_vertices(box.mesh, cell, 1e-9, "mesh");
-        const double L = (cell.upper - cell.lower).maxCoeff();
-        const PeriodicMap map(box.mesh, pairing, cell.lower, L);
+        test::BoxCell cell(box.mesh);
+        const PeriodicPairing& pairing = cell.pairing;
+        const PeriodicMap& map = *cell.map;
         const int nq = int(map.num_reduced()), classes = int(pairing.num_classes());
 
         gpu::DeviceElasticMesh mesh;
         mesh.upload(d, box.rest_flat(), box.elements_flat(), box.model_codes(), box.mu_vector(), box.lambda_vector());
         const gpu::DeviceBsrMatrix& H = mesh.hessian_bsr(box.x_vector(), true);
-        gpu::DevicePeriodicMap device_map(d,
-            std::vector<int>(pairing.vertex_class.data(), pairing.vertex_class.data() + pairing.vertex_class.size()),
-            box.rest_flat(), std::vector<double>(cell.lower.data(), cell.lower.data() + d), L);
         gpu::ReducedOperator R;
-        R.bind(H, device_map);
+        R.bind(H, cell.device(box.rest_flat()));
         ASSERT_EQ(R.size(), nq);
 
         const SparseMatrixd Hc = test::cpu_hessian(box, box.x, 1.0, true);
