@@ -4,6 +4,7 @@
 
 #include "cuda/common/device.hpp"
 #include "cuda/periodic/device_periodic_map.hpp"
+#include "forward/periodic/contact_images.hpp"
 #include "forward/periodic/periodic_map.hpp"
 #include "tests/cuda/elastic_test_utils.hpp"
 #include "tests/forward/test_utils.hpp"
@@ -119,6 +120,46 @@ TEST(PeriodicReduction, EntriesEqualTheSparseMapsProducts)
         EXPECT_LE((mine - PTg).lpNorm<Eigen::Infinity>(), 1e-13 * PTg.lpNorm<Eigen::Infinity>()) << "P^T g";
         // The adjoint identity the reduced Newton's slope relies on: g . P q = P^T g . q.
         EXPECT_NEAR(g.dot(Pq), mine.dot(q), 1e-12 * std::abs(g.dot(Pq)));
+    }
+}
+
+TEST(PeriodicReduction, ContactImagesAreVerticesOfTheirSourcesClasses)
+{
+    // What contact across the boundary on the device will build on (cuda/README.md, "Periodic cells on the
+    // device"): the image surface's positions T x = T (X + P q) are X_s + P_s q, P_s the periodic map of
+    // the surface's vertices with their rest positions T X and each vertex in its source's class. So the
+    // contact can run on the surface's own DevicePeriodicMap. Checked: T P = P_s entry by entry, on cells
+    // periodic along x (their other faces are the contact surface), 2D and 3D.
+    for (int d : { 2, 3 }) {
+        SCOPED_TRACE(d);
+        Mesh mesh = d == 2
+            ? box_mesh(2, (VectorXd(2) << -0.3, 0.1).finished(), (VectorXd(2) << 0.7, 0.6).finished(),
+                (VectorXi(2) << 4, 3).finished())
+            : box_mesh(3, VectorXd::Constant(3, 0.2), VectorXd::Constant(3, 1.2), (VectorXi(3) << 2, 3, 2).finished());
+        PeriodicBox box;
+        box.lower = mesh.rest_positions.colwise().minCoeff().transpose();
+        box.upper = mesh.rest_positions.colwise().maxCoeff().transpose();
+        box.periodic = { { true, false, false } };
+        const PeriodicPairing pairing = pair_periodic_vertices(mesh, box, 1e-9, "mesh");
+        remove_periodic_facets(mesh, box, 1e-9);
+        const ContactImages images = build_contact_images(mesh, box, pairing, { 1 }, { 0 });
+        const double L = (box.upper - box.lower).maxCoeff();
+        const PeriodicMap map(mesh, pairing, box.lower, L);
+
+        Mesh surface;
+        surface.dim = d;
+        surface.rest_positions = images.rest;
+        PeriodicPairing classes;
+        classes.vertex_class.resize(images.rest.rows());
+        for (Index t = 0; t < images.rest.rows(); ++t)
+            classes.vertex_class[t] = pairing.vertex_class[images.source[size_t(t)]];
+        classes.representative = pairing.representative;
+        const PeriodicMap surface_map(surface, classes, box.lower, L);
+        ASSERT_GT(images.rest.rows(), mesh.num_vertices()) << "no image vertices";
+        const SparseMatrixd TP = images.map * map.matrix();
+        const double difference = MatrixXd(TP - surface_map.matrix()).cwiseAbs().maxCoeff();
+        EXPECT_LE(difference, 1e-14) << "T P differs from the surface's periodic map";
+        EXPECT_LE((flatten(images.rest) - images.map * flatten(mesh.rest_positions)).lpNorm<Eigen::Infinity>(), 1e-14);
     }
 }
 
