@@ -146,13 +146,8 @@ namespace {
         const DeviceArray<int>& vertices, const DeviceArray<int>& plane, const DeviceArray<double>& eps_x,
         const DeviceArray<double>& normals)
     {
-        PairModel model;
-        model.penalty = s.penalty;
-        model.dmin2 = s.dmin * s.dmin;
-        model.shat = barrier_activation(s.dhat, s.dmin);
-        model.dhat = s.dhat;
         return PairArrays { pairs.num_pairs, pairs.dim, kind.data(), vertices.data(), plane.data(), eps_x.data(),
-            normals.data(), model };
+            normals.data(), pair_model(s.penalty, s.dhat, s.dmin) };
     }
 } // namespace
 

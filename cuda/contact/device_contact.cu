@@ -357,13 +357,8 @@ double DeviceContact::energy(const double* d_y, bool on_segment)
     double sum = 0;
     if (n > 0) {
         ensure(d.values, n);
-        PairModel model;
-        model.penalty = d.settings.penalty;
-        model.dmin2 = d.settings.min_distance * d.settings.min_distance;
-        model.shat = barrier_activation(d.settings.dhat, d.settings.min_distance);
-        model.dhat = d.settings.dhat;
-        candidate_energies<<<grid(n), THREADS>>>(
-            L, d_y, d.active_radius(), d.settings.min_distance, model, d.values.data());
+        candidate_energies<<<grid(n), THREADS>>>(L, d_y, d.active_radius(), d.settings.min_distance,
+            pair_model(d.settings.penalty, d.settings.dhat, d.settings.min_distance), d.values.data());
         check_launch("launch of the candidate barrier energies");
         deterministic_sum(d.values.data(), n, d.partials.data(), d.scalar.data());
         detail::copy_device_to_host(&sum, d.scalar.data(), sizeof(double));

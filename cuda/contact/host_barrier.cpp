@@ -51,15 +51,7 @@ void HostBarrier::check_x(size_t n) const
             + " entries, expected #V * dim = " + std::to_string(m_rest.size()));
 }
 
-PairModel HostBarrier::model() const
-{
-    PairModel model;
-    model.penalty = m_settings.penalty;
-    model.dmin2 = m_settings.dmin * m_settings.dmin;
-    model.shat = barrier_activation(m_settings.dhat, m_settings.dmin);
-    model.dhat = m_settings.dhat;
-    return model;
-}
+PairModel HostBarrier::model() const { return pair_model(m_settings.penalty, m_settings.dhat, m_settings.dmin); }
 
 double HostBarrier::energy(const std::vector<double>& x) const
 {

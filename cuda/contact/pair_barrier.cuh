@@ -160,6 +160,17 @@ struct PairModel {
     double dhat = 0; ///< the penalty's activation distance (m)
 };
 
+/// The pair model of the contact settings (dhat, dmin: m; `penalty`: the baseline instead of the barrier).
+DIFFIPC_HD inline PairModel pair_model(bool penalty, double dhat, double dmin)
+{
+    PairModel model;
+    model.penalty = penalty;
+    model.dmin2 = dmin * dmin;
+    model.shat = barrier_activation(dhat, dmin);
+    model.dhat = dhat;
+    return model;
+}
+
 namespace pair_barrier_detail {
 
     /// grad = m e1 gs (+ e gm), hess = m (e2 gs gs^T + e1 Hs) (+ e1 (gm gs^T + gs gm^T) + e Hm), with

@@ -43,6 +43,14 @@ namespace {
         out[k] = s;
     }
 
+    /// out = e_index (n values).
+    __global__ void unit_vector_kernel(size_t n, size_t index, double* __restrict__ out)
+    {
+        const size_t k = size_t(blockIdx.x) * blockDim.x + threadIdx.x;
+        if (k < n)
+            out[k] = k == index ? 1.0 : 0.0;
+    }
+
     /// Column k of macro block i: out[(C + i) dim^2 + j dim + k] = y[macro_dof(i, j)], j = 0 .. dim - 1.
     __global__ void macro_column_kernel(
         PeriodicView m, int i, int k, const double* __restrict__ y, double* __restrict__ out)
@@ -100,13 +108,11 @@ void ReducedOperator::diagonal_blocks(double* d_out) const
     m_A->diagonal_blocks(m_full_diagonal.data());
     class_blocks_kernel<<<grid(size_t(m.num_classes) * size_t(b2)), THREADS>>>(m, m_full_diagonal.data(), d_out);
     check_cuda(cudaGetLastError(), "launch of the reduced class blocks");
-    std::vector<double> unit(m_unit.size(), 0.0);
     for (int i = 0; i < d; ++i)
         for (int k = 0; k < d; ++k) {
-            const size_t e = size_t(macro_dof(m, i, k));
-            unit[e] = 1.0;
-            m_unit.upload(unit);
-            unit[e] = 0.0;
+            unit_vector_kernel<<<grid(m_unit.size()), THREADS>>>(
+                m_unit.size(), size_t(macro_dof(m, i, k)), m_unit.data());
+            check_cuda(cudaGetLastError(), "launch of a reduced unit vector");
             multiply(m_unit.data(), m_column.data(), nullptr);
             macro_column_kernel<<<1, 32>>>(m, i, k, m_column.data(), d_out);
             check_cuda(cudaGetLastError(), "launch of a reduced macro column");

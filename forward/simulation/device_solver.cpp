@@ -155,6 +155,18 @@ struct DeviceSolver::Impl {
         return true;
     }
 
+    /// A solve's terms as the device Newton takes them: the weight, the force and the inertial target
+    /// (zeros when static: the Newton ignores it then).
+    void set_terms(double w, const VectorXd& inertial_target, const VectorXd& f)
+    {
+        weight = w;
+        force.assign(f.data(), f.data() + f.size());
+        if (inertial_target.size() == f.size())
+            this->inertial_target.assign(inertial_target.data(), inertial_target.data() + inertial_target.size());
+        else
+            this->inertial_target.assign(size_t(f.size()), 0.0);
+    }
+
     const double* upload(const VectorXd& x) const
     {
         scratch.upload(x.data(), size_t(x.size()));
@@ -417,14 +429,9 @@ NewtonResult DeviceSolver::solve_periodic(VectorXd& q, const VectorXd& target, c
     double weight, const VectorXd& force, double force_scale, double step_scale, const NewtonSettings& settings)
 {
     Impl& d = *m_impl;
-    const gpu::DeviceNewtonSettings s = device_settings(settings, nullptr, nullptr);
-    d.weight = weight;
+    const gpu::DeviceNewtonSettings s = device_settings(settings, d.friction.get(), d.contact.get());
+    d.set_terms(weight, inertial_target, force);
     std::vector<double> q_host(q.data(), q.data() + q.size());
-    d.force.assign(force.data(), force.data() + force.size());
-    if (inertial_target.size() == force.size())
-        d.inertial_target.assign(inertial_target.data(), inertial_target.data() + inertial_target.size());
-    else
-        d.inertial_target.assign(size_t(force.size()), 0.0);
     const gpu::DeviceNewtonResult r
         = d.newton->solve_periodic(q_host, std::vector<double>(target.data(), target.data() + target.size()),
             d.inertial_target, weight, d.force, force_scale, step_scale, s);
@@ -441,14 +448,9 @@ NewtonResult DeviceSolver::solve(VectorXd& x, const VectorXd& inertial_target, d
 {
     Impl& d = *m_impl;
     const gpu::DeviceNewtonSettings s = device_settings(settings, d.friction.get(), d.contact.get());
-    d.weight = weight;
+    d.set_terms(weight, inertial_target, force);
     d.x.assign(x.data(), x.data() + x.size());
     d.target.assign(target.data(), target.data() + target.size());
-    d.force.assign(force.data(), force.data() + force.size());
-    if (inertial_target.size() == x.size())
-        d.inertial_target.assign(inertial_target.data(), inertial_target.data() + inertial_target.size());
-    else
-        d.inertial_target.assign(size_t(x.size()), 0.0);
     const gpu::DeviceNewtonResult r
         = d.newton->solve(d.x, d.inertial_target, weight, d.force, d.target, force_scale, step_scale, s);
     NewtonResult result = host_result(r);
