@@ -60,7 +60,46 @@ namespace {
             out[(m.num_classes + i) * m.dim * m.dim + j * m.dim + k] = y[macro_dof(m, i, j)];
     }
 
+    __global__ void add_kernel(size_t n, const double* __restrict__ x, double* __restrict__ y)
+    {
+        const size_t k = size_t(blockIdx.x) * blockDim.x + threadIdx.x;
+        if (k < n)
+            y[k] += x[k];
+    }
+
 } // namespace
+
+void OperatorSum::bind(const DeviceLinearOperator& A, const DeviceLinearOperator& B)
+{
+    if (A.block_size() != B.block_size() || A.num_block_rows() != B.num_block_rows())
+        throw std::invalid_argument("OperatorSum::bind: the operators' shapes differ ("
+            + std::to_string(A.num_block_rows()) + " and " + std::to_string(B.num_block_rows()) + " block rows)");
+    m_A = &A;
+    m_B = &B;
+    m_y.resize(size_t(A.size()));
+    m_blocks.resize(size_t(A.num_block_rows()) * size_t(A.block_size() * A.block_size()));
+}
+
+void OperatorSum::multiply(const double* d_x, double* d_y, const unsigned char* d_fixed) const
+{
+    if (!m_A)
+        throw std::logic_error("OperatorSum::multiply: not bound");
+    m_A->multiply(d_x, d_y, d_fixed);
+    m_B->multiply(d_x, m_y.data(), d_fixed);
+    add_kernel<<<grid(m_y.size()), THREADS>>>(m_y.size(), m_y.data(), d_y);
+    check_cuda(cudaGetLastError(), "launch of an operator sum's product");
+}
+
+void OperatorSum::diagonal_blocks(double* d_out) const
+{
+    if (!m_A)
+        throw std::logic_error("OperatorSum::diagonal_blocks: not bound");
+    m_A->diagonal_blocks(d_out);
+    m_B->diagonal_blocks(m_blocks.data());
+    add_kernel<<<grid(m_blocks.size()), THREADS>>>(m_blocks.size(), m_blocks.data(), d_out);
+    check_cuda(cudaGetLastError(), "launch of an operator sum's blocks");
+    check_cuda(cudaDeviceSynchronize(), "an operator sum's diagonal blocks");
+}
 
 void ReducedOperator::bind(const DeviceLinearOperator& A, DevicePeriodicMap& map)
 {

@@ -47,4 +47,25 @@ private:
     mutable DeviceArray<double> m_q, m_x, m_y, m_unit, m_column, m_full_diagonal;
 };
 
+/// A + B of two operators of the same shape (a periodic cell's elastic and contact parts, each a
+/// ReducedOperator): the products' sum, the diagonal blocks' sum.
+class OperatorSum : public DeviceLinearOperator {
+public:
+    /// @brief Binds A and B (kept by reference).
+    /// @throws std::invalid_argument if their block sizes or block rows differ
+    void bind(const DeviceLinearOperator& A, const DeviceLinearOperator& B);
+
+    int block_size() const override { return m_A ? m_A->block_size() : 0; }
+    int num_block_rows() const override { return m_A ? m_A->num_block_rows() : 0; }
+    using DeviceLinearOperator::multiply; // the host-vector form
+    /// @brief d_y = A d_x + B d_x (with d_fixed: each restricted to the free entries). Asynchronous.
+    void multiply(const double* d_x, double* d_y, const unsigned char* d_fixed = nullptr) const override;
+    /// @brief d_out = A's diagonal blocks + B's. Synchronizes.
+    void diagonal_blocks(double* d_out) const override;
+
+private:
+    const DeviceLinearOperator *m_A = nullptr, *m_B = nullptr;
+    mutable DeviceArray<double> m_y, m_blocks;
+};
+
 } // namespace diffipc::gpu

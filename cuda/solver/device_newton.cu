@@ -293,6 +293,14 @@ namespace {
         y[k] = x[k] + alpha * p[k];
     }
 
+    /// y += x
+    __global__ void add_into(size_t n, const double* __restrict__ x, double* __restrict__ y)
+    {
+        const size_t k = size_t(blockIdx.x) * blockDim.x + threadIdx.x;
+        if (k < n)
+            y[k] += x[k];
+    }
+
     /// y = a x
     __global__ void scale_into(size_t n, double a, const double* __restrict__ x, double* __restrict__ y)
     {
@@ -369,6 +377,34 @@ struct DeviceNewton::Impl {
     DevicePCG pcg_q; // with q's fixed mask
     DeviceArray<unsigned char> fixed_q;
     DeviceArray<double> q, trial_q, longer_q, target_q, g_q, g_trial_q, p_q, pD_q, rhs_q, coupling_q;
+    // Contact across a cell's boundary (set_periodic_contact): the contact runs on its image surface's
+    // positions y = X_s + P_s q (cuda/README.md, "Periodic cells on the device"), kept beside x, trial
+    // and longer; its gradient gc and Hessian go back through P_s.
+    DevicePeriodicMap* surface = nullptr;
+    ReducedOperator reduced_contact; // P_s^T C P_s
+    OperatorSum reduced_sum; // P^T A P + P_s^T C P_s
+    DeviceArray<double> ys, ys_trial, ys_longer, gc, gc_q, ps, dir_scaled, p_q_scaled;
+    /// The contact's positions of the state whose positions are xp (x, trial or longer): xp itself
+    /// without an image surface.
+    const double* contact_positions(const double* xp) const
+    {
+        if (!surface)
+            return xp;
+        if (xp == x.data())
+            return ys.data();
+        if (xp == trial.data())
+            return ys_trial.data();
+        if (xp == longer.data())
+            return ys_longer.data();
+        throw std::logic_error("DeviceNewton: no image surface positions for this state");
+    }
+    /// X + P u into into_x, and the image surface's positions beside it.
+    void expand_state(const DeviceArray<double>& from_u, DeviceArray<double>& into_x)
+    {
+        periodic->expand(from_u.data(), into_x.data(), true);
+        if (surface)
+            surface->expand(from_u.data(), const_cast<double*>(contact_positions(into_x.data())), true);
+    }
     size_t nu() const { return periodic ? nq : n; }
     DeviceArray<double>& u() { return periodic ? q : x; }
     DeviceArray<double>& u_trial() { return periodic ? trial_q : trial; }
@@ -381,21 +417,33 @@ struct DeviceNewton::Impl {
     DeviceArray<double>& u_coupling() { return periodic ? coupling_q : coupling; }
     const unsigned char* u_fixed() const { return periodic ? fixed_q.data() : fixed.data(); }
     DevicePCG& u_pcg() { return periodic ? pcg_q : pcg; }
-    /// The Newton matrix in the unknowns (bind_unknowns() first).
+    /// The Newton matrix in the unknowns (bind_unknowns() first; with an image surface the contact's
+    /// part is bound by assemble_contact()).
     const DeviceLinearOperator& u_system(const DeviceContact* with_contact) const
     {
-        return periodic ? static_cast<const DeviceLinearOperator&>(reduced) : system(with_contact);
+        if (!periodic)
+            return system(with_contact);
+        if (surface && with_contact)
+            return reduced_sum;
+        return reduced;
     }
     void bind_unknowns(const DeviceContact* with_contact)
     {
         if (periodic)
-            reduced.bind(system(with_contact), *periodic);
+            reduced.bind(surface ? static_cast<const DeviceLinearOperator&>(H) : system(with_contact), *periodic);
     }
-    /// A position-space gradient into the unknowns' (P^T g; nothing to do without a cell).
+    /// A position-space gradient into the unknowns' (P^T g, plus P_s^T gc, the contact's part on the image
+    /// surface from the last gradient(); nothing to do without a cell).
     void gradient_to_unknowns(const DeviceArray<double>& gx, DeviceArray<double>& gu)
     {
-        if (periodic)
-            periodic->reduce(gx.data(), gu.data());
+        if (!periodic)
+            return;
+        periodic->reduce(gx.data(), gu.data());
+        if (surface) {
+            surface->reduce(gc.data(), gc_q.data());
+            add_into<<<grid(nq), THREADS>>>(nq, gc_q.data(), gu.data());
+            check_launch("launch of the contact's reduced gradient");
+        }
     }
     /// The unknowns' step p_u into positions (p = P p_q; p is p_u without a cell).
     void step_to_positions()
@@ -412,6 +460,8 @@ struct DeviceNewton::Impl {
         std::swap(x, trial);
         if (periodic)
             std::swap(q, trial_q);
+        if (surface)
+            std::swap(ys, ys_trial);
     }
     bool active_current = false; // the contact's active set was built at x's current contents
     DeviceArray<double> gb; // the barrier gradient (balancing)
@@ -459,7 +509,7 @@ struct DeviceNewton::Impl {
         Energy e;
         e.elastic = mesh.energy_device(y);
         if (contact)
-            e.contact = contact->energy(y, on_segment);
+            e.contact = contact->energy(contact_positions(y), on_segment);
         if (friction)
             e.friction = friction->energy_device(y);
         double s[2];
@@ -484,7 +534,12 @@ struct DeviceNewton::Impl {
     /// Assembles the contact (and friction) Hessians at x with weight w and binds them to the sum.
     void assemble_contact(double w, bool project)
     {
-        contact->assemble_hessian(x.data(), w, project);
+        contact->assemble_hessian(contact_positions(x.data()), w, project);
+        if (surface) { // no friction across the boundary (set_periodic_contact)
+            reduced_contact.bind(contact->hessian(), *surface);
+            reduced_sum.bind(reduced, reduced_contact);
+            return;
+        }
         if (friction)
             friction->assemble_hessian(x.data(), w);
         sum.bind(H, contact->hessian(), friction ? &friction->hessian() : nullptr);
@@ -495,6 +550,9 @@ struct DeviceNewton::Impl {
     void load_state(const char* who, DeviceContact* with_contact, const std::vector<double>& x_host,
         const std::vector<double>& inertial_target, double weight, const std::vector<double>& force)
     {
+        if (periodic)
+            throw std::logic_error(std::string("DeviceNewton::") + who
+                + ": not for a periodic cell (its state is q: solve_periodic, balance_at_periodic)");
         if (x_host.size() != n || force.size() != n || (dynamic && inertial_target.size() != n))
             throw std::invalid_argument(std::string("DeviceNewton::") + who
                 + ": x, inertial_target and force need #dofs = " + std::to_string(n) + " entries");
@@ -512,19 +570,33 @@ struct DeviceNewton::Impl {
     void activate_at_x()
     {
         if (contact && !active_current) {
-            contact->update_active(x.data());
+            contact->update_active(contact_positions(x.data()));
             active_current = true;
         }
     }
 
-    /// The step bound along dir at y: min(1, inversion bound, CCD bound); `unresolved` if the CCD
-    /// could not certify any step (the CPU's step_unresolved()).
-    double max_step(const double* y, const double* dir, double keep, bool& unresolved)
+    /// The step bound along scale p at x: min(1, inversion bound, CCD bound); `unresolved` if the CCD
+    /// could not certify any step (the CPU's step_unresolved()). With an image surface the CCD runs along
+    /// P_s (scale p_q) from its positions.
+    double max_step(double scale, double keep, bool& unresolved)
     {
-        double alpha = std::min(1.0, step_bound(y, dir, keep));
+        const double* dir = p.data();
+        if (scale != 1.0) {
+            scale_into<<<grid(n), THREADS>>>(n, scale, p.data(), dir_scaled.data());
+            check_launch("launch of a scaled step");
+            dir = dir_scaled.data();
+        }
+        double alpha = std::min(1.0, step_bound(x.data(), dir, keep));
         unresolved = false;
         if (contact) {
-            const StepBoundResult r = contact->max_step(y, dir);
+            const double* contact_dir = dir;
+            if (surface) {
+                scale_into<<<grid(nq), THREADS>>>(nq, scale, p_q.data(), p_q_scaled.data());
+                check_launch("launch of a scaled step");
+                surface->expand(p_q_scaled.data(), ps.data(), false);
+                contact_dir = ps.data();
+            }
+            const StepBoundResult r = contact->max_step(contact_positions(x.data()), contact_dir);
             alpha = std::min(alpha, r.alpha);
             unresolved = r.unresolved;
         }
@@ -538,16 +610,13 @@ struct DeviceNewton::Impl {
     double extend(const DeviceElasticMesh& mesh, double w, double length, const DeviceNewtonSettings& s,
         double start_energy, double slope, double& new_energy, DeviceNewtonResult& result)
     {
-        const int G = grid(n);
         double alpha = 1.0;
         for (int k = 0; k < MAX_EXTENSIONS; ++k) {
             const double a = 2 * alpha;
             if (s.max_displacement > 0 && a * length > s.max_displacement)
                 break;
-            scale_into<<<G, THREADS>>>(n, a, p.data(), longer.data());
-            check_launch("launch of an extended step");
             bool unresolved = false;
-            if (max_step(x.data(), longer.data(), s.inversion_keep, unresolved) < 1.0)
+            if (max_step(a, s.inversion_keep, unresolved) < 1.0)
                 break;
             make_trial(a, periodic ? longer_q : longer, longer);
             const double e = energy(mesh, longer.data(), w, true).total;
@@ -558,6 +627,8 @@ struct DeviceNewton::Impl {
             std::swap(trial, longer);
             if (periodic)
                 std::swap(trial_q, longer_q);
+            if (surface)
+                std::swap(ys_trial, ys_longer);
         }
         result.extended_steps += alpha > 1.0;
         return alpha;
@@ -572,11 +643,22 @@ struct DeviceNewton::Impl {
         b.active = contact->num_active();
         // gE: the gradient without the barrier (g_trial is free between iterations).
         gradient(mesh, x.data(), w, g_trial.data(), /*with_contact=*/false);
-        gb.resize(n);
-        gb.set_zero();
-        contact->add_barrier_gradient(x.data(), 1.0, gb.data());
-        reduce<2>(BalanceTerm { gb.data(), g_trial.data(), fixed.data() }, n, BALANCE_OPS, partials.data(),
-            scalars.data() + S_BALANCE);
+        if (surface) { // balanced in the cell's unknowns, as the CPU balances a periodic cell
+            gradient_to_unknowns(g_trial, g_trial_q); // gc is zero: gradient() without contact
+            gc.set_zero();
+            contact->add_barrier_gradient(ys.data(), 1.0, gc.data());
+            gb.resize(nq);
+            surface->reduce(gc.data(), gb.data());
+            gc.set_zero();
+            reduce<2>(BalanceTerm { gb.data(), g_trial_q.data(), fixed_q.data() }, nq, BALANCE_OPS, partials.data(),
+                scalars.data() + S_BALANCE);
+        } else {
+            gb.resize(n);
+            gb.set_zero();
+            contact->add_barrier_gradient(x.data(), 1.0, gb.data());
+            reduce<2>(BalanceTerm { gb.data(), g_trial.data(), fixed.data() }, n, BALANCE_OPS, partials.data(),
+                scalars.data() + S_BALANCE);
+        }
         double out[2];
         detail::copy_device_to_host(out, scalars.data() + S_BALANCE, sizeof(out));
         b.gb_ge = out[0];
@@ -592,6 +674,12 @@ struct DeviceNewton::Impl {
         inertia_force_gradient<<<kernel_grid(), THREADS>>>(n, dynamic, y, xt.data(), mass.data(), Md, f.data(), w, out);
         check_launch("launch of the inertial gradient");
         mesh.add_gradient_device(y, w, out);
+        if (surface) {
+            gc.set_zero();
+            if (contact && with_contact)
+                contact->add_gradient(contact_positions(y), w, gc.data());
+            return;
+        }
         if (contact && with_contact)
             contact->add_gradient(y, w, out);
         if (friction && with_contact)
@@ -639,7 +727,7 @@ void DeviceNewton::Impl::make_trial(double alpha, DeviceArray<double>& into_u, D
     }
     step<<<grid(nq), THREADS>>>(nq, q.data(), alpha, p_q.data(), into_u.data());
     check_launch("launch of a Newton step");
-    periodic->expand(into_u.data(), into_x.data(), true);
+    expand_state(into_u, into_x);
 }
 
 DeviceNewton::DeviceNewton(const DeviceElasticMesh& mesh, const std::vector<double>& lumped_mass)
@@ -686,8 +774,8 @@ DeviceNewton::DeviceNewton(const DeviceElasticMesh& mesh, const std::vector<doub
         impl->mass.upload(lumped_mass);
     impl->elements.upload(elements);
     impl->diagonal_slots.upload(diagonal);
-    for (auto* v : { &impl->x, &impl->trial, &impl->longer, &impl->xt, &impl->f, &impl->target, &impl->reference,
-             &impl->g, &impl->g_trial, &impl->p, &impl->pD, &impl->rhs, &impl->coupling })
+    for (auto* v : { &impl->x, &impl->trial, &impl->longer, &impl->dir_scaled, &impl->xt, &impl->f, &impl->target,
+             &impl->reference, &impl->g, &impl->g_trial, &impl->p, &impl->pD, &impl->rhs, &impl->coupling })
         v->resize(n);
     impl->reference.set_zero();
     impl->fixed.resize(n);
@@ -876,7 +964,7 @@ DeviceNewtonResult DeviceNewton::solve_periodic(std::vector<double>& q_host, con
     check_solve_arguments("solve_periodic", weight, force_scale, step_scale, settings);
     m.q.upload(q_host);
     m.target_q.upload(target_q);
-    m.periodic->expand(m.q.data(), m.x.data(), true);
+    m.expand_state(m.q, m.x);
     const DeviceNewtonResult result = iterate(inertial_target, weight, force, force_scale, step_scale, settings);
     if (result.status == DeviceStepStatus::CONVERGED)
         detail::copy_device_to_host(q_host.data(), m.q.data(), m.nq * sizeof(double));
@@ -896,7 +984,6 @@ DeviceNewtonResult DeviceNewton::iterate(const std::vector<double>& inertial_tar
     m.active_current = false;
     m.w = weight;
     m.bind_unknowns(m_contact);
-    const int G = m.kernel_grid();
     // The unknowns: the positions, or a periodic cell's q (Impl's u_ accessors).
     const size_t nu = m.nu();
     const int Gu = grid(nu);
@@ -1052,13 +1139,13 @@ DeviceNewtonResult DeviceNewton::iterate(const std::vector<double>& inertial_tar
             m.step_to_positions();
             m.make_trial(1.0, m.u_trial(), m.trial);
             bool unresolved = false;
-            bool improves = m.max_step(m.x.data(), m.p.data(), settings.inversion_keep, unresolved) >= 1.0;
+            bool improves = m.max_step(1.0, settings.inversion_keep, unresolved) >= 1.0;
             const double trial_energy = improves ? m.energy(m_mesh, m.trial.data(), w, true).total : INFINITY;
             improves = improves && std::isfinite(trial_energy);
             double rs[2] = { 0, 0 };
             if (improves) {
                 if (m_contact) {
-                    m_contact->update_active(m.trial.data());
+                    m_contact->update_active(m.contact_positions(m.trial.data()));
                     m.active_current = false;
                 }
                 m.gradient(m_mesh, m.trial.data(), w, m.g_trial.data());
@@ -1103,11 +1190,9 @@ DeviceNewtonResult DeviceNewton::iterate(const std::vector<double>& inertial_tar
         const double length = ds[2]; // of the free dofs' step: lifting moves prescribed dofs as far as it must
         if (settings.max_displacement > 0 && length > settings.max_displacement) {
             const double cap = settings.max_displacement / length;
-            scale_into<<<G, THREADS>>>(n, cap, m.p.data(), m.trial.data()); // the capped step
-            check_launch("launch of the capped step");
-            alpha = cap * m.max_step(m.x.data(), m.trial.data(), settings.inversion_keep, unresolved);
+            alpha = cap * m.max_step(cap, settings.inversion_keep, unresolved); // from the capped step
         } else {
-            alpha = m.max_step(m.x.data(), m.p.data(), settings.inversion_keep, unresolved);
+            alpha = m.max_step(1.0, settings.inversion_keep, unresolved);
         }
         if (!(alpha > 0) && unresolved) {
             phase_end(t_ls, result.line_search_time);
@@ -1134,7 +1219,7 @@ DeviceNewtonResult DeviceNewton::iterate(const std::vector<double>& inertial_tar
             }
             if (unresolvable && h == 0) {
                 if (m_contact) {
-                    m_contact->update_active(m.trial.data());
+                    m_contact->update_active(m.contact_positions(m.trial.data()));
                     m.active_current = false;
                 }
                 m.gradient(m_mesh, m.trial.data(), w, m.g_trial.data());
@@ -1173,10 +1258,12 @@ DeviceNewtonResult DeviceNewton::iterate(const std::vector<double>& inertial_tar
             detail::copy_device_to_device(m.trial.data(), m.x.data(), n * sizeof(double));
             if (m.periodic)
                 detail::copy_device_to_device(m.trial_q.data(), m.q.data(), nu * sizeof(double));
+            if (m.surface)
+                detail::copy_device_to_device(m.ys_trial.data(), m.ys.data(), m.ys.size() * sizeof(double));
             snap_to_target<<<Gu, THREADS>>>(nu, fixed, m.u_target().data(), m.u().data());
             check_launch("launch of the lifting snap");
             if (m.periodic)
-                m.periodic->expand(m.q.data(), m.x.data(), true);
+                m.expand_state(m.q, m.x);
             m.active_current = false;
             energy = m.energy(m_mesh, m.x.data(), w).total;
             if (!std::isfinite(energy)) {
@@ -1230,6 +1317,55 @@ void DeviceNewton::set_periodic(DevicePeriodicMap* map, const std::vector<char>&
         v->resize(nq);
 }
 
+void DeviceNewton::set_periodic_contact(DeviceContact* contact, DevicePeriodicMap* surface)
+{
+    Impl& m = *m_impl;
+    if (!m.periodic)
+        throw std::logic_error("DeviceNewton::set_periodic_contact: set_periodic() first");
+    if (!contact || !surface)
+        throw std::invalid_argument("DeviceNewton::set_periodic_contact: no contact or no surface map");
+    if (surface->dim() != m.periodic->dim() || surface->num_classes() != m.periodic->num_classes())
+        throw std::invalid_argument("DeviceNewton::set_periodic_contact: the surface map has "
+            + std::to_string(surface->num_classes()) + " classes in " + std::to_string(surface->dim()) + "D, the cell "
+            + std::to_string(m.periodic->num_classes()));
+    const size_t ns = size_t(surface->num_vertices()) * size_t(surface->dim());
+    if (size_t(contact->num_dofs()) != ns)
+        throw std::invalid_argument("DeviceNewton::set_periodic_contact: the contact has "
+            + std::to_string(contact->num_dofs()) + " dofs, the surface map " + std::to_string(ns));
+    if (m_friction)
+        throw std::logic_error("DeviceNewton::set_periodic_contact: no friction across a cell's boundary yet");
+    m.surface = surface;
+    for (auto* v : { &m.ys, &m.ys_trial, &m.ys_longer, &m.gc, &m.ps })
+        v->resize(ns);
+    m.gc.set_zero();
+    m.gc_q.resize(m.nq);
+    m.p_q_scaled.resize(m.nq);
+    m_contact = contact;
+    m.contact = contact;
+    m.active_current = false;
+}
+
+ContactBalance DeviceNewton::balance_at_periodic(const std::vector<double>& q_host,
+    const std::vector<double>& inertial_target, double weight, const std::vector<double>& force)
+{
+    Impl& m = *m_impl;
+    if (!m.periodic || !m.surface)
+        throw std::logic_error("DeviceNewton::balance_at_periodic: set_periodic_contact() first");
+    if (q_host.size() != m.nq || force.size() != m.n || (m.dynamic && inertial_target.size() != m.n))
+        throw std::invalid_argument("DeviceNewton::balance_at_periodic: q needs the cell's " + std::to_string(m.nq)
+            + " unknowns, force and inertial_target #dofs = " + std::to_string(m.n));
+    m.q.upload(q_host);
+    m.expand_state(m.q, m.x);
+    if (m.dynamic)
+        m.xt.upload(inertial_target);
+    m.f.upload(force);
+    m.w = weight;
+    m.contact = m_contact;
+    m.active_current = false;
+    m.activate_at_x();
+    return m.balance(m_mesh, weight);
+}
+
 void DeviceNewton::set_contact(DeviceContact* contact)
 {
     if (contact && m_impl->periodic)
@@ -1245,6 +1381,8 @@ void DeviceNewton::set_contact(DeviceContact* contact)
 
 void DeviceNewton::set_friction(DeviceFriction* friction)
 {
+    if (friction && m_impl->periodic)
+        throw std::logic_error("DeviceNewton::set_friction: no friction in a periodic cell on the device yet");
     if (friction && size_t(friction->num_dofs()) != m_impl->n)
         throw std::invalid_argument("DeviceNewton::set_friction: the friction has "
             + std::to_string(friction->num_dofs()) + " dofs, the mesh " + std::to_string(m_impl->n));

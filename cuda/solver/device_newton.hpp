@@ -213,6 +213,18 @@ public:
     /// @throws std::invalid_argument on a size or dimension mismatch
     void set_periodic(DevicePeriodicMap* map, const std::vector<char>& fixed_q);
 
+    /// @brief Contact across a periodic cell's boundary (after set_periodic()): the contact runs on its
+    /// image surface, whose positions y = X_s + P_s q are `surface`'s map (rest positions T X, each image
+    /// in its source's class; cuda/README.md, "Periodic cells on the device"). Its gradient enters as
+    /// P_s^T g_c, its Hessian as P_s^T C P_s, its CCD along P_s p; the adaptive stiffness balances in q.
+    /// Both must outlive their use. No friction with it (std::logic_error).
+    /// @throws std::logic_error without set_periodic(); std::invalid_argument if the contact's dofs or the
+    ///         surface map's classes or dimension do not fit
+    void set_periodic_contact(DeviceContact* contact, DevicePeriodicMap* surface);
+    /// @brief balance_at() of a periodic cell with contact at its unknowns q (builds the active set there).
+    ContactBalance balance_at_periodic(const std::vector<double>& q, const std::vector<double>& inertial_target,
+        double weight, const std::vector<double>& force);
+
     /// @brief PeriodicCell::solve's Newton solve on the device (set_periodic() first): minimizes E(X + P q)
     /// over q's free entries after lifting its constrained ones to target_q.
     /// @param q        in: start; out: last iterate if CONVERGED, unchanged otherwise (num_reduced())

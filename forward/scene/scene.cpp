@@ -626,8 +626,11 @@ void select_device(Scene& scene, const std::string& name, const std::string& fie
                   "conditions, barrier contact with obstacles and lagged friction, automatic load stepping and "
                   "adaptive time stepping); use \"cpu\"");
     };
-    if (scene.periodic.enabled && scene.contact.enabled)
-        refuse("periodic cells with contact (contact across the cell's boundary)");
+    bool friction = scene.friction.coefficient > 0;
+    for (const BodySpec& b : scene.bodies)
+        friction = friction || b.friction_coefficient > 0;
+    if (scene.periodic.enabled && scene.contact.enabled && friction)
+        refuse("friction across a periodic cell's boundary");
     scene.device = DeviceType::GPU;
 }
 

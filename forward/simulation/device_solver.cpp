@@ -107,6 +107,8 @@ struct DeviceSolver::Impl {
     std::unique_ptr<gpu::DeviceFriction> friction; // made by the first set_friction()
     std::unique_ptr<gpu::DeviceNewton> newton;
     std::unique_ptr<gpu::DevicePeriodicMap> periodic; // set_periodic()
+    std::unique_ptr<gpu::DevicePeriodicMap> surface; // with contact across the cell's boundary
+    std::vector<double> surface_rest; // T X: the image surface's rest positions (empty without images)
     std::vector<double> rest;
     std::vector<double> x, target, inertial_target, force;
     AdaptiveState adaptive;
@@ -193,8 +195,6 @@ DeviceSolver::DeviceSolver(const ElasticPotential& elastic, const InertiaPotenti
     std::string why;
     if (!available(&why))
         throw InputError("device", "\"gpu\" needs a CUDA device, and none is usable here (" + why + ")");
-    if (contact && contact->has_images())
-        throw InputError("device", "\"gpu\" has no contact across periodic images; use \"cpu\"");
     const Mesh& mesh = elastic.space().mesh();
     const int dim = mesh.dim;
     std::vector<double> rest(size_t(mesh.num_dofs()));
@@ -239,15 +239,24 @@ DeviceSolver::DeviceSolver(const ElasticPotential& elastic, const InertiaPotenti
     m_impl->newton->set_force_reference(rest);
     m_impl->newton->set_material_scale(models, to_std(elastic.mu()));
     if (contact) {
-        m_impl->contact = std::make_unique<gpu::DeviceContact>(
-            to_device(contact->collision_mesh()), rest, to_device(contact->planes()), to_device(contact->settings()));
-        m_impl->newton->set_contact(m_impl->contact.get());
+        // With periodic images the contact runs on the image surface (rest positions T X); set_periodic()
+        // hands it to the Newton with the surface's map.
+        if (contact->has_images()) {
+            const VectorXd surface_rest
+                = contact->images() * Eigen::Map<const VectorXd>(rest.data(), Index(rest.size()));
+            m_impl->surface_rest = to_std(surface_rest);
+        }
+        m_impl->contact = std::make_unique<gpu::DeviceContact>(to_device(contact->collision_mesh()),
+            contact->has_images() ? m_impl->surface_rest : rest, to_device(contact->planes()),
+            to_device(contact->settings()));
+        if (!contact->has_images())
+            m_impl->newton->set_contact(m_impl->contact.get());
         m_impl->newton->set_end_iteration([impl = m_impl.get()]() { return impl->end_iteration(); });
     }
 }
 
 void DeviceSolver::begin_step(double kappa, const AdaptiveKappa& adaptive, const VectorXd& x,
-    const VectorXd& inertial_target, double weight, const VectorXd& force)
+    const VectorXd& inertial_target, double weight, const VectorXd& force, const VectorXd* q)
 {
     Impl& d = *m_impl;
     if (!d.contact)
@@ -262,7 +271,8 @@ void DeviceSolver::begin_step(double kappa, const AdaptiveKappa& adaptive, const
         return;
     const std::vector<double> xt
         = inertial_target.size() == x.size() ? to_std(inertial_target) : std::vector<double>(size_t(x.size()), 0.0);
-    const gpu::ContactBalance b = d.newton->balance_at(to_std(x), xt, weight, to_std(force));
+    const gpu::ContactBalance b = d.surface ? d.newton->balance_at_periodic(to_std(*q), xt, weight, to_std(force))
+                                            : d.newton->balance_at(to_std(x), xt, weight, to_std(force));
     const bool active = b.active > 0;
     if (active)
         d.contact->set_kappa(std::max(kappa, d.balancing_kappa(b)));
@@ -289,14 +299,15 @@ ContactSet DeviceSolver::contacts(const VectorXd& x) const
         && std::memcmp(d.contacts_x.data(), x.data(), size_t(x.size()) * sizeof(double)) == 0)
         return d.contacts_at_x;
     const Timer timer;
-    m_impl->contact->update_active(m_impl->upload(x));
+    const VectorXd y = m_cpu_contact->surface_positions(x); // the positions the pairs index
+    m_impl->contact->update_active(m_impl->upload(y));
     const std::vector<gpu::BarrierPair>& pairs = m_impl->contact->active_pairs();
     out.resize(pairs.size());
     tbb::parallel_for(tbb::blocked_range<size_t>(0, pairs.size(), 256), [&](const tbb::blocked_range<size_t>& r) {
         for (size_t k = r.begin(); k < r.end(); ++k) {
             const gpu::BarrierPair& p = pairs[k];
             out[k] = m_cpu_contact->classify(
-                ContactKind(p.kind), { p.vertices[0], p.vertices[1], p.vertices[2], p.vertices[3] }, p.plane, x);
+                ContactKind(p.kind), { p.vertices[0], p.vertices[1], p.vertices[2], p.vertices[3] }, p.plane, y);
         }
     });
     d.contacts_x = x;
@@ -342,7 +353,7 @@ double DeviceSolver::min_distance(const VectorXd& x, double radius) const
 {
     if (!m_impl->contact)
         return std::numeric_limits<double>::infinity();
-    return m_impl->contact->min_distance(m_impl->upload(x), radius);
+    return m_impl->contact->min_distance(m_impl->upload(m_cpu_contact->surface_positions(x)), radius);
 }
 
 ContactTimes DeviceSolver::contact_times() const
@@ -414,15 +425,24 @@ namespace {
 
 } // namespace
 
-void DeviceSolver::set_periodic(const PeriodicCell& cell)
+void DeviceSolver::set_periodic(const PeriodicCell& cell, const std::vector<int>& image_classes)
 {
     Impl& d = *m_impl;
     const PeriodicMap& map = cell.map();
     const VectorXi& classes = cell.pairing().vertex_class;
-    d.periodic = std::make_unique<gpu::DevicePeriodicMap>(map.dim(),
-        std::vector<int>(classes.data(), classes.data() + classes.size()), d.rest,
-        std::vector<double>(map.origin().data(), map.origin().data() + map.dim()), map.length());
+    const std::vector<double> origin(map.origin().data(), map.origin().data() + map.dim());
+    d.periodic = std::make_unique<gpu::DevicePeriodicMap>(
+        map.dim(), std::vector<int>(classes.data(), classes.data() + classes.size()), d.rest, origin, map.length());
     d.newton->set_periodic(d.periodic.get(), cell.constrained());
+    if (d.contact) {
+        if (d.surface_rest.empty() || image_classes.size() * size_t(map.dim()) != d.surface_rest.size())
+            throw std::logic_error("DeviceSolver::set_periodic: the contact needs its image surface's classes");
+        // The image surface's positions T (X + P q) = X_s + P_s q: a periodic map of its own
+        // (cuda/README.md, "Periodic cells on the device").
+        d.surface
+            = std::make_unique<gpu::DevicePeriodicMap>(map.dim(), image_classes, d.surface_rest, origin, map.length());
+        d.newton->set_periodic_contact(d.contact.get(), d.surface.get());
+    }
 }
 
 NewtonResult DeviceSolver::solve_periodic(VectorXd& q, const VectorXd& target, const VectorXd& inertial_target,
@@ -531,7 +551,7 @@ bool DeviceSolver::solve_adjoint(const VectorXd&, double, const VectorXd&, Vecto
     return false;
 }
 
-void DeviceSolver::set_periodic(const PeriodicCell&) { }
+void DeviceSolver::set_periodic(const PeriodicCell&, const std::vector<int>&) { }
 
 NewtonResult DeviceSolver::solve_periodic(
     VectorXd&, const VectorXd&, const VectorXd&, double, const VectorXd&, double, double, const NewtonSettings&)
@@ -539,7 +559,8 @@ NewtonResult DeviceSolver::solve_periodic(
     return {};
 }
 
-void DeviceSolver::begin_step(double, const AdaptiveKappa&, const VectorXd&, const VectorXd&, double, const VectorXd&)
+void DeviceSolver::begin_step(
+    double, const AdaptiveKappa&, const VectorXd&, const VectorXd&, double, const VectorXd&, const VectorXd*)
 {
 }
 

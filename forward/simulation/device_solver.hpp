@@ -84,7 +84,9 @@ public:
     /// q's constrained entries; cuda/solver/device_newton.hpp, set_periodic): then solve_periodic()
     /// solves, not solve(). Contact across the cell's boundary is not on the device (the constructor
     /// refuses it).
-    void set_periodic(const PeriodicCell& cell);
+    /// @param image_classes with contact across the cell's boundary: the class of each image surface
+    ///        vertex's source (ContactImages::source), the surface's own periodic map (empty: no contact)
+    void set_periodic(const PeriodicCell& cell, const std::vector<int>& image_classes = {});
     /// @brief PeriodicCell::solve's Newton solve on the device: q and target as PeriodicCell::step_unknowns
     /// gives them, the other arguments and the result as solve()'s. q is changed only when CONVERGED.
     NewtonResult solve_periodic(VectorXd& q, const VectorXd& target, const VectorXd& inertial_target, double weight,
@@ -101,8 +103,9 @@ public:
     /// kappa from the CPU contact (the value carried between steps); with the adaptive stiffness,
     /// kappa = max(kappa, the balancing rule) if contacts are active at x, and the rule's state reset.
     /// @param x, inertial_target, weight, force  the step's start and its terms (as solve()'s)
+    /// @param q a periodic cell's unknowns at x (its contact balances in q); nullptr otherwise
     void begin_step(double kappa, const AdaptiveKappa& adaptive, const VectorXd& x, const VectorXd& inertial_target,
-        double weight, const VectorXd& force);
+        double weight, const VectorXd& force, const VectorXd* q = nullptr);
     /// The device contact's kappa (after a solve: the value it ended with).
     double kappa() const;
     /// @brief Sets the device contact's kappa, leaving the adaptive rule's state of the step as it is:

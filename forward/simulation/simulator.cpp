@@ -281,7 +281,7 @@ Simulator::Simulator(Scene scene, const SimulationParameters& parameters)
         m_device = std::make_unique<DeviceSolver>(
             *m_elastic, m_integrator->dynamic() ? m_inertia.get() : nullptr, m_constrained, m_contact.get());
         if (m_periodic)
-            m_device->set_periodic(*m_periodic);
+            m_device->set_periodic(*m_periodic, m_image_classes);
     }
     m_trajectory.initial_time = 0;
     m_trajectory.initial_positions = x0;
@@ -352,6 +352,9 @@ void Simulator::setup_contact()
         // Contact across the cell's boundary: the surface with its periodic images.
         ContactImages images
             = build_contact_images(mesh, m_scene.periodic.box, m_scene.periodic.pairing, self_contact, kinematic);
+        m_image_classes.resize(images.source.size());
+        for (size_t t = 0; t < images.source.size(); ++t)
+            m_image_classes[t] = m_scene.periodic.pairing.vertex_class[images.source[t]];
         m_contact
             = std::make_unique<ContactPotential>(std::move(images.mesh), images.rest, std::move(planes), settings);
         m_contact->set_images(std::move(images.map));
@@ -681,7 +684,11 @@ StepStatus Simulator::step()
         adaptive.kappa_min = m_kappa_min;
         adaptive.kappa_max = 100 * m_kappa_min;
         adaptive.bbox_diagonal = m_bbox_diagonal;
-        m_device->begin_step(m_contact->kappa(), adaptive, x, inertial_target, w, m_external->force());
+        VectorXd q; // a periodic cell's contact balances in its unknowns
+        if (m_periodic)
+            q = m_periodic->map().reduced(x, m_macro);
+        m_device->begin_step(
+            m_contact->kappa(), adaptive, x, inertial_target, w, m_external->force(), m_periodic ? &q : nullptr);
         if (m_friction) {
             m_problem.set_weight(m_friction.get(), w);
             m_friction->set_step(x, m_scene.time.dt);

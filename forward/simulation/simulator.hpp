@@ -323,6 +323,9 @@ private:
     StepRecord m_last_attempt;
     std::unique_ptr<PeriodicCell> m_periodic;
     VectorXd m_macro; ///< the periodic cell's G at the integrator's committed step
+    /// With contact across a periodic cell's boundary: each image surface vertex's source class (the
+    /// GPU path's surface map, DeviceSolver::set_periodic).
+    std::vector<int> m_image_classes;
     /// m_friction holds the start positions of committed step steps_done() (friction_forces())
     bool m_friction_at_last_step = false;
 };

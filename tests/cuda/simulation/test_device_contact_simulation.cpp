@@ -7,9 +7,11 @@
 #include "adjoint/adjoint.hpp"
 #include "cuda/common/device.hpp"
 #include "forward/contact/intersection.hpp"
+#include "forward/periodic/tiling.hpp"
 #include "tests/cuda/elastic_test_utils.hpp"
 #include "tests/cuda/simulation/adjoint_test_utils.hpp"
 #include "tests/forward/contact/contact_scenes.hpp"
+#include "tests/forward/periodic/post_cell.hpp"
 #include "tests/forward/test_utils.hpp"
 
 #include <gtest/gtest.h>
@@ -19,6 +21,7 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <memory>
 
 using namespace diffipc;
 using nlohmann::json;
@@ -530,6 +533,60 @@ TEST(DeviceContactSimulation, TrueHessianCyclesAreBroken)
     const Trajectory& t = sim.run();
     EXPECT_EQ(t.final_status, StepStatus::CONVERGED) << t.failure_message;
     EXPECT_EQ(t.committed(), 8);
+}
+
+TEST(DeviceContactSimulation, PeriodicCellWithContactAcrossTheBoundary)
+{
+    DIFFIPC_SKIP_WITHOUT_GPU();
+    // The post cell of the CPU's periodic contact tests, compressed until its posts press on the next
+    // cell's across the boundary (G_yy to -0.16, the gap closes at -0.1): the contact on the image surface
+    // (DeviceNewton::set_periodic_contact), fixed and adaptive kappa, 2D and 3D. Each GPU state checked
+    // on the cell's 3 x 3 (x 3) tiling by the independent intersection and inversion tests; states and G
+    // against the CPU run's.
+    for (int dim : { 2, 3 })
+        for (const bool adaptive : { false, true }) {
+            const std::string name = std::to_string(dim) + "D post cell, kappa " + (adaptive ? "adaptive" : "1");
+            const int steps = dim == 2 ? 8 : 4;
+            const std::string path = "/tmp/diffipc_gpu_post_cell_" + std::to_string(dim) + "d.msh";
+            json s = test::post_cell_scene(dim, path, -0.16, steps, adaptive ? json() : json(1.0));
+            std::unique_ptr<Simulator> sims[2];
+            for (int k = 0; k < 2; ++k) {
+                s["device"] = k == 0 ? "cpu" : "gpu";
+                sims[k] = std::make_unique<Simulator>(test::make_scene(s));
+                sims[k]->run();
+                ASSERT_EQ(sims[k]->trajectory().final_status, StepStatus::CONVERGED)
+                    << name << " " << k << ": " << sims[k]->trajectory().failure_message;
+            }
+            std::remove(path.c_str());
+            const Trajectory &a = sims[0]->trajectory(), &b = sims[1]->trajectory();
+            const Simulator& gpu = *sims[1];
+            const PeriodicSpec& p = gpu.scene().periodic;
+            const Positions& rest = gpu.mesh().rest_positions;
+            const double size = (rest.colwise().maxCoeff() - rest.colwise().minCoeff()).norm();
+            double dx = 0, dG = 0;
+            int kappa_differs = 0;
+            for (int k = 1; k <= b.committed(); ++k) {
+                const StepRecord &ra = a.step(k), &rb = b.step(k);
+                dx = std::max(dx, (ra.positions - rb.positions).lpNorm<Eigen::Infinity>() / size);
+                dG = std::max(dG, (ra.macro_gradient - rb.macro_gradient).lpNorm<Eigen::Infinity>());
+                kappa_differs += ra.kappa != rb.kappa;
+                const Tiling tiled = tile_cell(gpu.mesh(), p.box, p.pairing, rb.positions, rb.macro_gradient, 1);
+                EXPECT_EQ(find_intersection(build_collision_mesh(tiled.mesh, { 1 }, { 0 }), tiled.positions, true), "")
+                    << name << " step " << k;
+                EXPECT_EQ(count_inverted_elements(tiled.mesh, tiled.positions), 0) << name << " step " << k;
+            }
+            const StepRecord& last = b.step(b.committed());
+            EXPECT_GT(last.active_contacts, 0) << name;
+            EXPECT_GT(last.min_distance, 0) << name;
+            std::printf("  %-28s %d steps, %d active pairs at the end: states within %.1e of the size, G within %.1e; "
+                        "kappa differs in %d steps; Newton iterations CPU %d, GPU %d\n",
+                name.c_str(), b.committed(), last.active_contacts, dx, dG, kappa_differs, a.newton_iterations,
+                b.newton_iterations);
+            if (kappa_differs == 0) {
+                EXPECT_LE(dx, 1e-6) << name;
+                EXPECT_LE(dG, 1e-6) << name;
+            }
+        }
 }
 
 TEST(DeviceContactSimulation, FailedStepReportsTheCpuStatusAndKeepsTheCommittedState)
