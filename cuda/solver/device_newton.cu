@@ -31,6 +31,14 @@ namespace {
     constexpr double ENERGY_RESOLUTION = 1e-10;
     constexpr double EXTENSION_RATIO = 0.9;
     constexpr int MAX_EXTENSIONS = 12;
+    /// PCG's relative tolerance while a periodic cell with contact lifts its prescribed components of G.
+    /// Unlike a Dirichlet boundary's lifting, which moves boundary vertices that the rest follows over the
+    /// next iterations, a step of G moves the whole tiling and presses the posts on the next cell's at
+    /// once; only an accurate response of the fluctuation in the same step lets it through. With the loose
+    /// forcing (0.5: one block-Jacobi iteration) the response stayed local, the CCD cut every lifting step
+    /// (alpha 1e-3 .. 1e-11) and the post cell under compression ended CCD_UNRESOLVED with its residual
+    /// grown to 2.5e7 (test PeriodicCellWithContactAcrossTheBoundary; study 210 stalled at its step 19).
+    constexpr double PERIODIC_LIFTING_FORCING = 1e-6;
 
     int grid(size_t n) { return int((n + THREADS - 1) / THREADS); }
 
@@ -1064,6 +1072,8 @@ DeviceNewtonResult DeviceNewton::iterate(const std::vector<double>& inertial_tar
         if (settings.terminal_factor > 0 && result.residual > 0
             && result.residual <= settings.terminal_window * settings.residual_tolerance)
             forcing = std::min(forcing, settings.terminal_factor * settings.residual_tolerance / result.residual);
+        if (lifting && m.surface)
+            forcing = std::min(forcing, PERIODIC_LIFTING_FORCING);
         forcing = std::max(forcing, settings.forcing_min);
         // Projected Newton converges linearly where elements (or contact pairs) are strongly compressed;
         // once a full step has been accepted, the true Hessian is tried (NewtonSolver's adaptive
