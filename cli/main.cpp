@@ -95,7 +95,8 @@ int main(int argc, char** argv)
         ->check(CLI::Range(1, 1 << 30));
     sim_cmd->add_option("--device", sim_options.device,
         "cpu | gpu: where the Newton solves run, replacing the scene's \"device\" (gpu: elastic scenes, "
-        "barrier and penalty contact, lagged friction, periodic cells without contact; docs/scene_format.md "
+        "barrier and penalty contact, lagged friction, periodic cells, with contact across the boundary but no "
+        "friction across it; docs/scene_format.md "
         "\"Device\")");
     sim_cmd->add_flag("-q,--quiet", sim_options.quiet, "no progress output");
 

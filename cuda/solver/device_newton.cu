@@ -1306,8 +1306,8 @@ void DeviceNewton::set_periodic(DevicePeriodicMap* map, const std::vector<char>&
     if (!map)
         throw std::invalid_argument("DeviceNewton::set_periodic: no map");
     if (m_contact)
-        throw std::logic_error(
-            "DeviceNewton::set_periodic: contact with periodic images is not built on the device yet");
+        throw std::logic_error("DeviceNewton::set_periodic: a contact is set; a periodic cell's contact (on its image "
+                               "surface) comes after set_periodic(), by set_periodic_contact()");
     if (map->dim() != m_mesh.dim() || size_t(map->num_vertices()) * size_t(map->dim()) != m.n)
         throw std::invalid_argument("DeviceNewton::set_periodic: the map has " + std::to_string(map->num_vertices())
             + " vertices in " + std::to_string(map->dim()) + "D, the mesh " + std::to_string(m.n) + " dofs");
@@ -1379,8 +1379,8 @@ ContactBalance DeviceNewton::balance_at_periodic(const std::vector<double>& q_ho
 void DeviceNewton::set_contact(DeviceContact* contact)
 {
     if (contact && m_impl->periodic)
-        throw std::logic_error(
-            "DeviceNewton::set_contact: contact with periodic images is not built on the device yet");
+        throw std::logic_error("DeviceNewton::set_contact: a periodic cell's contact runs on its image surface: "
+                               "set_periodic_contact()");
     if (contact && size_t(contact->num_dofs()) != m_impl->n)
         throw std::invalid_argument("DeviceNewton::set_contact: the contact has " + std::to_string(contact->num_dofs())
             + " dofs, the mesh " + std::to_string(m_impl->n));

@@ -206,8 +206,8 @@ public:
     /// PeriodicCell): its unknowns are the cell's q = [w, L G], positions x = X + P q. The gradient and the
     /// Newton matrix enter as P^T g and P^T A P (ReducedOperator), the residual, the fixed mask and the
     /// lifting are q's, and the line search, the inversion bound and the energies work on X + P q, as the
-    /// CPU's PeriodicPotential does. Then only solve_periodic() solves. Contact with periodic images is
-    /// not built yet (std::logic_error with contact set; cuda/README.md, "Periodic cells on the device").
+    /// CPU's PeriodicPotential does. Then only solve_periodic() solves. Its contact (on the image surface)
+    /// is set after this by set_periodic_contact(); std::logic_error if set_contact() set one before.
     /// @param map the cell's map over the mesh's vertices (must outlive the solver)
     /// @param fixed_q map->num_reduced() flags: q's constrained entries (the pinned class, G's prescribed ones)
     /// @throws std::invalid_argument on a size or dimension mismatch

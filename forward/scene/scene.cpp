@@ -623,8 +623,8 @@ void select_device(Scene& scene, const std::string& name, const std::string& fie
             "\"gpu\" does not support " + what
                 + " yet (issue 17: the GPU path has elasticity, inertia (lumped or consistent mass), gravity, "
                   "tractions, Dirichlet "
-                  "conditions, barrier contact with obstacles and lagged friction, automatic load stepping and "
-                  "adaptive time stepping); use \"cpu\"");
+                  "conditions, barrier and penalty contact with obstacles and lagged friction, automatic load stepping "
+                  "and adaptive time stepping, periodic cells with contact across the boundary); use \"cpu\"");
     };
     bool friction = scene.friction.coefficient > 0;
     for (const BodySpec& b : scene.bodies)

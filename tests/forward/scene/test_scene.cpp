@@ -173,13 +173,14 @@ std::vector<Malformed> malformed_cases()
         { "output_misspelled_vtu_key", [](json& s) { s["output"]["vtu_encode"] = "ascii"; }, "vtu_encode" },
         { "mass_unknown", [](json& s) { s["mass"] = "heavy"; }, "mass" },
         { "device_unknown", [](json& s) { s["device"] = "tpu"; }, "device: expected \"cpu\" or \"gpu\", got \"tpu\"" },
-        { "device_gpu_with_periodic_contact",
+        { "device_gpu_with_periodic_friction",
             [](json& s) {
                 s = test::compressed_periodic_cell(3, "static");
                 s["contact"] = { { "dhat", 1e-3 } };
+                s["friction"] = { { "coefficient", 0.3 } };
                 s["device"] = "gpu";
             },
-            "device: \"gpu\" does not support periodic cells with contact" },
+            "device: \"gpu\" does not support friction across a periodic cell's boundary" },
         { "duplicate_body_name", [](json& s) { s["bodies"].push_back(s["bodies"][0]); }, "bodies[1].name" },
         { "region_max_below_min",
             [](json& s) {
