@@ -5,7 +5,7 @@ Usage: /usr/bin/python3 scripts/compare_trajectories.py A/trajectory.h5 B/trajec
 
 Per committed step: max |x_B - x_A| over the vertices, relative to the scene size (the rest bounding
 box's diagonal); for periodic cells the homogenized stress's largest difference relative to A's
-largest entry; the barrier stiffness, Newton iterations and active pairs of both. Then the worst
+largest entry; with contact the barrier stiffness and active pairs of both; Newton iterations. Then the worst
 of each. Exits with 2 if the files do not hold the same scene (vertex counts) or a step count differs.
 """
 import argparse
@@ -33,6 +33,7 @@ def main():
         rest = xa[0]
         size = float(np.linalg.norm(rest.max(axis=0) - rest.min(axis=0)))
         periodic = "macro_stress" in a and "macro_stress" in b
+        contact = all(key in f for f in (a, b) for key in ("kappa", "active_contacts"))
         worst_x, worst_stress, kappa_differs, worst_kappa = 0.0, 0.0, 0, 0.0
         for k in range(1, steps + 1):
             dx = float(np.abs(xa[k] - xb[k]).max()) / size
@@ -44,18 +45,20 @@ def main():
                 ds = float(np.abs(sa - sb).max()) / scale if scale > 0 else float(np.abs(sb).max())
                 worst_stress = max(worst_stress, ds)
                 line += f", stress {ds:.1e}"
-            ka, kb = float(a["kappa"][k - 1]), float(b["kappa"][k - 1])
-            kappa_differs += ka != kb
-            worst_kappa = max(worst_kappa, abs(ka - kb) / max(abs(ka), abs(kb), 1e-300))
-            line += (f"; kappa {ka:.3g} / {kb:.3g}; Newton {a['newton_iterations'][k - 1]} / "
-                     f"{b['newton_iterations'][k - 1]}; active pairs {a['active_contacts'][k - 1]} / "
-                     f"{b['active_contacts'][k - 1]}")
+            if contact:
+                ka, kb = float(a["kappa"][k - 1]), float(b["kappa"][k - 1])
+                kappa_differs += ka != kb
+                worst_kappa = max(worst_kappa, abs(ka - kb) / max(abs(ka), abs(kb), 1e-300))
+                line += (f"; kappa {ka:.3g} / {kb:.3g}; active pairs {a['active_contacts'][k - 1]} / "
+                         f"{b['active_contacts'][k - 1]}")
+            line += f"; Newton {a['newton_iterations'][k - 1]} / {b['newton_iterations'][k - 1]}"
             if not args.quiet:
                 print(line)
         summary = f"{steps} steps: states within {worst_x:.1e} of the size {size:.3g} m"
         if periodic:
             summary += f", homogenized stress within {worst_stress:.1e} relative"
-        summary += f"; kappa differs in {kappa_differs} steps (by up to {worst_kappa:.1e} relative)"
+        if contact:
+            summary += f"; kappa differs in {kappa_differs} steps (by up to {worst_kappa:.1e} relative)"
         print(summary)
     return 2 if xa.shape[0] != xb.shape[0] else 0
 
