@@ -31,14 +31,6 @@ namespace {
     constexpr double ENERGY_RESOLUTION = 1e-10;
     constexpr double EXTENSION_RATIO = 0.9;
     constexpr int MAX_EXTENSIONS = 12;
-    /// PCG's relative tolerance while a periodic cell with contact lifts its prescribed components of G.
-    /// Unlike a Dirichlet boundary's lifting, which moves boundary vertices that the rest follows over the
-    /// next iterations, a step of G moves the whole tiling and presses the posts on the next cell's at
-    /// once; only an accurate response of the fluctuation in the same step lets it through. With the loose
-    /// forcing (0.5: one block-Jacobi iteration) the response stayed local, the CCD cut every lifting step
-    /// (alpha 1e-3 .. 1e-11) and the post cell under compression ended CCD_UNRESOLVED with its residual
-    /// grown to 2.5e7 (test PeriodicCellWithContactAcrossTheBoundary; study 210 stalled at its step 19).
-    constexpr double PERIODIC_LIFTING_FORCING = 1e-6;
 
     int grid(size_t n) { return int((n + THREADS - 1) / THREADS); }
 
@@ -831,6 +823,25 @@ void DeviceNewton::set_consistent_mass(
 
 DeviceNewton::~DeviceNewton() { delete m_impl; }
 
+void DeviceNewton::set_lumped_mass(const std::vector<double>& lumped_mass)
+{
+    Impl& m = *m_impl;
+    if (m.consistent)
+        throw std::logic_error("DeviceNewton::set_lumped_mass: the solver has a consistent mass");
+    if (m.periodic)
+        throw std::logic_error("DeviceNewton::set_lumped_mass: not for a periodic cell");
+    if (!lumped_mass.empty() && lumped_mass.size() != m.n)
+        throw std::invalid_argument("DeviceNewton::set_lumped_mass: " + std::to_string(lumped_mass.size())
+            + " masses for " + std::to_string(m.n) + " dofs");
+    for (size_t i = 0; i < lumped_mass.size(); ++i)
+        if (!(lumped_mass[i] >= 0) || !std::isfinite(lumped_mass[i]))
+            throw std::invalid_argument(
+                "DeviceNewton::set_lumped_mass: mass " + std::to_string(i) + " is negative or not finite");
+    m.dynamic = !lumped_mass.empty();
+    if (m.dynamic)
+        m.mass.upload(lumped_mass);
+}
+
 void DeviceNewton::set_constrained(const std::vector<char>& constrained)
 {
     if (constrained.size() != m_impl->n)
@@ -1072,8 +1083,8 @@ DeviceNewtonResult DeviceNewton::iterate(const std::vector<double>& inertial_tar
         if (settings.terminal_factor > 0 && result.residual > 0
             && result.residual <= settings.terminal_window * settings.residual_tolerance)
             forcing = std::min(forcing, settings.terminal_factor * settings.residual_tolerance / result.residual);
-        if (lifting && m.surface)
-            forcing = std::min(forcing, PERIODIC_LIFTING_FORCING);
+        if (lifting)
+            forcing = std::min(forcing, settings.lifting_forcing_max);
         forcing = std::max(forcing, settings.forcing_min);
         // Projected Newton converges linearly where elements (or contact pairs) are strongly compressed;
         // once a full step has been accepted, the true Hessian is tried (NewtonSolver's adaptive

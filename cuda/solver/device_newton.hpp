@@ -100,6 +100,11 @@ struct DeviceNewtonSettings {
     /// solves tighten as the residual falls from its peak rather than from the start's.
     double forcing_max = 0.5;
     double forcing_min = 1e-12;
+    /// The relative tolerance's cap while prescribed unknowns are lifted (1: forcing_max alone). Where the
+    /// lifted step can pass only with the free unknowns' accurate response in the same iteration (a
+    /// periodic cell's G pressing its posts on the next cell's, a boundary lifted against a proximal
+    /// term), DeviceSolver sets it tight (forward/simulation/device_solver.cpp, device_settings).
+    double lifting_forcing_max = 1.0;
     /// Near convergence (a residual r within `terminal_window` times the tolerance), the relative
     /// tolerance is at most terminal_factor * residual_tolerance / r: the last step then lands about
     /// terminal_factor times the tolerance below it, as the CPU's exact (Cholesky) last step does,
@@ -158,6 +163,14 @@ public:
     ~DeviceNewton();
     DeviceNewton(const DeviceNewton&) = delete;
     DeviceNewton& operator=(const DeviceNewton&) = delete;
+
+    /// @brief Replaces the lumped masses (#dofs values, finite and >= 0; empty: the solver becomes static)
+    /// between solves. Load stepping's proximal relaxation of a static scene solves with the masses
+    /// scaled by its proximal weight and the last iterate as inertial target, then makes the solver
+    /// static again.
+    /// @throws std::invalid_argument on a size mismatch or a negative or non-finite mass;
+    ///         std::logic_error with a consistent mass (set_consistent_mass) or a periodic cell
+    void set_lumped_mass(const std::vector<double>& lumped_mass);
 
     /// @brief The consistent mass matrix M in place of the lumped masses (a dynamic solver only):
     /// scalar entries (row, col, value) of the #dofs square matrix, summed where repeated; every

@@ -108,11 +108,13 @@ struct DeviceSolver::Impl {
     std::unique_ptr<gpu::DeviceNewton> newton;
     std::unique_ptr<gpu::DevicePeriodicMap> periodic; // set_periodic()
     std::unique_ptr<gpu::DevicePeriodicMap> surface; // with contact across the cell's boundary
+    bool proximal = false; // in solve_proximal
     std::vector<double> surface_rest; // T X: the image surface's rest positions (empty without images)
     std::vector<double> rest;
     std::vector<double> x, target, inertial_target, force;
     AdaptiveState adaptive;
     double weight = 1;
+    bool dynamic = false; // made with an inertia (its masses are the integrator's)
     gpu::DeviceContactTimes profiled; // the contact's times already added to the profile
     mutable gpu::DeviceArray<double> scratch; // a host state uploaded for contacts() / min_distance()
     // The last contacts(x): the lagging at a step's end, its record and the next step's lagging ask for
@@ -220,6 +222,7 @@ DeviceSolver::DeviceSolver(const ElasticPotential& elastic, const InertiaPotenti
                 mass[size_t(v * dim + a)] = lumped[v];
     }
     m_impl->newton = std::make_unique<gpu::DeviceNewton>(m_impl->mesh, mass);
+    m_impl->dynamic = inertia != nullptr;
     if (inertia && inertia->consistent()) {
         // The consistent mass matrix (#dofs square, the mesh's element couplings) in place of the lumped one.
         const SparseMatrixd& M = inertia->consistent_matrix();
@@ -404,6 +407,19 @@ namespace {
         return s;
     }
 
+    /// The lifting's relative tolerance where a lifted step passes only with the free unknowns' accurate
+    /// response in the same iteration (DeviceNewtonSettings::lifting_forcing_max). A Dirichlet boundary's
+    /// lifting in a plain solve moves boundary vertices that the rest follows over the next iterations.
+    /// But a periodic cell's step of G moves the whole tiling and presses its posts on the next cell's
+    /// at once: with the loose forcing (0.5: one block-Jacobi iteration) the fluctuation's response stayed
+    /// local, the CCD cut every lifting step (alpha 1e-3 .. 1e-11) and the post cell under compression
+    /// ended CCD_UNRESOLVED with its residual grown to 2.5e7 (test PeriodicCellWithContactAcrossTheBoundary;
+    /// study 210 stalled at its step 19). And a proximal solve of load stepping's relaxation holds every
+    /// free vertex near its last position with an element's stiffness while the boundary is lifted to the
+    /// step's end (study 209's step 20: every proximal solve failed, from the start's weight to 1e6 times
+    /// it, where the CPU's exact solves relaxed).
+    constexpr double TIGHT_LIFTING_FORCING = 1e-6;
+
     /// The device solve's result as NewtonResult (NewtonSolver::solve's meaning of every field).
     NewtonResult host_result(const gpu::DeviceNewtonResult& r)
     {
@@ -449,7 +465,9 @@ NewtonResult DeviceSolver::solve_periodic(VectorXd& q, const VectorXd& target, c
     double weight, const VectorXd& force, double force_scale, double step_scale, const NewtonSettings& settings)
 {
     Impl& d = *m_impl;
-    const gpu::DeviceNewtonSettings s = device_settings(settings, d.friction.get(), d.contact.get());
+    gpu::DeviceNewtonSettings s = device_settings(settings, d.friction.get(), d.contact.get());
+    if (d.surface) // contact across the cell's boundary
+        s.lifting_forcing_max = TIGHT_LIFTING_FORCING;
     d.set_terms(weight, inertial_target, force);
     std::vector<double> q_host(q.data(), q.data() + q.size());
     const gpu::DeviceNewtonResult r
@@ -467,7 +485,9 @@ NewtonResult DeviceSolver::solve(VectorXd& x, const VectorXd& inertial_target, d
     const VectorXd& target, double force_scale, double step_scale, const NewtonSettings& settings)
 {
     Impl& d = *m_impl;
-    const gpu::DeviceNewtonSettings s = device_settings(settings, d.friction.get(), d.contact.get());
+    gpu::DeviceNewtonSettings s = device_settings(settings, d.friction.get(), d.contact.get());
+    if (d.proximal)
+        s.lifting_forcing_max = TIGHT_LIFTING_FORCING;
     d.set_terms(weight, inertial_target, force);
     d.x.assign(x.data(), x.data() + x.size());
     d.target.assign(target.data(), target.data() + target.size());
@@ -489,6 +509,34 @@ NewtonResult DeviceSolver::solve(VectorXd& x, const VectorXd& inertial_target, d
     if (result.status == StepStatus::CONVERGED)
         x = Eigen::Map<const VectorXd>(d.x.data(), Index(d.x.size()));
     return result;
+}
+
+NewtonResult DeviceSolver::solve_proximal(VectorXd& x, const VectorXd& center, double proximal_weight,
+    const VectorXd& lumped_masses, double weight, const VectorXd& force, const VectorXd& target, double force_scale,
+    double step_scale, const NewtonSettings& settings)
+{
+    Impl& d = *m_impl;
+    if (d.dynamic)
+        throw std::logic_error("DeviceSolver::solve_proximal: a dynamic scene's inertia is its integrator's");
+    const int dim = d.mesh.dim();
+    if (lumped_masses.size() * Index(dim) != x.size())
+        throw std::invalid_argument("DeviceSolver::solve_proximal: " + std::to_string(lumped_masses.size())
+            + " masses for " + std::to_string(x.size()) + " dofs in " + std::to_string(dim) + "D");
+    std::vector<double> mass(size_t(x.size()));
+    for (Index i = 0; i < x.size(); ++i)
+        mass[size_t(i)] = proximal_weight * lumped_masses[i / dim];
+    d.newton->set_lumped_mass(mass);
+    d.proximal = true;
+    struct Static { // the device is static again however the solve ends
+        Impl& d;
+        ~Static()
+        {
+            d.newton->set_lumped_mass({});
+            d.proximal = false;
+        }
+    } restore { d };
+    ++m_proximal_solves;
+    return solve(x, center, weight, force, target, force_scale, step_scale, settings);
 }
 
 bool DeviceSolver::solve_adjoint(
@@ -542,6 +590,12 @@ DeviceSolver::~DeviceSolver() = default;
 
 NewtonResult DeviceSolver::solve(
     VectorXd&, const VectorXd&, double, const VectorXd&, const VectorXd&, double, double, const NewtonSettings&)
+{
+    return {};
+}
+
+NewtonResult DeviceSolver::solve_proximal(VectorXd&, const VectorXd&, double, const VectorXd&, double, const VectorXd&,
+    const VectorXd&, double, double, const NewtonSettings&)
 {
     return {};
 }

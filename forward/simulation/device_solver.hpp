@@ -62,9 +62,9 @@ public:
     /// @param elastic      the scene's elastic potential (its mesh, models and Lame parameters)
     /// @param inertia      the lumped masses, or nullptr for a static scene (no inertial term)
     /// @param constrained  #dofs Dirichlet flags
-    /// @param contact      the scene's contact potential (barrier model, no periodic images), or nullptr
-    /// @throws InputError naming "device" when this build has no CUDA or no GPU is present, or the
-    ///         contact is one the device does not have (periodic images)
+    /// @param contact      the scene's contact potential (with periodic images: set_periodic() gives
+    ///                     the device its image surface's map), or nullptr
+    /// @throws InputError naming "device" when this build has no CUDA or no GPU is present
     DeviceSolver(const ElasticPotential& elastic, const InertiaPotential* inertia, const std::vector<char>& constrained,
         const ContactPotential* contact = nullptr);
     ~DeviceSolver();
@@ -80,10 +80,21 @@ public:
     NewtonResult solve(VectorXd& x, const VectorXd& inertial_target, double weight, const VectorXd& force,
         const VectorXd& target, double force_scale, double step_scale, const NewtonSettings& settings);
 
+    /// @brief A proximal solve of load stepping's relaxation (Simulator::relax_to_equilibrium) in a static
+    /// scene: solve()'s problem plus (proximal_weight / 2) |x - center|_M^2 with the lumped masses M
+    /// (per vertex), as the CPU's Problem with the inertia potential weighted proximal_weight. The device
+    /// is static again afterwards. Counted by proximal_solves().
+    /// @throws std::logic_error for a dynamic scene's solver (its inertia is the integrator's)
+    NewtonResult solve_proximal(VectorXd& x, const VectorXd& center, double proximal_weight,
+        const VectorXd& lumped_masses, double weight, const VectorXd& force, const VectorXd& target, double force_scale,
+        double step_scale, const NewtonSettings& settings);
+    /// Proximal solves on the device so far (solve_proximal).
+    long proximal_solves() const { return m_proximal_solves; }
+
     /// @brief Makes the device solve a periodic cell's steps (a DevicePeriodicMap of the cell's classes,
     /// q's constrained entries; cuda/solver/device_newton.hpp, set_periodic): then solve_periodic()
-    /// solves, not solve(). Contact across the cell's boundary is not on the device (the constructor
-    /// refuses it).
+    /// solves, not solve(). With contact, the contact runs on the image surface (cuda/README.md,
+    /// "Periodic cells on the device").
     /// @param image_classes with contact across the cell's boundary: the class of each image surface
     ///        vertex's source (ContactImages::source), the surface's own periodic map (empty: no contact)
     void set_periodic(const PeriodicCell& cell, const std::vector<int>& image_classes = {});
@@ -170,6 +181,7 @@ private:
     const ContactPotential* m_cpu_contact = nullptr;
     int m_last_pcg_iterations = 0;
     long m_total_pcg_iterations = 0;
+    long m_proximal_solves = 0;
     mutable ContactProfile m_profile;
 };
 

@@ -62,8 +62,9 @@ NewtonResult Simulator::solve_in_substeps(int k, const NewtonSolver& newton, dou
         h *= a.cut;
         if (h < a.min_increment * (1 - 1e-12)) {
             why = substeps_exhausted("automatic load stepping", record.substeps, t, k, ts, r.status);
-            // Past a limit point: displacement control, then relaxation from where it got to (or
-            // from the last sub-step), on the CPU's Newton in either run.
+            // Past a limit point: displacement control (on the CPU's Newton in either run), then
+            // relaxation from where it got to (or from the last sub-step), on the device in a GPU run
+            // where it can (relaxation_on_device).
             struct OnCpu {
                 Simulator& sim;
                 explicit OnCpu(Simulator& s)
@@ -72,13 +73,19 @@ NewtonResult Simulator::solve_in_substeps(int k, const NewtonSolver& newton, dou
                     sim.hand_contact_to_cpu();
                 }
                 ~OnCpu() { sim.hand_contact_to_device(); }
-            } on_cpu(*this);
+            };
             for (const bool control : { true, false }) {
                 if (!(control ? a.displacement_control : a.relaxation))
                     continue;
                 std::string note;
-                NewtonResult c = control ? pass_limit_point(k, newton, step_scale, t, committed, r, record, total, note)
-                                         : relax_to_equilibrium(k, newton, step_scale, committed, record, total, note);
+                NewtonResult c;
+                if (control || !relaxation_on_device()) {
+                    const OnCpu on_cpu(*this);
+                    c = control ? pass_limit_point(k, newton, step_scale, t, committed, r, record, total, note)
+                                : relax_to_equilibrium(k, newton, step_scale, committed, record, total, note);
+                } else {
+                    c = relax_to_equilibrium(k, newton, step_scale, committed, record, total, note);
+                }
                 if (c.status == StepStatus::CONVERGED) {
                     // Its last solve took the load from t to t_k.
                     record.min_increment = std::min(record.min_increment, t1 - t);
@@ -127,6 +134,8 @@ NewtonResult Simulator::solve_current(
             step_scale, newton.settings());
     return newton.solve(y, target, m_constrained, w * m_force_scale, step_scale);
 }
+
+bool Simulator::relaxation_on_device() const { return m_device && !m_periodic && !m_inertia->consistent(); }
 
 double Simulator::solve_kappa() const
 {
@@ -331,16 +340,25 @@ NewtonResult Simulator::relax_to_equilibrium(int k, const NewtonSolver& newton, 
     double threshold = 1e3 * m_scene.solver.residual_tolerance;
     NewtonResult last;
     last.status = StepStatus::NEWTON_EXHAUSTED;
+    // In a GPU run the solves run on the device (its proximal term the CPU's: DeviceSolver::solve_proximal),
+    // unless the caller handed the contact to the CPU (relaxation_on_device).
+    const bool on_device = m_device && !m_fallback_on_cpu;
     while (record.relaxation_steps < MAX_RELAXATION_STEPS) {
-        const double kappa = m_contact ? m_contact->kappa() : 0.0;
+        const double kappa = solve_kappa();
         m_problem.set_weight(m_inertia.get(), plain ? 0.0 : w * c);
         m_inertia->set_target(x);
         restart_friction(x, m_scene.time.dt);
         VectorXd y = x;
-        last = (plain ? newton : proximal_newton).solve(y, target, m_constrained, w * m_force_scale, step_scale);
+        if (on_device && !plain)
+            last = m_device->solve_proximal(y, x, w * c, mass, w, m_external->force(), target, w * m_force_scale,
+                step_scale, proximal_newton.settings());
+        else if (on_device)
+            last = solve_current(newton, y, target, w, step_scale, true);
+        else
+            last = (plain ? newton : proximal_newton).solve(y, target, m_constrained, w * m_force_scale, step_scale);
         total.add_costs(last);
         if (plain)
-            last = relag_friction(newton, w, step_scale, target, y, last, total);
+            last = relag_friction(newton, w, step_scale, target, y, last, total, on_device);
         if (last.status == StepStatus::CONVERGED && plain) {
             x = std::move(y);
             ++record.substeps;
@@ -348,7 +366,7 @@ NewtonResult Simulator::relax_to_equilibrium(int k, const NewtonSolver& newton, 
         }
         if (last.status != StepStatus::CONVERGED) {
             if (m_contact)
-                m_contact->set_kappa(kappa);
+                restore_kappa(kappa);
             ++record.cuts;
             if (plain) {
                 ++plain_tries;

@@ -38,7 +38,9 @@ struct ContactComparison {
     double max_kappa = 0; ///< the CPU run's largest kappa
     int kappa_differs = 0; ///< steps whose kappa differs between the paths
     int gpu_substeps = 0; ///< load-stepping sub-steps of the GPU run
-    int gpu_fallbacks = 0; ///< its displacement-control and relaxation solves (on the CPU's Newton)
+    int gpu_fallbacks = 0; ///< its displacement-control and relaxation solves
+    int gpu_relaxation = 0; ///< of which relaxation solves
+    long gpu_proximal_solves = 0; ///< proximal solves on the device (DeviceSolver::proximal_solves)
     int intersecting[2] = { 0, 0 }; ///< penalty: committed states with intersecting surfaces (CPU, GPU run)
 };
 
@@ -75,6 +77,7 @@ ContactComparison run_both(json s, const std::string& name, double tolerance, co
     const double dmin = contact.settings().min_distance;
     ContactComparison c;
     c.steps = std::min(a.committed(), b.committed());
+    c.gpu_proximal_solves = gpu.device_solver()->proximal_solves();
     int mismatched_sets = 0;
     for (int k = 1; k <= c.steps; ++k) {
         const StepRecord& ra = a.step(k);
@@ -87,6 +90,7 @@ ContactComparison run_both(json s, const std::string& name, double tolerance, co
         c.kappa_differs += ra.kappa != rb.kappa;
         c.gpu_substeps += rb.substeps;
         c.gpu_fallbacks += rb.control_steps + rb.relaxation_steps;
+        c.gpu_relaxation += rb.relaxation_steps;
         // Independent checks of the GPU's committed state (CPU code, not the GPU's).
         const VectorXd& x = rb.positions;
         if (!penalty) {
@@ -348,27 +352,36 @@ TEST(DeviceContactSimulation, LoadSteppingPastALimitPointWithContact)
     // The shallow arch of LoadStepping.DisplacementControlPassesASnapThroughThatSubstepsCannot snaps
     // through in step 3 onto a stop (a segment under its apex, an obstacle mesh), with at most 8 Newton
     // iterations per solve: load stepping's sub-steps (on the device) reach the limit point, then
-    // displacement control and relaxation (on the CPU's Newton, the contact's kappa handed over and
-    // back, with the adaptive kappa also its rule) carry the step to its end on the stop. Both paths must
-    // end on the same equilibria (asserted where their kappas agree, as in run_both).
+    // displacement control (on the CPU's Newton, the contact's kappa handed over and back, with the
+    // adaptive kappa also its rule) and relaxation (on the device: DeviceSolver::solve_proximal) carry
+    // the step to its end on the stop; without displacement control, relaxation alone (as
+    // LoadStepping.RelaxationPassesASnapThroughToo), all on the device. Both paths must end on the same
+    // equilibria (asserted where their kappas agree, as in run_both).
     const std::filesystem::path directory = std::filesystem::temp_directory_path() / "diffipc_arch_on_a_stop";
     std::filesystem::create_directories(directory);
     {
         std::ofstream obj(directory / "stop.obj");
         obj << "v -0.3 0.94 0\nv 0.3 0.94 0\nl 1 2\n";
     }
-    json s = test::shallow_arch(4, 8, true);
-    s["obstacles"] = { { { "name", "stop" }, { "mesh", { { "file", "stop.obj" } } } } };
-    for (const bool adaptive_kappa : { false, true }) {
-        s["contact"]["kappa"] = adaptive_kappa ? json("adaptive") : json(1e5);
-        const ContactComparison c
-            = run_both(s, std::string("arch snapping onto a stop, kappa ") + (adaptive_kappa ? "adaptive" : "1e5"),
-                1e-6, directory.string());
-        EXPECT_GT(c.gpu_fallbacks, 0) << "the GPU run did not reach the CPU fallbacks";
-        std::printf("  arch on a stop, kappa %s: %d load-stepping sub-steps on the GPU, %d displacement-control and "
-                    "relaxation solves on the CPU\n",
-            adaptive_kappa ? "adaptive" : "1e5", c.gpu_substeps, c.gpu_fallbacks);
-    }
+    for (const bool control : { true, false })
+        for (const bool adaptive_kappa : { false, true }) {
+            json s = control ? test::shallow_arch(4, 8, true)
+                             : test::shallow_arch(4, 8, { { "displacement_control", false } });
+            s["obstacles"] = { { { "name", "stop" }, { "mesh", { { "file", "stop.obj" } } } } };
+            s["contact"]["kappa"] = adaptive_kappa ? json("adaptive") : json(1e5);
+            const std::string name = std::string("arch snapping onto a stop, ") + (control ? "" : "relaxation only, ")
+                + "kappa " + (adaptive_kappa ? "adaptive" : "1e5");
+            const ContactComparison c = run_both(s, name, 1e-6, directory.string());
+            EXPECT_GT(c.gpu_fallbacks, 0) << name << ": the GPU run did not reach the limit point's fallbacks";
+            if (!control) {
+                EXPECT_GT(c.gpu_relaxation, 0) << name;
+                EXPECT_GT(c.gpu_proximal_solves, 0) << name << ": the relaxation did not run on the device";
+            }
+            std::printf("  %s: %d load-stepping sub-steps on the GPU, %d displacement-control (on the CPU) and %d "
+                        "relaxation solves (%ld proximal solves on the device)\n",
+                name.c_str(), c.gpu_substeps, c.gpu_fallbacks - c.gpu_relaxation, c.gpu_relaxation,
+                c.gpu_proximal_solves);
+        }
 }
 
 TEST(DeviceContactSimulation, AdaptiveTimeSteppingOfDynamicScenes)
