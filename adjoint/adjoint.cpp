@@ -263,8 +263,10 @@ void AdjointSweep::Impl::factorize(int k, int j, const VectorXd& x)
     if (a.step == k && a.substep == j)
         return;
     a.step = -1;
-    Timer ta;
+    Timer tsetup;
     const Problem& problem = j == 0 ? sim.step_problem(k) : sim.substep_problem(k, j);
+    tsetup.add_to(st.setup_time);
+    Timer ta;
     if (const PeriodicCell* cell = sim.periodic()) {
         problem.hessian(x, false, a.assembler());
         // The system in the cell's unknowns: P^T H P, its constrained entries replaced by identity rows.
@@ -334,6 +336,7 @@ AdjointSweep::AdjointSweep(Simulator& sim, const ParameterRequest& request)
     Timer total;
     check_sweep(sim, request);
     m = std::make_unique<Impl>(sim, request, nullptr);
+    total.add_to(m->st.setup_time);
     total.add_to(m->st.total_time);
 }
 
@@ -344,6 +347,7 @@ AdjointSweep::AdjointSweep(Simulator& sim, const ParameterRequest& request, cons
         throw std::logic_error("AdjointSweep: a shared step system must come from a sweep over the same simulator");
     check_sweep(sim, request);
     m = std::make_unique<Impl>(sim, request, share_with.m->system);
+    total.add_to(m->st.setup_time);
     total.add_to(m->st.total_time);
 }
 
@@ -476,6 +480,7 @@ void AdjointSweep::Impl::sweep_state(int k, int j, const VectorXd& x, double tim
         factorize(k, j, x);
         Timer ts;
         VectorXd lambda, device_coupling;
+        int pcg_iterations = 0;
         if (const PeriodicCell* cell = sim.periodic()) {
             // dJ/dq = P^T dJ/dx on q's free entries; the full-space adjoint is P lambda_q.
             const std::vector<char>& fixed = cell->constrained();
@@ -498,7 +503,7 @@ void AdjointSweep::Impl::sweep_state(int k, int j, const VectorXd& x, double tim
             }
         } else if (system->on_device
             && (system->factorized
-                || !sim.device_solver()->solve_adjoint(x, system->weight, rhs, lambda, nullptr,
+                || !sim.device_solver()->solve_adjoint(x, system->weight, rhs, lambda, &pcg_iterations,
                     sim.contact() ? sim.contact()->kappa() : 0.0, &device_coupling))) {
             // The device's PCG did not converge (a true Hessian that is not positive definite):
             // the CPU's assembly and factorization with its LDL^T fallback.
@@ -513,6 +518,7 @@ void AdjointSweep::Impl::sweep_state(int k, int j, const VectorXd& x, double tim
             lambda = system->linear.solve(rhs);
         }
         ts.add_to(st.solve_time);
+        st.device_pcg_iterations += pcg_iterations;
         if (!lambda.allFinite())
             throw AdjointError("no gradient: non-finite adjoint at step " + std::to_string(k));
         for (Index i = 0; i < n; ++i)
@@ -719,6 +725,8 @@ std::vector<ParameterGradient> adjoint_gradients(
         total.parameter_time += s.parameter_time;
         total.factorization_time += s.factorization_time;
         total.solve_time += s.solve_time;
+        total.setup_time += s.setup_time;
+        total.device_pcg_iterations += s.device_pcg_iterations;
         total.total_time += s.total_time;
         total.steps += s.steps;
         total.peak_adjoint_bytes += s.peak_adjoint_bytes;

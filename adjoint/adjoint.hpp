@@ -33,7 +33,11 @@ struct AdjointStatistics {
     double assembly_time = 0; ///< Hessians and parameter derivatives (s)
     double parameter_time = 0; ///< of which parameter derivatives, history and friction terms (s)
     double factorization_time = 0; ///< s
-    double solve_time = 0; ///< triangular solves (s)
+    double solve_time = 0; ///< triangular solves (s); in a GPU run the device's PCG solves
+    /// The sweep's set-up and each step's problem (Simulator::step_problem: inertial target, forces,
+    /// contact and friction data) (s)
+    double setup_time = 0;
+    long device_pcg_iterations = 0; ///< PCG iterations of the device's adjoint solves (GPU runs)
     double total_time = 0; ///< s
     int steps = 0; ///< adjoint systems solved
     /// Peak bytes of the adjoint state vectors dJ/dx_k, dJ/dv_k, dJ/da_k held at once
