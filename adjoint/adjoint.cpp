@@ -479,6 +479,7 @@ void AdjointSweep::Impl::sweep_state(int k, int j, const VectorXd& x, double tim
     if (!rhs.isZero(0.0)) {
         factorize(k, j, x);
         Timer ts;
+        double fallback_time = 0; // the CPU fallback's set-up, assembly and factorization (timed on their own)
         VectorXd lambda, device_coupling;
         int pcg_iterations = 0;
         if (const PeriodicCell* cell = sim.periodic()) {
@@ -508,16 +509,21 @@ void AdjointSweep::Impl::sweep_state(int k, int j, const VectorXd& x, double tim
             // The device's PCG did not converge (a true Hessian that is not positive definite):
             // the CPU's assembly and factorization with its LDL^T fallback.
             if (!system->factorized) {
+                Timer tf;
+                Timer tsetup;
+                const Problem& problem = j == 0 ? sim.step_problem(k) : sim.substep_problem(k, j);
+                tsetup.add_to(st.setup_time);
                 Timer ta;
-                assemble_on_cpu(j == 0 ? sim.step_problem(k) : sim.substep_problem(k, j), x);
+                assemble_on_cpu(problem, x);
                 ta.add_to(st.assembly_time);
                 factorize_on_cpu(k);
+                fallback_time = tf.seconds();
             }
             lambda = system->linear.solve(rhs);
         } else if (!system->on_device) {
             lambda = system->linear.solve(rhs);
         }
-        ts.add_to(st.solve_time);
+        st.solve_time += ts.seconds() - fallback_time;
         st.device_pcg_iterations += pcg_iterations;
         if (!lambda.allFinite())
             throw AdjointError("no gradient: non-finite adjoint at step " + std::to_string(k));

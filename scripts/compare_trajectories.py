@@ -3,8 +3,8 @@
 
 Usage: /usr/bin/python3 scripts/compare_trajectories.py A/trajectory.h5 B/trajectory.h5 [--quiet]
 
-Per committed step: max |x_B - x_A| over the vertices, relative to the scene size (the rest bounding
-box's diagonal); for periodic cells the homogenized stress's largest difference relative to A's
+Per committed step: max |x_B - x_A| over the vertices, relative to the scene size (the diagonal of
+the bounding box of A's initial positions); for periodic cells the homogenized stress's largest difference relative to A's
 largest entry; with contact the barrier stiffness and active pairs of both; Newton iterations. Then the worst
 of each. Exits with 2 if the files do not hold the same scene (vertex counts) or a step count differs.
 """

@@ -1,8 +1,10 @@
 #pragma once
 /// @file reduced_operator.hpp
 /// A periodic cell's Newton matrix in its reduced unknowns, P^T A P (forward/periodic/periodic_potential.hpp
-/// on the CPU), as a DeviceLinearOperator that DevicePCG solves with: A is the full-space operator (the
-/// elastic BSR matrix, or the SumOperator with contact), P the cell's map (device_periodic_map.hpp).
+/// on the CPU), as a DeviceLinearOperator that DevicePCG solves with: A is a full-space operator, P a
+/// periodic map (device_periodic_map.hpp). Without contact A is the elastic matrix and P the cell's map;
+/// with contact across the boundary DeviceNewton sums two (OperatorSum): P^T H P and P_s^T C P_s, the
+/// contact's Hessian C on the image surface with the surface's own map P_s.
 /// q's blocks are the classes' fluctuations (C blocks of dim), then the macro gradient's rows (dim blocks
 /// of dim: L G(i, 0 .. dim - 1)).
 ///
@@ -11,8 +13,10 @@
 ///
 /// The diagonal blocks, for the block-Jacobi preconditioner:
 /// - a class's block is the sum of its vertices' diagonal blocks of A. The exact block also has A's blocks
-///   between two vertices of the class, which exist only where an element joins two copies of one vertex
-///   (a cell one element thick across a periodic axis); there the preconditioner is that approximation.
+///   between two vertices of the class, which exist where an element joins two copies of one vertex (a
+///   cell one element thick across a periodic axis) or, for P_s^T C P_s, where a contact pair joins a
+///   vertex and an image of it; there the preconditioner is that approximation (PCG's iterations, not
+///   its solution, depend on it).
 /// - a macro row's block is exact: each of its dim columns is a product P^T A P e, dim^2 products in all.
 ///
 /// DeviceNewton's periodic mode (set_periodic) uses it.

@@ -556,14 +556,22 @@ struct DeviceNewton::Impl {
         if (x_host.size() != n || force.size() != n || (dynamic && inertial_target.size() != n))
             throw std::invalid_argument(std::string("DeviceNewton::") + who
                 + ": x, inertial_target and force need #dofs = " + std::to_string(n) + " entries");
-        contact = with_contact;
         x.upload(x_host);
+        take_terms(with_contact, inertial_target, weight, force);
+        activate_at_x();
+    }
+
+    /// A solve's (or a balance's) terms: the contact in use, the inertial target (dynamic), the weight
+    /// and the external force; the active set is then stale.
+    void take_terms(DeviceContact* with_contact, const std::vector<double>& inertial_target, double weight,
+        const std::vector<double>& force)
+    {
+        contact = with_contact;
         if (dynamic)
             xt.upload(inertial_target);
         f.upload(force);
         w = weight;
         active_current = false;
-        activate_at_x();
     }
 
     /// Builds the contact's active set at the iterate x (if there is contact and it is not current).
@@ -837,9 +845,9 @@ void DeviceNewton::set_lumped_mass(const std::vector<double>& lumped_mass)
         if (!(lumped_mass[i] >= 0) || !std::isfinite(lumped_mass[i]))
             throw std::invalid_argument(
                 "DeviceNewton::set_lumped_mass: mass " + std::to_string(i) + " is negative or not finite");
+    if (!lumped_mass.empty())
+        m.mass.upload(lumped_mass); // before the flag: a failed upload leaves the solver as it was
     m.dynamic = !lumped_mass.empty();
-    if (m.dynamic)
-        m.mass.upload(lumped_mass);
 }
 
 void DeviceNewton::set_constrained(const std::vector<char>& constrained)
@@ -930,11 +938,12 @@ namespace {
         if (!(settings.residual_tolerance >= 0) || settings.max_iterations < 0 || settings.line_search_max_halvings < 0
             || !(settings.forcing_max > 0) || !(settings.forcing_min > 0) || settings.forcing_min > settings.forcing_max
             || !(settings.inversion_keep >= 0 && settings.inversion_keep < 1) || settings.pcg_max_iterations < 0
-            || !(settings.max_displacement >= 0) || !(settings.terminal_factor >= 0)
-            || !(settings.terminal_window >= 1))
+            || !(settings.max_displacement >= 0) || !(settings.terminal_factor >= 0) || !(settings.terminal_window >= 1)
+            || !(settings.lifting_forcing_max > 0))
             throw std::invalid_argument(std::string("DeviceNewton::") + who
-                + ": invalid settings (tolerances >= 0, 0 < forcing_min <= forcing_max, 0 <= inversion_keep < 1, "
-                  "counts >= 0, max_displacement >= 0, terminal_factor >= 0, terminal_window >= 1)");
+                + ": invalid settings (tolerances >= 0, 0 < forcing_min <= forcing_max, 0 < lifting_forcing_max, "
+                  "0 <= inversion_keep < 1, counts >= 0, max_displacement >= 0, terminal_factor >= 0, "
+                  "terminal_window >= 1)");
     }
 
 } // namespace
@@ -996,12 +1005,7 @@ DeviceNewtonResult DeviceNewton::iterate(const std::vector<double>& inertial_tar
     Impl& m = *m_impl;
     const size_t n = m.n;
     const double w = weight;
-    if (m.dynamic)
-        m.xt.upload(inertial_target);
-    m.f.upload(force);
-    m.contact = m_contact;
-    m.active_current = false;
-    m.w = weight;
+    m.take_terms(m_contact, inertial_target, weight, force);
     m.bind_unknowns(m_contact);
     // The unknowns: the positions, or a periodic cell's q (Impl's u_ accessors).
     const size_t nu = m.nu();
@@ -1377,12 +1381,7 @@ ContactBalance DeviceNewton::balance_at_periodic(const std::vector<double>& q_ho
             + " unknowns, force and inertial_target #dofs = " + std::to_string(m.n));
     m.q.upload(q_host);
     m.expand_state(m.q, m.x);
-    if (m.dynamic)
-        m.xt.upload(inertial_target);
-    m.f.upload(force);
-    m.w = weight;
-    m.contact = m_contact;
-    m.active_current = false;
+    m.take_terms(m_contact, inertial_target, weight, force);
     m.activate_at_x();
     return m.balance(m_mesh, weight);
 }

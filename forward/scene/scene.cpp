@@ -626,9 +626,13 @@ void select_device(Scene& scene, const std::string& name, const std::string& fie
                   "conditions, barrier and penalty contact with obstacles and lagged friction, automatic load stepping "
                   "and adaptive time stepping, periodic cells with contact across the boundary); use \"cpu\"");
     };
-    bool friction = scene.friction.coefficient > 0;
+    // The effective coefficients, as Simulator::setup_friction takes them (< 0: the global one).
+    bool friction = false;
+    const auto effective = [&](double own) { return own >= 0 ? own : scene.friction.coefficient; };
     for (const BodySpec& b : scene.bodies)
-        friction = friction || b.friction_coefficient > 0;
+        friction = friction || effective(b.friction_coefficient) > 0;
+    for (const ObstacleSpec& o : scene.obstacles)
+        friction = friction || effective(o.friction_coefficient) > 0;
     if (scene.periodic.enabled && scene.contact.enabled && friction)
         refuse("friction across a periodic cell's boundary");
     scene.device = DeviceType::GPU;

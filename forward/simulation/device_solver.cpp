@@ -272,6 +272,8 @@ void DeviceSolver::begin_step(double kappa, const AdaptiveKappa& adaptive, const
     d.weight = weight;
     if (!adaptive.enabled)
         return;
+    if (d.surface && !q)
+        throw std::logic_error("DeviceSolver::begin_step: a periodic cell with contact balances at its unknowns q");
     const std::vector<double> xt
         = inertial_target.size() == x.size() ? to_std(inertial_target) : std::vector<double>(size_t(x.size()), 0.0);
     const gpu::ContactBalance b = d.surface ? d.newton->balance_at_periodic(to_std(*q), xt, weight, to_std(force))
@@ -474,8 +476,7 @@ NewtonResult DeviceSolver::solve_periodic(VectorXd& q, const VectorXd& target, c
         = d.newton->solve_periodic(q_host, std::vector<double>(target.data(), target.data() + target.size()),
             d.inertial_target, weight, d.force, force_scale, step_scale, s);
     NewtonResult result = host_result(r);
-    m_last_pcg_iterations = r.pcg_iterations;
-    m_total_pcg_iterations += r.pcg_iterations;
+    account(r);
     if (result.status == StepStatus::CONVERGED)
         q = Eigen::Map<const VectorXd>(q_host.data(), q.size());
     return result;
@@ -485,6 +486,9 @@ NewtonResult DeviceSolver::solve(VectorXd& x, const VectorXd& inertial_target, d
     const VectorXd& target, double force_scale, double step_scale, const NewtonSettings& settings)
 {
     Impl& d = *m_impl;
+    if (!d.surface_rest.empty())
+        throw std::logic_error("DeviceSolver::solve: a periodic cell's contact (on its image surface) solves through "
+                               "set_periodic() and solve_periodic()");
     gpu::DeviceNewtonSettings s = device_settings(settings, d.friction.get(), d.contact.get());
     if (d.proximal)
         s.lifting_forcing_max = TIGHT_LIFTING_FORCING;
@@ -494,21 +498,27 @@ NewtonResult DeviceSolver::solve(VectorXd& x, const VectorXd& inertial_target, d
     const gpu::DeviceNewtonResult r
         = d.newton->solve(d.x, d.inertial_target, weight, d.force, d.target, force_scale, step_scale, s);
     NewtonResult result = host_result(r);
-    m_last_pcg_iterations = r.pcg_iterations;
-    m_total_pcg_iterations += r.pcg_iterations;
-    if (d.contact) {
-        // Times since begin_step() (which resets them), added once per step after its solve.
-        const gpu::DeviceContactTimes& t = d.contact->times();
-        m_profile.active_sets += t.active_sets - d.profiled.active_sets;
-        m_profile.energies += t.energies - d.profiled.energies;
-        m_profile.active_set_count += t.active_set_count - d.profiled.active_set_count;
-        m_profile.energy_count += t.energy_count - d.profiled.energy_count;
-        m_profile.max_active = std::max(m_profile.max_active, d.contact->num_active());
-        d.profiled = t;
-    }
+    account(r);
     if (result.status == StepStatus::CONVERGED)
         x = Eigen::Map<const VectorXd>(d.x.data(), Index(d.x.size()));
     return result;
+}
+
+void DeviceSolver::account(const gpu::DeviceNewtonResult& r)
+{
+    Impl& d = *m_impl;
+    m_last_pcg_iterations = r.pcg_iterations;
+    m_total_pcg_iterations += r.pcg_iterations;
+    if (!d.contact)
+        return;
+    // Times since begin_step() (which resets them), added after each solve.
+    const gpu::DeviceContactTimes& t = d.contact->times();
+    m_profile.active_sets += t.active_sets - d.profiled.active_sets;
+    m_profile.energies += t.energies - d.profiled.energies;
+    m_profile.active_set_count += t.active_set_count - d.profiled.active_set_count;
+    m_profile.energy_count += t.energy_count - d.profiled.energy_count;
+    m_profile.max_active = std::max(m_profile.max_active, d.contact->num_active());
+    d.profiled = t;
 }
 
 NewtonResult DeviceSolver::solve_proximal(VectorXd& x, const VectorXd& center, double proximal_weight,
@@ -519,14 +529,15 @@ NewtonResult DeviceSolver::solve_proximal(VectorXd& x, const VectorXd& center, d
     if (d.dynamic)
         throw std::logic_error("DeviceSolver::solve_proximal: a dynamic scene's inertia is its integrator's");
     const int dim = d.mesh.dim();
-    if (lumped_masses.size() * Index(dim) != x.size())
+    if (lumped_masses.size() * Index(dim) != x.size() || center.size() != x.size())
         throw std::invalid_argument("DeviceSolver::solve_proximal: " + std::to_string(lumped_masses.size())
-            + " masses for " + std::to_string(x.size()) + " dofs in " + std::to_string(dim) + "D");
+            + " masses and a centre of " + std::to_string(center.size()) + " entries for " + std::to_string(x.size())
+            + " dofs in " + std::to_string(dim) + "D");
+    if (!(proximal_weight > 0) || !std::isfinite(proximal_weight))
+        throw std::invalid_argument("DeviceSolver::solve_proximal: the proximal weight must be positive and finite");
     std::vector<double> mass(size_t(x.size()));
     for (Index i = 0; i < x.size(); ++i)
         mass[size_t(i)] = proximal_weight * lumped_masses[i / dim];
-    d.newton->set_lumped_mass(mass);
-    d.proximal = true;
     struct Static { // the device is static again however the solve ends
         Impl& d;
         ~Static()
@@ -535,6 +546,8 @@ NewtonResult DeviceSolver::solve_proximal(VectorXd& x, const VectorXd& center, d
             d.proximal = false;
         }
     } restore { d };
+    d.newton->set_lumped_mass(mass);
+    d.proximal = true;
     ++m_proximal_solves;
     return solve(x, center, weight, force, target, force_scale, step_scale, settings);
 }

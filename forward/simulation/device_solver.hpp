@@ -44,6 +44,10 @@
 
 namespace diffipc {
 
+namespace gpu {
+    struct DeviceNewtonResult;
+}
+
 #ifdef DIFFIPC_HAVE_CUDA
 /// The CPU's CollisionMesh in cuda/broad_phase's plain arrays (field for field).
 gpu::CollisionMeshData to_device(const CollisionMesh& mesh);
@@ -181,6 +185,8 @@ private:
     const ContactPotential* m_cpu_contact = nullptr;
     int m_last_pcg_iterations = 0;
     long m_total_pcg_iterations = 0;
+    /// After a solve: its PCG iterations, and the contact's times since the last solve into the profile.
+    void account(const gpu::DeviceNewtonResult& r);
     long m_proximal_solves = 0;
     mutable ContactProfile m_profile;
 };

@@ -342,7 +342,7 @@ NewtonResult Simulator::relax_to_equilibrium(int k, const NewtonSolver& newton, 
     last.status = StepStatus::NEWTON_EXHAUSTED;
     // In a GPU run the solves run on the device (its proximal term the CPU's: DeviceSolver::solve_proximal),
     // unless the caller handed the contact to the CPU (relaxation_on_device).
-    const bool on_device = m_device && !m_fallback_on_cpu;
+    const bool on_device = relaxation_on_device() && !m_fallback_on_cpu;
     while (record.relaxation_steps < MAX_RELAXATION_STEPS) {
         const double kappa = solve_kappa();
         m_problem.set_weight(m_inertia.get(), plain ? 0.0 : w * c);

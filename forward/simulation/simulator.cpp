@@ -278,6 +278,12 @@ Simulator::Simulator(Scene scene, const SimulationParameters& parameters)
     }
     m_integrator->initialize(x0, v0, a0);
     if (m_scene.device == DeviceType::GPU) {
+        // parse_scene refuses the scene's own friction across the boundary; this catches coefficients
+        // given as parameters (SimulationParameters::friction).
+        if (m_periodic && m_friction)
+            throw InputError("device",
+                "\"gpu\" does not support friction across a periodic cell's boundary yet; "
+                "use \"cpu\"");
         m_device = std::make_unique<DeviceSolver>(
             *m_elastic, m_integrator->dynamic() ? m_inertia.get() : nullptr, m_constrained, m_contact.get());
         if (m_periodic)

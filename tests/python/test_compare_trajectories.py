@@ -1,5 +1,6 @@
-"""scripts/compare_trajectories.py on two real runs of one scene: the same run against itself is
-0 apart, a run with another material is not, and a different scene is refused."""
+"""scripts/compare_trajectories.py on real runs: the same run against itself is 0 apart, a run with
+another material is not, a different scene is refused, runs of different lengths are compared over
+their common steps with exit status 2, and contact runs report the barrier stiffness."""
 import json
 import pathlib
 import subprocess
@@ -48,3 +49,20 @@ def test_compare_trajectories(cli, tmp_path):
     other = simulate(cli, tmp_path, "other", t)
     refused = compare(a, other)
     assert refused.returncode == 2 and "not the same scene" in refused.stderr, refused.stderr
+
+    s["time"]["steps"] = 2
+    shorter = simulate(cli, tmp_path, "shorter", s)
+    partial = compare(stiffer, shorter)
+    assert partial.returncode == 2, partial.stderr
+    assert "comparing the first 2" in partial.stderr and "2 steps: states within" in partial.stdout, partial
+
+    # A box resting on a plane 1 mm below it (dhat 1 cm): contact from the start.
+    c = box_scene(dim=2, steps=2)
+    c["gravity"] = [0, -9.81]
+    c["obstacles"] = [{"plane": {"point": [0, -0.001], "normal": [0, 1]}}]
+    c["contact"] = {"dhat": 0.01, "kappa": 1e5}
+    first = simulate(cli, tmp_path, "contact_a", c)
+    second = simulate(cli, tmp_path, "contact_b", c)
+    contact = compare(first, second)
+    assert contact.returncode == 0, contact.stderr
+    assert "kappa differs in 0 steps" in contact.stdout, contact.stdout

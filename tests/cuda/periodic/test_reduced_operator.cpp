@@ -109,3 +109,57 @@ TEST(ReducedOperator, ProductsBlocksAndSolvesEqualTheCpus)
             r.iterations, solve_error);
     }
 }
+
+TEST(ReducedOperator, OperatorSumAddsProductsAndBlocks)
+{
+    DIFFIPC_SKIP_WITHOUT_GPU();
+    // A periodic cell with contact sums P^T H P and P_s^T C P_s (OperatorSum). Here the second operator is
+    // P^T H2 P with H2 the Hessian of the same box at twice its Lame parameters, 2 H exactly (the
+    // Hessian is linear in them): the sum is 3 P^T H P, which neither A + A nor B + B gives.
+    const int d = 3;
+    const test::ElasticBox box = test::make_elastic_box(d, { 3, 3, 2 }, -1, 0.15, 0.1, 41);
+    test::BoxCell cell(box.mesh);
+    gpu::DeviceElasticMesh mesh, stiffer;
+    mesh.upload(d, box.rest_flat(), box.elements_flat(), box.model_codes(), box.mu_vector(), box.lambda_vector());
+    std::vector<double> mu2 = box.mu_vector(), lambda2 = box.lambda_vector();
+    for (double& v : mu2)
+        v *= 2;
+    for (double& v : lambda2)
+        v *= 2;
+    stiffer.upload(d, box.rest_flat(), box.elements_flat(), box.model_codes(), mu2, lambda2);
+    gpu::DevicePeriodicMap& map = cell.device(box.rest_flat());
+    gpu::ReducedOperator A, B;
+    A.bind(mesh.hessian_bsr(box.x_vector(), true), map);
+    B.bind(stiffer.hessian_bsr(box.x_vector(), true), map);
+    gpu::OperatorSum sum;
+    sum.bind(A, B);
+    const int nq = A.size();
+    ASSERT_EQ(sum.size(), nq);
+
+    const SparseMatrixd Hc = test::cpu_hessian(box, box.x, 1.0, true);
+    const SparseMatrixd Rc = cell.map->matrix().transpose() * Hc * cell.map->matrix();
+    const VectorXd v = test::random_vector(nq, 5);
+    const std::vector<double> y = sum.multiply(std::vector<double>(v.data(), v.data() + nq));
+    const VectorXd expected = 3 * (Rc * v);
+    const double product_error = (Eigen::Map<const VectorXd>(y.data(), nq) - expected).lpNorm<Eigen::Infinity>()
+        / expected.lpNorm<Eigen::Infinity>();
+    EXPECT_LE(product_error, 1e-12);
+
+    const size_t count = size_t(A.num_block_rows() * d * d);
+    gpu::DeviceArray<double> a_blocks { count }, s_blocks { count };
+    A.diagonal_blocks(a_blocks.data());
+    sum.diagonal_blocks(s_blocks.data());
+    const std::vector<double> ab = a_blocks.download(), sb = s_blocks.download();
+    double block_error = 0, scale = 0;
+    for (size_t k = 0; k < count; ++k) {
+        block_error = std::max(block_error, std::abs(sb[k] - 3 * ab[k]));
+        scale = std::max(scale, std::abs(ab[k]));
+    }
+    EXPECT_LE(block_error, 1e-12 * scale);
+    std::printf("  OperatorSum of two reduced operators (%d unknowns): product %.1e, blocks %.1e relative\n", nq,
+        product_error, block_error / scale);
+
+    // Operators of different shapes are refused.
+    gpu::OperatorSum wrong;
+    EXPECT_THROW(wrong.bind(A, mesh.hessian_bsr(box.x_vector(), true)), std::invalid_argument);
+}

@@ -584,13 +584,25 @@ TEST(DeviceContactSimulation, PeriodicCellWithContactAcrossTheBoundary)
             const PeriodicSpec& p = gpu.scene().periodic;
             const Positions& rest = gpu.mesh().rest_positions;
             const double size = (rest.colwise().maxCoeff() - rest.colwise().minCoeff()).norm();
-            double dx = 0, dG = 0;
+            // The adaptive kappa doubles along each solver's path: where it differs by more than round-off
+            // the equilibria may differ, so the states are asserted up to the first such step.
+            double dx = 0, dG = 0, dx_asserted = 0, dG_asserted = 0, kappa_spread = 0;
             int kappa_differs = 0;
+            bool kappas_agree = true;
             for (int k = 1; k <= b.committed(); ++k) {
                 const StepRecord &ra = a.step(k), &rb = b.step(k);
-                dx = std::max(dx, (ra.positions - rb.positions).lpNorm<Eigen::Infinity>() / size);
-                dG = std::max(dG, (ra.macro_gradient - rb.macro_gradient).lpNorm<Eigen::Infinity>());
+                const double kappa_diff = std::abs(ra.kappa - rb.kappa) / std::max(ra.kappa, rb.kappa);
+                kappa_spread = std::max(kappa_spread, kappa_diff);
                 kappa_differs += ra.kappa != rb.kappa;
+                kappas_agree = kappas_agree && kappa_diff <= 1e-6;
+                const double step_dx = (ra.positions - rb.positions).lpNorm<Eigen::Infinity>() / size;
+                const double step_dG = (ra.macro_gradient - rb.macro_gradient).lpNorm<Eigen::Infinity>();
+                dx = std::max(dx, step_dx);
+                dG = std::max(dG, step_dG);
+                if (kappas_agree) {
+                    dx_asserted = std::max(dx_asserted, step_dx);
+                    dG_asserted = std::max(dG_asserted, step_dG);
+                }
                 const Tiling tiled = tile_cell(gpu.mesh(), p.box, p.pairing, rb.positions, rb.macro_gradient, 1);
                 EXPECT_EQ(find_intersection(build_collision_mesh(tiled.mesh, { 1 }, { 0 }), tiled.positions, true), "")
                     << name << " step " << k;
@@ -600,13 +612,11 @@ TEST(DeviceContactSimulation, PeriodicCellWithContactAcrossTheBoundary)
             EXPECT_GT(last.active_contacts, 0) << name;
             EXPECT_GT(last.min_distance, 0) << name;
             std::printf("  %-28s %d steps, %d active pairs at the end: states within %.1e of the size, G within %.1e; "
-                        "kappa differs in %d steps; Newton iterations CPU %d, GPU %d\n",
-                name.c_str(), b.committed(), last.active_contacts, dx, dG, kappa_differs, a.newton_iterations,
-                b.newton_iterations);
-            if (kappa_differs == 0) {
-                EXPECT_LE(dx, 1e-6) << name;
-                EXPECT_LE(dG, 1e-6) << name;
-            }
+                        "kappa differs in %d steps (by up to %.1e relative); Newton iterations CPU %d, GPU %d\n",
+                name.c_str(), b.committed(), last.active_contacts, dx, dG, kappa_differs, kappa_spread,
+                a.newton_iterations, b.newton_iterations);
+            EXPECT_LE(dx_asserted, 1e-6) << name;
+            EXPECT_LE(dG_asserted, 1e-6) << name;
         }
 }
 

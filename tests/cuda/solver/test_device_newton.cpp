@@ -500,6 +500,23 @@ TEST(DeviceNewton, RejectsBadInput)
     bad = gpu_settings();
     bad.terminal_factor = -1;
     EXPECT_THROW(s->newton->solve(x, {}, 1.0, to_std(c->force), to_std(c->target), 1, 1, bad), std::invalid_argument);
+    bad = gpu_settings();
+    bad.lifting_forcing_max = 0;
+    EXPECT_THROW(s->newton->solve(x, {}, 1.0, to_std(c->force), to_std(c->target), 1, 1, bad), std::invalid_argument);
+    // Masses for a proximal solve (set_lumped_mass) of the wrong count or negative are refused and leave the
+    // static solver static: a solve without an inertial target runs. With masses it is dynamic and needs one;
+    // empty masses make it static again.
+    EXPECT_THROW(s->newton->set_lumped_mass(short_vector), std::invalid_argument);
+    EXPECT_THROW(s->newton->set_lumped_mass(std::vector<double>(x.size(), -1.0)), std::invalid_argument);
+    std::vector<double> y = x;
+    EXPECT_NO_THROW(s->newton->solve(y, {}, 1.0, to_std(c->force), to_std(c->target), 1, 1, gpu_settings()));
+    s->newton->set_lumped_mass(std::vector<double>(x.size(), 1.0));
+    y = x;
+    EXPECT_THROW(
+        s->newton->solve(y, {}, 1.0, to_std(c->force), to_std(c->target), 1, 1, gpu_settings()), std::invalid_argument);
+    s->newton->set_lumped_mass({});
+    y = x;
+    EXPECT_NO_THROW(s->newton->solve(y, {}, 1.0, to_std(c->force), to_std(c->target), 1, 1, gpu_settings()));
 }
 
 TEST(DeviceNewton, TheLastStepLandsWellBelowTheTolerance)

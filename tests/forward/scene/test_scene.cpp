@@ -300,6 +300,33 @@ TEST(Scene, GpuSceneWithoutAUsableGpuIsAnErrorNamingTheDevice)
     }
 }
 
+TEST(Scene, GpuRefusesFrictionAcrossAPeriodicBoundaryHoweverItIsGiven)
+{
+    // A periodic cell with contact runs on the GPU path; friction across its boundary does not yet.
+    json s = test::compressed_periodic_cell(2, "static");
+    s["contact"] = { { "dhat", 1e-3 } };
+    s["device"] = "gpu";
+    EXPECT_EQ(parse_scene(s, ".", "<test>").device, DeviceType::GPU);
+    // The effective coefficients count: a body's own 0 overrides the scene's 0.3.
+    s["friction"] = { { "coefficient", 0.3 } };
+    s["bodies"][0]["friction"] = { { "coefficient", 0.0 } };
+    EXPECT_EQ(parse_scene(s, ".", "<test>").device, DeviceType::GPU);
+    // Coefficients given as parameters are refused when the simulator is made, before any GPU is
+    // looked for (so here with or without one).
+    s.erase("friction");
+    s["bodies"][0].erase("friction");
+    SimulationParameters parameters;
+    parameters.friction = VectorXd::Constant(1, 0.3);
+    try {
+        Simulator sim(test::make_scene(s), parameters);
+        FAIL() << "friction across a periodic boundary ran on the GPU path";
+    } catch (const InputError& e) {
+        EXPECT_NE(std::string(e.what()).find("device: \"gpu\" does not support friction across a periodic cell's"),
+            std::string::npos)
+            << e.what();
+    }
+}
+
 TEST(Scene, MissingFileIsReported) { EXPECT_THROW(load_scene("/nonexistent/scene.json"), InputError); }
 
 TEST(Scene, FileErrorsArePrefixedWithTheFileName)
