@@ -17,6 +17,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <optional>
 
 namespace diffipc {
 
@@ -78,14 +79,12 @@ NewtonResult Simulator::solve_in_substeps(int k, const NewtonSolver& newton, dou
                 if (!(control ? a.displacement_control : a.relaxation))
                     continue;
                 std::string note;
-                NewtonResult c;
-                if (control || !relaxation_on_device()) {
-                    const OnCpu on_cpu(*this);
-                    c = control ? pass_limit_point(k, newton, step_scale, t, committed, r, record, total, note)
-                                : relax_to_equilibrium(k, newton, step_scale, committed, record, total, note);
-                } else {
-                    c = relax_to_equilibrium(k, newton, step_scale, committed, record, total, note);
-                }
+                std::optional<OnCpu> on_cpu;
+                if (control || !relaxation_on_device())
+                    on_cpu.emplace(*this);
+                const NewtonResult c = control
+                    ? pass_limit_point(k, newton, step_scale, t, committed, r, record, total, note)
+                    : relax_to_equilibrium(k, newton, step_scale, committed, record, total, note);
                 if (c.status == StepStatus::CONVERGED) {
                     // Its last solve took the load from t to t_k.
                     record.min_increment = std::min(record.min_increment, t1 - t);
@@ -365,8 +364,7 @@ NewtonResult Simulator::relax_to_equilibrium(int k, const NewtonSolver& newton, 
             return last;
         }
         if (last.status != StepStatus::CONVERGED) {
-            if (m_contact)
-                restore_kappa(kappa);
+            restore_kappa(kappa);
             ++record.cuts;
             if (plain) {
                 ++plain_tries;
