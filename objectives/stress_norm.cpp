@@ -6,6 +6,7 @@
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
+#include <tbb/task_group.h>
 
 #include <array>
 #include <cmath>
@@ -36,10 +37,15 @@ namespace {
         const Material<dim>& operator()(MaterialModel model) const { return *laws[size_t(model)]; }
     };
 
+    /// Per element; left uninitialized until the parallel loop writes it (see below).
     template <int dim> struct ElementState {
         Mat<dim> F, P, S;
-        double s = 0; ///< stress norm
+        double s; ///< stress norm
     };
+
+    /// n default-initialized values: no serial first touch of their pages (tens of MB on large meshes),
+    /// which the parallel loops that fill them then touch in parallel.
+    template <typename T> std::unique_ptr<T[]> uninitialized(size_t n) { return std::unique_ptr<T[]>(new T[n]); }
 
     template <int dim>
     double stress_norm(const StressNormOptions& o, const Simulator& sim, const VectorXd& x, const GradientSink* sink)
@@ -58,7 +64,7 @@ namespace {
         // the position gradients are gathered per vertex in element order
         // (forward/common/parallel.hpp): the same bits for any thread count.
         constexpr size_t GRAIN = 256;
-        std::vector<ElementState<dim>> states(elements.size());
+        const std::unique_ptr<ElementState<dim>[]> states = uninitialized<ElementState<dim>>(elements.size());
         tbb::parallel_for(
             tbb::blocked_range<size_t>(0, elements.size(), GRAIN), [&](const tbb::blocked_range<size_t>& r) {
                 for (size_t i = r.begin(); i < r.end(); ++i) {
@@ -73,8 +79,8 @@ namespace {
         const double total_volume
             = parallel_sum(elements.size(), GRAIN, [&](size_t i) { return space.rest_volume(elements[i]); });
         double s_max = 0;
-        for (const ElementState<dim>& st : states)
-            s_max = std::max(s_max, st.s);
+        for (size_t i = 0; i < elements.size(); ++i)
+            s_max = std::max(s_max, states[i].s);
         if (!(s_max > 0))
             return s_max; // 0 (or NaN, which must propagate)
         const double sum = parallel_sum(elements.size(), GRAIN,
@@ -92,8 +98,22 @@ namespace {
         VectorXd* dlambda = request.lame ? &gradient_block(sink->partials.lambda, mesh.num_elements()) : nullptr;
         VectorXd& dx = gradient_block(sink->d_positions, mesh.num_dofs());
         constexpr int NV = dim + 1;
-        std::vector<double> local_x(elements.size() * NV * dim), local_X(dX ? elements.size() * NV * dim : 0);
+        // Every entry is written in the loop below.
+        const std::unique_ptr<double[]> local_x = uninitialized<double>(elements.size() * NV * dim);
+        const std::unique_ptr<double[]> local_X = uninitialized<double>(dX ? elements.size() * NV * dim : 0);
         std::vector<double> local_mu(dmu ? elements.size() : 0), local_lambda(dmu ? elements.size() : 0);
+        // The vertex incidence (a serial counting sort) is built beside the parallel element loop.
+        VertexScatter scatter;
+        tbb::task_group incidence;
+        incidence.run([&] {
+            scatter.build(mesh.num_vertices(), elements.size(), NV,
+                [&](size_t i, int a) { return mesh.elements(elements[i], a); });
+        });
+        // The task reads only the mesh; wait for it however the loop ends.
+        struct Join {
+            tbb::task_group& group;
+            ~Join() { group.wait(); }
+        } join { incidence };
         tbb::parallel_for(
             tbb::blocked_range<size_t>(0, elements.size(), GRAIN), [&](const tbb::blocked_range<size_t>& r) {
                 for (size_t i = r.begin(); i < r.end(); ++i) {
@@ -130,10 +150,10 @@ namespace {
                             += J / o.p * (std::pow(ratio, o.p) - (o.normalized ? 1.0 : 0.0)) * volume_scale * volume;
                     }
                     for (int a = 0; a < NV; ++a) {
-                        Eigen::Map<Eigen::Matrix<double, dim, 1>>(local_x.data() + (i * NV + size_t(a)) * dim)
+                        Eigen::Map<Eigen::Matrix<double, dim, 1>>(local_x.get() + (i * NV + size_t(a)) * dim)
                             = B * G.row(a).transpose();
                         if (dX)
-                            Eigen::Map<Eigen::Matrix<double, dim, 1>>(local_X.data() + (i * NV + size_t(a)) * dim)
+                            Eigen::Map<Eigen::Matrix<double, dim, 1>>(local_X.get() + (i * NV + size_t(a)) * dim)
                                 = C * G.row(a).transpose();
                     }
                     if (dmu) {
@@ -147,12 +167,10 @@ namespace {
             (*dmu)[elements[i]] += local_mu[i];
             (*dlambda)[elements[i]] += local_lambda[i];
         }
-        VertexScatter scatter;
-        scatter.build(
-            mesh.num_vertices(), elements.size(), NV, [&](size_t i, int a) { return mesh.elements(elements[i], a); });
-        scatter.add(local_x.data(), dim, scale, dx);
+        incidence.wait();
+        scatter.add(local_x.get(), dim, scale, dx);
         if (dX)
-            scatter.add(local_X.data(), dim, scale, *dX);
+            scatter.add(local_X.get(), dim, scale, *dX);
         return J;
     }
 } // namespace

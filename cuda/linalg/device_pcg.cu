@@ -142,7 +142,8 @@ void DevicePCG::prepare(int n, int block_size, int num_block_rows)
     m_scalars.resize(NUM_SCALARS);
 }
 
-PcgResult DevicePCG::solve_device(const DeviceLinearOperator& A, const double* d_b, double* d_x)
+PcgResult DevicePCG::solve_device(
+    const DeviceLinearOperator& A, const double* d_b, double* d_x, const DevicePreconditioner* preconditioner)
 {
     if (!(m_settings.relative_tolerance > 0) || m_settings.max_iterations < 0)
         throw std::invalid_argument("DevicePCG: relative_tolerance must be > 0 and max_iterations >= 0");
@@ -157,14 +158,23 @@ PcgResult DevicePCG::solve_device(const DeviceLinearOperator& A, const double* d
     double *r = m_r.data(), *z = m_z.data(), *p = m_p.data(), *q = m_q.data(), *s = m_scalars.data();
     double* partials = m_partials.data();
 
-    A.diagonal_blocks(m_diagonal.data());
-    if (B == 2)
-        invert_diagonal_blocks<2><<<grid(rows), THREADS>>>(rows, m_diagonal.data(), fixed, m_inverse_diagonal.data());
-    else
-        invert_diagonal_blocks<3><<<grid(rows), THREADS>>>(rows, m_diagonal.data(), fixed, m_inverse_diagonal.data());
-    check_launch("launch of the block-Jacobi setup");
-    auto precondition = [&]() {
+    if (preconditioner && preconditioner->size() != n)
+        throw std::invalid_argument("DevicePCG: a preconditioner of " + std::to_string(preconditioner->size())
+            + " rows for a matrix of " + std::to_string(n));
+    if (!preconditioner) {
+        A.diagonal_blocks(m_diagonal.data());
         if (B == 2)
+            invert_diagonal_blocks<2>
+                <<<grid(rows), THREADS>>>(rows, m_diagonal.data(), fixed, m_inverse_diagonal.data());
+        else
+            invert_diagonal_blocks<3>
+                <<<grid(rows), THREADS>>>(rows, m_diagonal.data(), fixed, m_inverse_diagonal.data());
+        check_launch("launch of the block-Jacobi setup");
+    }
+    auto precondition = [&]() {
+        if (preconditioner)
+            preconditioner->apply(r, z);
+        else if (B == 2)
             apply_block_jacobi<2><<<grid(n), THREADS>>>(n, m_inverse_diagonal.data(), r, z);
         else
             apply_block_jacobi<3><<<grid(n), THREADS>>>(n, m_inverse_diagonal.data(), r, z);

@@ -3,7 +3,8 @@
 /// Preconditioned conjugate gradients on the GPU for a symmetric positive definite matrix given
 /// as a DeviceLinearOperator (linear_operator.hpp: a BSR matrix, bsr_matrix.hpp, or the sum of the
 /// elastic and contact matrices, cuda/contact/sum_operator.hpp), with a block-Jacobi preconditioner (the inverted b by
-/// b diagonal blocks) and Dirichlet-fixed dofs.
+/// b diagonal blocks) or one the caller gives (device_preconditioner.hpp: the multigrid, device_amg.hpp), and
+/// Dirichlet-fixed dofs.
 ///
 /// Fixed dofs are eliminated: with P the diagonal 0/1 matrix that zeroes them, the solve is
 /// (P A P + I - P) x = P b, i.e. A_ff x_f = b_f on the free dofs and x = 0 on the fixed ones.
@@ -21,6 +22,7 @@
 
 #include "cuda/linalg/bsr_matrix.hpp"
 #include "cuda/linalg/device_array.hpp"
+#include "cuda/linalg/device_preconditioner.hpp"
 #include "cuda/linalg/linear_operator.hpp"
 
 #include <vector>
@@ -64,7 +66,10 @@ public:
     /// @param A   symmetric positive definite on the free dofs, b by b blocks (device)
     /// @param d_b right-hand side, A.size() doubles on the device
     /// @param d_x out: solution, A.size() doubles on the device (fixed entries 0)
-    PcgResult solve_device(const DeviceLinearOperator& A, const double* d_b, double* d_x);
+    /// @param preconditioner instead of block-Jacobi, if given (A.size() rows, symmetric positive definite,
+    ///        keeping the fixed entries 0)
+    PcgResult solve_device(const DeviceLinearOperator& A, const double* d_b, double* d_x,
+        const DevicePreconditioner* preconditioner = nullptr);
     /// @brief The same with host vectors (b and x: A.size() doubles, flattened vertex-major).
     PcgResult solve(const DeviceBsrMatrix& A, const std::vector<double>& b, std::vector<double>& x);
 

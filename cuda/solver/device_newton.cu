@@ -3,6 +3,7 @@
 #include "cuda/common/device.hpp"
 #include "cuda/contact/sum_operator.hpp"
 #include "cuda/elastic/material.cuh"
+#include "cuda/linalg/device_amg.hpp"
 #include "cuda/periodic/device_periodic_map.hpp"
 #include "cuda/periodic/reduced_operator.hpp"
 #include "cuda/solver/inversion_bound.cuh"
@@ -365,6 +366,11 @@ struct DeviceNewton::Impl {
     bool consistent = false;
     DeviceArray<double> mass_difference, mass_product; // y - xt and M (y - xt)
     DevicePCG pcg;
+    // The adjoint's multigrid (set_adjoint_multigrid): planned at the first adjoint solve after the
+    // constraints are set, from that solve's state; `multigrid_unavailable` once planning failed.
+    bool multigrid = false, multigrid_unavailable = false;
+    std::unique_ptr<DeviceAmg> amg;
+    std::vector<char> constrained;
     DeviceContact* contact = nullptr;
     DeviceFriction* friction = nullptr; // lagged friction (needs contact)
     SumOperator sum; // H + the contact Hessian (+ the friction Hessian)
@@ -860,7 +866,14 @@ void DeviceNewton::set_constrained(const std::vector<char>& constrained)
         flags[k] = constrained[k] ? 1 : 0;
     m_impl->fixed.upload(flags);
     m_impl->pcg.set_fixed_dofs(constrained);
+    m_impl->constrained = constrained;
+    m_impl->amg.reset();
+    m_impl->multigrid_unavailable = false;
 }
+
+void DeviceNewton::set_adjoint_multigrid(bool on) { m_impl->multigrid = on; }
+
+bool DeviceNewton::adjoint_multigrid() const { return m_impl->multigrid; }
 
 void DeviceNewton::set_force_reference(const std::vector<double>& reference)
 {
@@ -916,7 +929,46 @@ PcgResult DeviceNewton::solve_true_hessian(const std::vector<double>& x_host, do
         m.assemble_contact(weight, /*project=*/false);
     }
     m.pcg.settings() = PcgSettings { relative_tolerance, max_iterations };
-    const PcgResult r = m.pcg.solve_device(m.system(m_contact), m.rhs.data(), m.p.data());
+    // The multigrid is built from H (elasticity and mass); with contact it preconditions the sum.
+    const DevicePreconditioner* multigrid = nullptr;
+    // DIFFIPC_NEWTON_TRACE: the multigrid's planning, set-up and solve times on stderr.
+    static const bool trace = std::getenv("DIFFIPC_NEWTON_TRACE") != nullptr;
+    const auto since = [](Clock::time_point t) {
+        check_cuda(cudaDeviceSynchronize(), "synchronization for the adjoint's trace");
+        return std::chrono::duration<double>(Clock::now() - t).count();
+    };
+    Clock::time_point start = Clock::now();
+    double planned = 0, set_up = 0;
+    if (m.multigrid && !m.multigrid_unavailable) {
+        if (!m.amg) {
+            try {
+                const std::vector<char> constrained = m.constrained.empty() ? std::vector<char>(n, 0) : m.constrained;
+                m.amg = std::make_unique<DeviceAmg>(
+                    plan_amg(m.dim, BlockPattern { m.H.row_offsets(), m.H.col_indices() }, x_host, constrained));
+            } catch (const std::invalid_argument&) {
+                m.multigrid_unavailable = true; // e.g. a coarsest level too large to invert densely
+            }
+        }
+        planned = trace ? since(start) : 0;
+        if (m.amg && m.amg->setup(m.H))
+            multigrid = m.amg.get();
+        set_up = trace ? since(start) - planned : 0;
+    }
+    PcgResult r = m.pcg.solve_device(m.system(m_contact), m.rhs.data(), m.p.data(), multigrid);
+    if (trace) {
+        std::fprintf(stderr, "adjoint solve: %s, plan %.4f s, set-up %.4f s, PCG %d iterations %.4f s",
+            multigrid ? "multigrid" : "block-Jacobi", planned, set_up, r.iterations, since(start) - planned - set_up);
+        if (m.amg)
+            for (int l = 0; l <= m.amg->num_levels(); ++l)
+                std::fprintf(stderr, "%s%d", l ? " -> " : "; levels ", m.amg->level_size(l));
+        std::fprintf(stderr, "\n");
+    }
+    if (multigrid && (!r.converged || r.breakdown)) {
+        // Block-Jacobi decides: a breakdown there means the matrix itself is not positive definite.
+        const int first = r.iterations;
+        r = m.pcg.solve_device(m.system(m_contact), m.rhs.data(), m.p.data());
+        r.iterations += first;
+    }
     y_host = m.p.download();
     if (product) {
         m.system(m_contact).multiply(m.p.data(), m.coupling.data(), nullptr);

@@ -252,7 +252,10 @@ public:
     /// = b on the free dofs, H_Psi the true (unprojected) elastic Hessian at x, H_B the contact barrier's
     /// true Hessian of the active set at x (with the contact's current kappa; none without contact), M
     /// the lumped mass of a dynamic solver (none for a static one); y = 0 on the constrained dofs.
-    /// Block-Jacobi PCG from y = 0.
+    /// PCG from y = 0, preconditioned by block-Jacobi or, after set_adjoint_multigrid(true), by the
+    /// smoothed-aggregation multigrid (cuda/linalg/device_amg.hpp) of M + w H_Psi (planned at the first
+    /// solve after set_constrained(), with the rigid-body modes at that solve's x; block-Jacobi if it
+    /// cannot be built, or if its solve does not converge: then the iterations of both count).
     /// @param x       #dofs, the converged state
     /// @param weight  w of the step (> 0)
     /// @param b       #dofs right-hand side (its constrained entries are ignored)
@@ -265,6 +268,10 @@ public:
     ///                matrix times y; on the constrained dofs, their couplings to the free ones times y)
     PcgResult solve_true_hessian(const std::vector<double>& x, double weight, const std::vector<double>& b,
         std::vector<double>& y, double relative_tolerance, int max_iterations, std::vector<double>* product = nullptr);
+
+    /// @brief Whether solve_true_hessian() preconditions with the multigrid or block-Jacobi (default).
+    void set_adjoint_multigrid(bool on);
+    bool adjoint_multigrid() const;
 
     /// @brief Adds the contact barrier (nullptr: none). The contact object must outlive its use; its
     /// kappa is read at every evaluation.

@@ -810,8 +810,9 @@ Scene parse_scene(const nlohmann::json& document, const std::string& base_direct
 
     if (root.has("solver")) {
         const JsonField s = root["solver"];
-        s.require_object({ "residual_tolerance", "step_tolerance", "max_iterations", "linear_solver",
-            "line_search_max_halvings", "armijo", "hessian_projection", "step_extension", "threads" });
+        s.require_object(
+            { "residual_tolerance", "step_tolerance", "max_iterations", "linear_solver", "line_search_max_halvings",
+                "armijo", "hessian_projection", "step_extension", "threads", "gpu_adjoint_preconditioner" });
         if (s.has("threads"))
             scene.solver.threads = s["threads"].integer(1);
         if (s.has("hessian_projection")) {
@@ -846,6 +847,12 @@ Scene parse_scene(const nlohmann::json& document, const std::string& base_direct
                 scene.solver.linear_solver = LinearSolverType::LDLT;
             else
                 s["linear_solver"].fail("expected \"cholmod\" or \"ldlt\"");
+        }
+        if (s.has("gpu_adjoint_preconditioner")) {
+            const std::string p = s["gpu_adjoint_preconditioner"].string();
+            if (p != "multigrid" && p != "block_jacobi")
+                s["gpu_adjoint_preconditioner"].fail("expected \"block_jacobi\" or \"multigrid\"");
+            scene.solver.gpu_adjoint_multigrid = p == "multigrid";
         }
     }
 

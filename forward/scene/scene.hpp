@@ -97,6 +97,9 @@ struct SolverSpec {
     int line_search_max_halvings = 40;
     double armijo = 1e-4;
     bool adaptive_projection = true; ///< "hessian_projection": "adaptive" (default) or "always"
+    /// "gpu_adjoint_preconditioner": "multigrid" (true) or "block_jacobi" (false, the default): what
+    /// preconditions a GPU run's adjoint solves (cuda/linalg/device_amg.hpp)
+    bool gpu_adjoint_multigrid = false;
     bool step_extension = true; ///< "step_extension": lengthen almost linearly descending full steps (NewtonSettings)
     /// "threads": thread count for this run (forward/common/threads.hpp); 0 (absent): the
     /// cores the process may use. The CLI's --threads and DIFFIPC_THREADS take precedence.

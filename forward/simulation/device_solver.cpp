@@ -552,6 +552,8 @@ NewtonResult DeviceSolver::solve_proximal(VectorXd& x, const VectorXd& center, d
     return solve(x, center, weight, force, target, force_scale, step_scale, settings);
 }
 
+void DeviceSolver::set_adjoint_multigrid(bool on) { m_impl->newton->set_adjoint_multigrid(on); }
+
 bool DeviceSolver::solve_adjoint(
     const VectorXd& x, double weight, const VectorXd& b, VectorXd& y, int* iterations, double kappa, VectorXd* coupling)
 {
@@ -617,6 +619,8 @@ bool DeviceSolver::solve_adjoint(const VectorXd&, double, const VectorXd&, Vecto
 {
     return false;
 }
+
+void DeviceSolver::set_adjoint_multigrid(bool) { }
 
 void DeviceSolver::set_periodic(const PeriodicCell&, const std::vector<int>&) { }
 

@@ -157,6 +157,11 @@ public:
     };
     ContactProfile contact_profile() const { return m_profile; }
 
+    /// @brief The adjoint's preconditioner on the device: the smoothed-aggregation multigrid or block-Jacobi
+    /// (the default; DeviceNewton::solve_true_hessian). The Simulator sets it from the scene's
+    /// solver.gpu_adjoint_preconditioner.
+    void set_adjoint_multigrid(bool on);
+
     /// @brief The adjoint system of a converged step on the device (adjoint/adjoint.cpp):
     /// (M + w H) y = b on the free dofs, H the true Hessian at x (elastic, and the barrier's of the
     /// active set at x with stiffness `kappa` in a contact scene, and the friction's of the data last

@@ -288,6 +288,7 @@ Simulator::Simulator(Scene scene, const SimulationParameters& parameters)
             *m_elastic, m_integrator->dynamic() ? m_inertia.get() : nullptr, m_constrained, m_contact.get());
         if (m_periodic)
             m_device->set_periodic(*m_periodic, m_image_classes);
+        m_device->set_adjoint_multigrid(m_scene.solver.gpu_adjoint_multigrid);
     }
     m_trajectory.initial_time = 0;
     m_trajectory.initial_positions = x0;

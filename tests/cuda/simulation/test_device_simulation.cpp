@@ -224,8 +224,8 @@ TEST(DeviceSimulation, AdjointGradientEqualsTheCpus)
             lo[0] = hi[0] = 1.0;
             s["neumann"] = { { { "body", 0 }, { "region", test::region(lo, hi) },
                 { "traction", dim == 2 ? json { 0, "-2e4*t" } : json { 0, "-2e4*t", 0 } } } };
-            ParameterGradient g[2];
-            AdjointStatistics stats[2];
+            ParameterGradient g[2], multigrid;
+            AdjointStatistics stats[2], multigrid_stats;
             for (int k = 0; k < 2; ++k) {
                 s["device"] = k == 0 ? "cpu" : "gpu";
                 Simulator sim(test::make_scene(s));
@@ -237,8 +237,18 @@ TEST(DeviceSimulation, AdjointGradientEqualsTheCpus)
                 request.rest_positions = request.lame = true;
                 request.density = request_density(integrator);
                 g[k] = adjoint_gradient(sim, seed, request, &stats[k]);
+                if (k == 1) { // the same sweep preconditioned by the multigrid
+                    sim.device_solver()->set_adjoint_multigrid(true);
+                    multigrid = adjoint_gradient(sim, seed, request, &multigrid_stats);
+                }
             }
             const std::string name = std::to_string(dim) + "D " + integrator;
+            const double e_multigrid
+                = std::max(test::relative_difference(multigrid.rest_positions, g[0].rest_positions),
+                    test::relative_difference(multigrid.mu, g[0].mu));
+            EXPECT_LT(e_multigrid, 1e-6) << name << ": the multigrid-preconditioned adjoint";
+            EXPECT_EQ(multigrid_stats.factorization_time, 0.0) << name << ": the multigrid run fell back to the CPU";
+            EXPECT_GT(multigrid_stats.device_pcg_iterations, 0) << name;
             const double e_shape = test::relative_difference(g[1].rest_positions, g[0].rest_positions);
             const double e_mu = test::relative_difference(g[1].mu, g[0].mu);
             const double e_lambda = test::relative_difference(g[1].lambda, g[0].lambda);

@@ -142,6 +142,8 @@ std::vector<Malformed> malformed_cases()
             "solver.residual_tolerance" },
         { "solver_unknown_linear_solver", [](json& s) { s["solver"]["linear_solver"] = "pardiso"; },
             "solver.linear_solver" },
+        { "solver_unknown_gpu_adjoint_preconditioner",
+            [](json& s) { s["solver"]["gpu_adjoint_preconditioner"] = "ilu"; }, "solver.gpu_adjoint_preconditioner" },
         { "solver_step_extension_not_a_bool", [](json& s) { s["solver"]["step_extension"] = "yes"; },
             "solver.step_extension" },
         { "output_negative_vtu_every", [](json& s) { s["output"]["vtu_every"] = -1; }, "output.vtu_every" },
@@ -226,6 +228,16 @@ TEST(Scene, VtuEncodingIsRead)
     EXPECT_EQ(parse_scene(j, ".", "<test>").output.vtu_encoding, VtuEncoding::ASCII);
     j["output"]["vtu_encoding"] = "binary";
     EXPECT_EQ(parse_scene(j, ".", "<test>").output.vtu_encoding, VtuEncoding::BINARY);
+}
+
+TEST(Scene, GpuAdjointPreconditionerIsRead)
+{
+    json j = valid_scene();
+    EXPECT_FALSE(parse_scene(j, ".", "<test>").solver.gpu_adjoint_multigrid) << "block-Jacobi by default";
+    j["solver"]["gpu_adjoint_preconditioner"] = "multigrid";
+    EXPECT_TRUE(parse_scene(j, ".", "<test>").solver.gpu_adjoint_multigrid);
+    j["solver"]["gpu_adjoint_preconditioner"] = "block_jacobi";
+    EXPECT_FALSE(parse_scene(j, ".", "<test>").solver.gpu_adjoint_multigrid);
 }
 
 // Comparisons contain '=' and are not assignments; the conditional operator is one value.
