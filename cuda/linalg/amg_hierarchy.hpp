@@ -60,7 +60,7 @@ struct AmgPlan {
 
 struct AmgPlanSettings {
     /// Stop coarsening once a level has at most this many dofs (it is solved densely).
-    int max_coarsest_dofs = 1000;
+    int max_coarsest_dofs = 400;
     /// At most this many levels with a coarser one below.
     int max_levels = 8;
     /// Threads for the patterns (0: the hardware's, at most 16). The plan does not depend on it.

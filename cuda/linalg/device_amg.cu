@@ -666,6 +666,8 @@ bool DeviceAmg::setup(const DeviceBsrMatrix& A)
         check_cuda(cudaDeviceSynchronize(), "AMG trace");
     const auto t1 = std::chrono::steady_clock::now();
     const int N = m.coarsest_size();
+    if (N == 0)
+        return true; // nothing to solve (every level above is empty too)
     with_block(m.cb, [&](auto Bc) {
         constexpr int B = decltype(Bc)::value;
         mask_matrix<B><<<grid(m.crows), THREADS>>>(
@@ -698,6 +700,8 @@ void DeviceAmg::Impl::cycle(size_t l, const double* b, double* x, cudaStream_t s
 {
     if (l == levels.size()) {
         const int N = coarsest_size();
+        if (N == 0)
+            return;
         dense_multiply<<<grid(long(N) * WARP), THREADS, 0, stream>>>(N, dense.data(), b, x);
         check_launch("launch of the AMG's coarsest solve");
         return;
