@@ -1,10 +1,9 @@
 #pragma once
 /// @file amg_setup.hpp
 /// The symbolic, host-side part of a smoothed-aggregation algebraic multigrid for the device's
-/// block-sparse elasticity matrices (work in progress toward a preconditioner for DevicePCG,
-/// issue 17: the adjoint's solves need about five times fewer PCG iterations than block-Jacobi
-/// gives). Built once per mesh pattern: it depends on the graph and the positions, not on the
-/// matrix values.
+/// block-sparse elasticity matrices, used by plan_amg (amg_hierarchy.hpp) for DeviceAmg
+/// (device_amg.hpp). Built once per mesh pattern: it depends on the graph and the positions, not on
+/// the matrix values.
 ///
 /// - aggregate_vertices(): Vanek, Mandel and Brezina's greedy aggregation of the vertex graph
 ///   ("Algebraic multigrid by smoothed aggregation for second and fourth order elliptic problems",
