@@ -1,6 +1,7 @@
 #include "cuda/linalg/device_amg.hpp"
 
 #include "cuda/common/device.hpp"
+#include "cuda/linalg/block_diagonal.cuh"
 #include "cuda/linalg/reduction.hpp"
 
 #include <cuda_runtime.h>
@@ -87,23 +88,25 @@ namespace {
             }
     }
 
-    /// y = A x, one thread per scalar row, the row's blocks in column order.
-    template <int B>
+    /// y = A x (ADD: y += A x) for R x C blocks (row-major; A: #block rows x #block columns), one thread
+    /// per scalar row, the row's blocks in column order: the fine level's product (R = C = B) and the
+    /// prolongation x += P xc (R = B, C = K).
+    template <int R, int C, bool ADD>
     __global__ void multiply(int n, const int* __restrict__ offsets, const int* __restrict__ cols,
         const double* __restrict__ values, const double* __restrict__ x, double* __restrict__ y)
     {
         const int row = global_index();
         if (row >= n)
             return;
-        const int r = row / B, i = row % B;
+        const int r = row / R, i = row % R;
         double acc = 0;
         for (int e = offsets[r]; e < offsets[r + 1]; ++e) {
-            const double* block = values + size_t(e) * (B * B) + i * B;
-            const double* xc = x + size_t(cols[e]) * B;
-            for (int j = 0; j < B; ++j)
+            const double* block = values + size_t(e) * (R * C) + i * C;
+            const double* xc = x + size_t(cols[e]) * C;
+            for (int j = 0; j < C; ++j)
                 acc += block[j] * xc[j];
         }
-        y[row] = acc;
+        y[row] = ADD ? y[row] + acc : acc;
     }
 
     constexpr int WARP = 32;
@@ -157,22 +160,6 @@ namespace {
         const double rho = sqrt(*rho2);
         const double s = rho > 0 && isfinite(rho) ? 1.0 / (SAFETY * rho) : 0.0;
         x[row] = (first ? 0.0 : x[row]) + s * acc;
-    }
-
-    /// w = D^-1 y.
-    template <int B>
-    __global__ void apply_inverse(
-        int n, const double* __restrict__ inverses, const double* __restrict__ y, double* __restrict__ w)
-    {
-        const int row = global_index();
-        if (row >= n)
-            return;
-        const int r = row / B, i = row % B;
-        const double* m = inverses + size_t(r) * (B * B) + i * B;
-        double acc = 0;
-        for (int j = 0; j < B; ++j)
-            acc += m[j] * y[r * B + j];
-        w[row] = acc;
     }
 
     /// v = the free dofs' indicator (power iteration's start).
@@ -330,25 +317,6 @@ namespace {
             if (lane == i)
                 bc[size_t(a) * K + i] = sum;
         }
-    }
-
-    /// x += P xc, one thread per fine dof.
-    template <int B, int K>
-    __global__ void prolong_add(int n, const int* __restrict__ p_offsets, const int* __restrict__ p_cols,
-        const double* __restrict__ p_values, const double* __restrict__ xc, double* __restrict__ x)
-    {
-        const int row = global_index();
-        if (row >= n)
-            return;
-        const int v = row / B, r = row % B;
-        double acc = 0;
-        for (int f = p_offsets[v]; f < p_offsets[v + 1]; ++f) {
-            const double* p = p_values + size_t(f) * (B * K) + r * K;
-            const double* c = xc + size_t(p_cols[f]) * K;
-            for (int j = 0; j < K; ++j)
-                acc += p[j] * c[j];
-        }
-        x[row] += acc;
     }
 
     /// The coarsest matrix (masked BSR) as a dense row-major N x N matrix (zeroed first).
@@ -629,12 +597,12 @@ bool DeviceAmg::setup(const DeviceBsrMatrix& A)
             power_start<<<grid(n), THREADS>>>(n, L.fixed.data(), L.x.data());
             for (int it = 0; it <= m.settings.power_iterations; ++it) {
                 if (l == 0)
-                    multiply<B><<<grid(n), THREADS>>>(
+                    multiply<B, B, false><<<grid(n), THREADS>>>(
                         n, L.offsets.data(), L.cols.data(), L.values.data(), L.x.data(), L.y.data());
                 else
                     multiply_by_warps<B><<<grid(long(L.rows) * WARP), THREADS>>>(
                         L.rows, L.offsets.data(), L.cols.data(), L.values.data(), L.x.data(), L.y.data());
-                apply_inverse<B><<<grid(n), THREADS>>>(n, L.inverses.data(), L.y.data(), L.b_vec.data());
+                apply_block_diagonal<B><<<grid(n), THREADS>>>(n, L.inverses.data(), L.y.data(), L.b_vec.data());
                 check_launch("launch of the AMG's power iteration");
                 deterministic_dot(L.b_vec.data(), L.b_vec.data(), size_t(n), m.partials.data(), rho2);
                 if (it < m.settings.power_iterations) {
@@ -716,7 +684,7 @@ void DeviceAmg::Impl::cycle(size_t l, const double* b, double* x, cudaStream_t s
         with_block(L.b, [&](auto Bc) {
             constexpr int B = decltype(Bc)::value;
             if (l == 0) // the fine level's rows hold few blocks
-                multiply<B><<<grid(n), THREADS, 0, stream>>>(
+                multiply<B, B, false><<<grid(n), THREADS, 0, stream>>>(
                     n, L.offsets.data(), L.cols.data(), L.values.data(), x, L.y.data());
             else
                 multiply_by_warps<B><<<grid(long(L.rows) * WARP), THREADS, 0, stream>>>(
@@ -746,7 +714,7 @@ void DeviceAmg::Impl::cycle(size_t l, const double* b, double* x, cudaStream_t s
     cycle(l + 1, bc, xc, stream);
     with_blocks(L.b, L.k, [&](auto Bc, auto Kc) {
         constexpr int B = decltype(Bc)::value, K = decltype(Kc)::value;
-        prolong_add<B, K>
+        multiply<B, K, true>
             <<<grid(n), THREADS, 0, stream>>>(n, L.p_offsets.data(), L.p_cols.data(), L.p_values.data(), xc, x);
         check_launch("launch of the AMG's prolongation");
     });

@@ -3,6 +3,7 @@
 #include "cuda/common/device.hpp"
 #include "cuda/elastic/project_psd.cuh"
 #include "cuda/elastic/small_matrix.cuh"
+#include "cuda/linalg/block_diagonal.cuh"
 #include "cuda/linalg/reduction.hpp"
 
 #include <cuda_runtime.h>
@@ -52,22 +53,6 @@ namespace {
                 const double d = D[i * B + i];
                 out[i * B + j] = ok ? Dinv[i * B + j] : (i != j ? 0.0 : d > 0 ? 1.0 / d : 1.0);
             }
-    }
-
-    /// z = M r, block by block (fixed entries of r are 0, and M keeps them 0).
-    template <int B>
-    __global__ void apply_block_jacobi(
-        int n, const double* __restrict__ inverses, const double* __restrict__ r, double* __restrict__ z)
-    {
-        const int row = blockIdx.x * blockDim.x + threadIdx.x;
-        if (row >= n)
-            return;
-        const int br = row / B, i = row % B;
-        const double* m = inverses + size_t(br) * (B * B) + i * B;
-        double acc = 0;
-        for (int j = 0; j < B; ++j)
-            acc += m[j] * r[br * B + j];
-        z[row] = acc;
     }
 
     /// r = P b (x = 0 at the start).
@@ -175,9 +160,9 @@ PcgResult DevicePCG::solve_device(
         if (preconditioner)
             preconditioner->apply(r, z);
         else if (B == 2)
-            apply_block_jacobi<2><<<grid(n), THREADS>>>(n, m_inverse_diagonal.data(), r, z);
+            apply_block_diagonal<2><<<grid(n), THREADS>>>(n, m_inverse_diagonal.data(), r, z);
         else
-            apply_block_jacobi<3><<<grid(n), THREADS>>>(n, m_inverse_diagonal.data(), r, z);
+            apply_block_diagonal<3><<<grid(n), THREADS>>>(n, m_inverse_diagonal.data(), r, z);
         check_launch("launch of the block-Jacobi preconditioner");
     };
 
