@@ -112,7 +112,13 @@ namespace {
         // The task reads only the mesh; wait for it however the loop ends.
         struct Join {
             tbb::task_group& group;
-            ~Join() { group.wait(); }
+            ~Join()
+            {
+                try {
+                    group.wait(); // the normal path's wait below rethrows the task's failure
+                } catch (...) {
+                }
+            }
         } join { incidence };
         tbb::parallel_for(
             tbb::blocked_range<size_t>(0, elements.size(), GRAIN), [&](const tbb::blocked_range<size_t>& r) {

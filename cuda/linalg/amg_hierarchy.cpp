@@ -57,8 +57,13 @@ namespace {
                 failure = std::current_exception();
             }
         };
-        for (int t = 1; t < threads; ++t)
-            pool.emplace_back(guarded, t);
+        for (int t = 1; t < threads && !failure; ++t)
+            try {
+                pool.emplace_back(guarded, t);
+            } catch (...) { // no thread: the plan fails (its chunks are not built) after the others end
+                const std::lock_guard<std::mutex> lock(failure_mutex);
+                failure = std::current_exception();
+            }
         guarded(0);
         for (std::thread& t : pool)
             t.join();
@@ -171,6 +176,9 @@ AmgPlan plan_amg(int block, const BlockPattern& pattern, const std::vector<doubl
         throw std::invalid_argument("plan_amg: the pattern, " + std::to_string(positions.size()) + " positions and "
             + std::to_string(fixed.size()) + " fixed flags do not fit " + std::to_string(n) + " block rows of size "
             + std::to_string(block));
+    for (int r = 0; r < n; ++r)
+        if (pattern.offsets[size_t(r) + 1] < pattern.offsets[size_t(r)])
+            throw std::invalid_argument("plan_amg: row offsets decrease at block row " + std::to_string(r));
     for (const int c : pattern.cols)
         if (c < 0 || c >= n)
             throw std::invalid_argument("plan_amg: column index " + std::to_string(c) + " out of range");

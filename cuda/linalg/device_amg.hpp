@@ -13,9 +13,11 @@
 /// - at the coarsest level, the dense inverse by Gauss-Jordan elimination (principal pivots: the
 ///   matrix is symmetric positive definite; a pivot that is not positive makes setup() fail).
 ///
-/// The V-cycle smooths with damped block-Jacobi, x += s D^-1 (b - A x), s = 1/(1.1 rho), the same
+/// The V-cycle smooths with damped block-Jacobi, x += s D^-1 (b - A x), s = 1/(1.1 rho_est), the same
 /// number of sweeps before and after the coarse correction, so the preconditioner is symmetric; it is
-/// positive definite since s rho(D^-1 A) < 2. Every value is a fixed-order sum (no atomics): two setups
+/// positive definite while s rho(D^-1 A) < 2, i.e. while the power iteration's rho_est (usually a little
+/// below rho; not a bound) exceeds rho / 2.2. DeviceNewton falls back to block-Jacobi if a multigrid
+/// solve fails. Every value is a fixed-order sum (no atomics): two setups
 /// and applications on the same data give bitwise equal results.
 
 #include "cuda/linalg/amg_hierarchy.hpp"

@@ -163,7 +163,7 @@ PcgResult DevicePCG::solve_device(
             apply_block_diagonal<2><<<grid(n), THREADS>>>(n, m_inverse_diagonal.data(), r, z);
         else
             apply_block_diagonal<3><<<grid(n), THREADS>>>(n, m_inverse_diagonal.data(), r, z);
-        check_launch("launch of the block-Jacobi preconditioner");
+        check_launch("launch of the preconditioner");
     };
 
     masked_copy<<<grid(n), THREADS>>>(n, d_b, fixed, r, d_x);

@@ -369,6 +369,7 @@ struct DeviceNewton::Impl {
     // The adjoint's multigrid (set_adjoint_multigrid): planned at the first adjoint solve after the
     // constraints are set, from that solve's state; `multigrid_unavailable` once planning failed.
     bool multigrid = false, multigrid_unavailable = false;
+    int multigrid_threads = 0; // for the plan's patterns (0: the hardware's)
     std::unique_ptr<DeviceAmg> amg;
     std::vector<char> constrained;
     DeviceContact* contact = nullptr;
@@ -871,7 +872,13 @@ void DeviceNewton::set_constrained(const std::vector<char>& constrained)
     m_impl->multigrid_unavailable = false;
 }
 
-void DeviceNewton::set_adjoint_multigrid(bool on) { m_impl->multigrid = on; }
+void DeviceNewton::set_adjoint_multigrid(bool on, int plan_threads)
+{
+    if (plan_threads < 0)
+        throw std::invalid_argument("DeviceNewton::set_adjoint_multigrid: plan_threads must be >= 0");
+    m_impl->multigrid = on;
+    m_impl->multigrid_threads = plan_threads;
+}
 
 bool DeviceNewton::adjoint_multigrid() const { return m_impl->multigrid; }
 
@@ -943,10 +950,13 @@ PcgResult DeviceNewton::solve_true_hessian(const std::vector<double>& x_host, do
         if (!m.amg) {
             try {
                 const std::vector<char> constrained = m.constrained.empty() ? std::vector<char>(n, 0) : m.constrained;
+                AmgPlanSettings plan;
+                plan.threads = m.multigrid_threads;
                 m.amg = std::make_unique<DeviceAmg>(
-                    plan_amg(m.dim, BlockPattern { m.H.row_offsets(), m.H.col_indices() }, x_host, constrained));
-            } catch (const std::invalid_argument&) {
-                m.multigrid_unavailable = true; // e.g. a coarsest level too large to invert densely
+                    plan_amg(m.dim, BlockPattern { m.H.row_offsets(), m.H.col_indices() }, x_host, constrained, plan));
+            } catch (const std::exception&) {
+                // E.g. a coarsest level too large to invert densely, or too little memory: block-Jacobi.
+                m.multigrid_unavailable = true;
             }
         }
         planned = trace ? since(start) : 0;
@@ -954,7 +964,13 @@ PcgResult DeviceNewton::solve_true_hessian(const std::vector<double>& x_host, do
             multigrid = m.amg.get();
         set_up = trace ? since(start) - planned : 0;
     }
+    // A multigrid solve gets at most MULTIGRID_ITERATIONS: it converges in tens, and one that does not (a
+    // preconditioner that lost definiteness on an indefinite true Hessian) must not crawl before the fallback.
+    constexpr int MULTIGRID_ITERATIONS = 1000;
+    if (multigrid)
+        m.pcg.settings().max_iterations = std::min(max_iterations, MULTIGRID_ITERATIONS);
     PcgResult r = m.pcg.solve_device(m.system(m_contact), m.rhs.data(), m.p.data(), multigrid);
+    m.pcg.settings().max_iterations = max_iterations;
     if (trace) {
         std::fprintf(stderr, "adjoint solve: %s, plan %.4f s, set-up %.4f s, PCG %d iterations %.4f s",
             multigrid ? "multigrid" : "block-Jacobi", planned, set_up, r.iterations, since(start) - planned - set_up);

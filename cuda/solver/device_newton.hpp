@@ -255,7 +255,8 @@ public:
     /// PCG from y = 0, preconditioned by block-Jacobi or, after set_adjoint_multigrid(true), by the
     /// smoothed-aggregation multigrid (cuda/linalg/device_amg.hpp) of M + w H_Psi (planned at the first
     /// solve after set_constrained(), with the rigid-body modes at that solve's x; block-Jacobi if it
-    /// cannot be built, or if its solve does not converge: then the iterations of both count).
+    /// cannot be built, or if its solve does not converge within 1,000 iterations: then the iterations of
+    /// both count).
     /// @param x       #dofs, the converged state
     /// @param weight  w of the step (> 0)
     /// @param b       #dofs right-hand side (its constrained entries are ignored)
@@ -270,7 +271,9 @@ public:
         std::vector<double>& y, double relative_tolerance, int max_iterations, std::vector<double>* product = nullptr);
 
     /// @brief Whether solve_true_hessian() preconditions with the multigrid or block-Jacobi (default).
-    void set_adjoint_multigrid(bool on);
+    /// @param plan_threads threads for the multigrid plan's patterns (0: the hardware's, at most 16)
+    /// @throws std::invalid_argument if plan_threads < 0
+    void set_adjoint_multigrid(bool on, int plan_threads = 0);
     bool adjoint_multigrid() const;
 
     /// @brief Adds the contact barrier (nullptr: none). The contact object must outlive its use; its

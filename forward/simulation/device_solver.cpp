@@ -1,6 +1,7 @@
 #include "forward/simulation/device_solver.hpp"
 
 #include "forward/common/error.hpp"
+#include "forward/common/threads.hpp"
 #include "forward/common/timer.hpp"
 #include "forward/contact/barrier.hpp"
 
@@ -552,7 +553,11 @@ NewtonResult DeviceSolver::solve_proximal(VectorXd& x, const VectorXd& center, d
     return solve(x, center, weight, force, target, force_scale, step_scale, settings);
 }
 
-void DeviceSolver::set_adjoint_multigrid(bool on) { m_impl->newton->set_adjoint_multigrid(on); }
+void DeviceSolver::set_adjoint_multigrid(bool on)
+{
+    // The plan's threads follow the process's configuration (docs/threads.md).
+    m_impl->newton->set_adjoint_multigrid(on, std::max(1, thread_config().threads));
+}
 
 bool DeviceSolver::solve_adjoint(
     const VectorXd& x, double weight, const VectorXd& b, VectorXd& y, int* iterations, double kappa, VectorXd* coupling)

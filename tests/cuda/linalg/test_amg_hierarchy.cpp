@@ -154,22 +154,30 @@ TEST(AmgHierarchy, PlanDoesNotDependOnTheThreads)
 {
     const test::ElasticBox box = test::make_elastic_box(3, { 30, 12, 12 }, -1, 0.1, 0.0, 9);
     const gpu::BlockPattern pattern = test::box_pattern(box);
-    gpu::AmgPlanSettings one, three;
+    gpu::AmgPlanSettings one, two;
     one.threads = 1;
-    three.threads = 3;
+    two.threads = 2;
     const gpu::AmgPlan a = gpu::plan_amg(3, pattern, box.x_vector(), test::clamped_face(box), one);
-    const gpu::AmgPlan b = gpu::plan_amg(3, pattern, box.x_vector(), test::clamped_face(box), three);
+    const gpu::AmgPlan b = gpu::plan_amg(3, pattern, box.x_vector(), test::clamped_face(box), two);
     ASSERT_EQ(a.levels.size(), b.levels.size());
-    ASSERT_GT(a.levels.front().matrix.rows(), 2 * 2048) << "more than one chunk of rows per thread";
+    // 5,239 rows in chunks of 2,048: thread 0 builds chunks 0 and 2, thread 1 chunk 1.
+    ASSERT_GT(a.levels.front().matrix.rows(), 2 * 2048) << "a thread with two chunks";
     for (size_t l = 0; l < a.levels.size(); ++l) {
-        EXPECT_EQ(a.levels[l].prolongator.cols, b.levels[l].prolongator.cols);
-        EXPECT_EQ(a.levels[l].prolongator.offsets, b.levels[l].prolongator.offsets);
-        EXPECT_EQ(a.levels[l].product.cols, b.levels[l].product.cols);
-        EXPECT_EQ(a.levels[l].product.offsets, b.levels[l].product.offsets);
-        EXPECT_EQ(a.levels[l].restriction.first, b.levels[l].restriction.first);
+        const gpu::AmgLevelPlan &x = a.levels[l], &y = b.levels[l];
+        EXPECT_EQ(x.prolongator.cols, y.prolongator.cols);
+        EXPECT_EQ(x.prolongator.offsets, y.prolongator.offsets);
+        EXPECT_EQ(x.product.cols, y.product.cols);
+        EXPECT_EQ(x.product.offsets, y.product.offsets);
+        EXPECT_EQ(x.restriction.offsets, y.restriction.offsets);
+        EXPECT_EQ(x.restriction.first, y.restriction.first);
+        EXPECT_EQ(x.restriction.second, y.restriction.second);
+        EXPECT_EQ(x.aggregate_of, y.aggregate_of);
+        EXPECT_EQ(x.tentative, y.tentative);
+        EXPECT_EQ(x.fixed, y.fixed);
     }
     EXPECT_EQ(a.coarsest.cols, b.coarsest.cols);
     EXPECT_EQ(a.coarsest.offsets, b.coarsest.offsets);
+    EXPECT_EQ(a.coarsest_fixed, b.coarsest_fixed);
 }
 
 TEST(AmgHierarchy, SmallMatrixIsItsOwnCoarsestLevel)
@@ -194,6 +202,12 @@ TEST(AmgHierarchy, RefusesBadInput)
     gpu::AmgPlanSettings tiny;
     tiny.max_coarsest_dofs = 1;
     EXPECT_THROW(gpu::plan_amg(2, no_diagonal, x, {}, tiny), std::invalid_argument);
+    gpu::BlockPattern decreasing = pattern;
+    std::swap(decreasing.offsets[1], decreasing.offsets[2]);
+    EXPECT_THROW(gpu::plan_amg(2, decreasing, x, {}), std::invalid_argument);
+    gpu::AmgPlanSettings negative;
+    negative.threads = -1;
+    EXPECT_THROW(gpu::plan_amg(2, pattern, x, {}, negative), std::invalid_argument);
     gpu::BlockPattern out_of_range = pattern;
     out_of_range.cols.back() = 1000;
     EXPECT_THROW(gpu::plan_amg(2, out_of_range, x, {}), std::invalid_argument);

@@ -5,7 +5,7 @@
 
 #include "cuda/linalg/amg_setup.hpp"
 #include "cuda/linalg/bsr_pattern.hpp"
-#include "tests/cuda/elastic_test_utils.hpp"
+#include "tests/cuda/linalg/amg_test_utils.hpp"
 
 #include <Eigen/LU>
 #include <Eigen/SparseCholesky>
@@ -215,21 +215,6 @@ int pcg_iterations(const SparseMatrixd& A, const VectorXd& b, double tol, Precon
     return -1;
 }
 
-/// The inverse block diagonal of A (dim x dim blocks) as a sparse matrix.
-SparseMatrixd inverse_block_diagonal(const SparseMatrixd& A, int dim)
-{
-    std::vector<Eigen::Triplet<double>> t;
-    for (Index v = 0; v < A.rows() / dim; ++v) {
-        const MatrixXd inv = MatrixXd(A.block(v * dim, v * dim, dim, dim)).inverse();
-        for (int i = 0; i < dim; ++i)
-            for (int j = 0; j < dim; ++j)
-                t.emplace_back(v * dim + i, v * dim + j, inv(i, j));
-    }
-    SparseMatrixd D(A.rows(), A.cols());
-    D.setFromTriplets(t.begin(), t.end());
-    return D;
-}
-
 } // namespace
 
 TEST(AmgSetup, HostPrototypeOfTheTwoLevelPreconditionerCutsPcgIterations)
@@ -269,7 +254,7 @@ TEST(AmgSetup, HostPrototypeOfTheTwoLevelPreconditionerCutsPcgIterations)
                     r[i] = 0;
             return r;
         }();
-        const SparseMatrixd Dinv = inverse_block_diagonal(A, dim);
+        const SparseMatrixd Dinv = test::inverse_block_diagonal(A, dim);
         VectorXd x_bj, x_amg;
         const int bj = pcg_iterations(
             A, b, 1e-12, [&](const VectorXd& r) -> VectorXd { return Dinv * r; }, x_bj);
