@@ -14,9 +14,9 @@ namespace diffipc::gpu {
 namespace {
 
     /// Rows [0, rows) of an output pattern: generate(row, add) calls add(column) for the row's candidate
-    /// columns (repeats allowed); each row keeps them once, increasing. Chunks of rows run on their own
-    /// threads into their own buffers, appended in row order: the result does not depend on the number of
-    /// threads.
+    /// columns (repeats allowed); each row keeps them once, increasing. Chunks of rows run on up to
+    /// max_threads threads into their own buffers, appended in row order: the result does not depend on
+    /// the number of threads.
     template <typename Generate>
     BlockPattern emit_rows(int rows, int num_columns, int max_threads, const Generate& generate)
     {
@@ -43,9 +43,7 @@ namespace {
                 }
             }
         };
-        const int available
-            = max_threads > 0 ? max_threads : int(std::min(16u, std::max(1u, std::thread::hardware_concurrency())));
-        const int threads = std::max(1, std::min(chunks, available));
+        const int threads = std::max(1, std::min(chunks, max_threads));
         std::vector<std::thread> pool;
         std::exception_ptr failure;
         std::mutex failure_mutex;
@@ -110,7 +108,7 @@ namespace {
                     excluded[size_t(v)] = 0;
         const Aggregation agg = aggregate_vertices(n, A.offsets, A.cols, excluded);
         level.aggregate_of = agg.aggregate_of;
-        t = tentative_prolongator(agg, b, k, modes, level.fixed);
+        t = tentative_prolongator(agg, b, k, modes, level.fixed, threads);
         level.tentative = t.blocks;
 
         const int na = agg.num_aggregates;
@@ -186,6 +184,8 @@ AmgPlan plan_amg(int block, const BlockPattern& pattern, const std::vector<doubl
         throw std::invalid_argument("plan_amg: max_coarsest_dofs must be >= 1, max_levels and threads >= 0");
 
     AmgPlan plan;
+    const int threads = settings.threads > 0 ? settings.threads
+                                             : int(std::min(16u, std::max(1u, std::thread::hardware_concurrency())));
     const int k = block == 2 ? 3 : 6;
     BlockPattern current = pattern;
     std::vector<char> current_fixed = fixed.empty() ? std::vector<char>(positions.size(), 0) : fixed;
@@ -204,7 +204,7 @@ AmgPlan plan_amg(int block, const BlockPattern& pattern, const std::vector<doubl
         level.diagonal = diagonal_of(current, "plan_amg");
         level.fixed = current_fixed;
         TentativeProlongator t;
-        BlockPattern coarse = plan_level(level, k, modes, settings.threads, t);
+        BlockPattern coarse = plan_level(level, k, modes, threads, t);
         // A level that barely coarsens (a dense graph) would only cost time: stop above it.
         if (t.num_aggregates == 0 || double(t.num_aggregates) * k > 0.75 * double(current.rows()) * b)
             break;

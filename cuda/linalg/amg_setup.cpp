@@ -1,8 +1,10 @@
 #include "cuda/linalg/amg_setup.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <stdexcept>
 #include <string>
+#include <thread>
 
 namespace diffipc::gpu {
 
@@ -117,7 +119,7 @@ std::vector<double> rigid_body_modes(int dim, const std::vector<double>& positio
 }
 
 TentativeProlongator tentative_prolongator(const Aggregation& aggregation, int dim, int modes,
-    const std::vector<double>& fine_modes, const std::vector<char>& fixed)
+    const std::vector<double>& fine_modes, const std::vector<char>& fixed, int threads)
 {
     const size_t nv = aggregation.aggregate_of.size(), n = nv * size_t(dim);
     if (dim < 1 || modes < 1 || fine_modes.size() != n * size_t(modes) || (!fixed.empty() && fixed.size() != n))
@@ -153,7 +155,9 @@ TentativeProlongator tentative_prolongator(const Aggregation& aggregation, int d
             for (size_t j = 0; j < k; ++j)
                 t.blocks[r * k + j] = fine_modes[r * k + j];
     constexpr double TOLERANCE = 1e-10; // of a column's norm before orthogonalization
-    for (int a = 0; a < na; ++a) {
+    // Each aggregate's rows, R and flags are its own: chunks of aggregates run on their own threads with
+    // the same arithmetic, so the result does not depend on the number of threads.
+    const auto factorize = [&](int a) {
         const auto rows = [&](auto visit) {
             for (int m = offsets[size_t(a)]; m < offsets[size_t(a) + 1]; ++m)
                 for (size_t i = 0; i < d; ++i)
@@ -184,7 +188,27 @@ TentativeProlongator tentative_prolongator(const Aggregation& aggregation, int d
             R[j * k + j] = norm;
             rows([&](size_t r) { t.blocks[r * k + j] /= norm; });
         }
-    }
+    };
+    // Worker w factorizes the aggregates [w na / workers, (w + 1) na / workers); the calling thread takes
+    // chunk 0 and any chunk whose thread could not be started.
+    const int workers = std::max(1, std::min(threads > 0 ? threads : 1, (na + 255) / 256));
+    const auto chunk = [&](int w) {
+        for (int a = int(long(w) * na / workers); a < int(long(w + 1) * na / workers); ++a)
+            factorize(a);
+    };
+    std::vector<std::thread> pool;
+    int started = 1;
+    for (; started < workers; ++started)
+        try {
+            pool.emplace_back(chunk, started);
+        } catch (...) {
+            break;
+        }
+    chunk(0);
+    for (int w = started; w < workers; ++w)
+        chunk(w);
+    for (std::thread& worker : pool)
+        worker.join();
     return t;
 }
 

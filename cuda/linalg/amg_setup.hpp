@@ -57,8 +57,9 @@ struct TentativeProlongator {
 /// k per dof) with the fixed dofs' rows zeroed: per aggregate, a QR factorization of its rows by
 /// modified Gram-Schmidt, applied twice (deterministic, in vertex order).
 /// @param fixed per dof, or empty
+/// @param threads threads for the aggregates' factorizations (the result does not depend on it)
 /// @throws std::invalid_argument on a size mismatch
 TentativeProlongator tentative_prolongator(const Aggregation& aggregation, int dim, int modes,
-    const std::vector<double>& fine_modes, const std::vector<char>& fixed = {});
+    const std::vector<double>& fine_modes, const std::vector<char>& fixed = {}, int threads = 1);
 
 } // namespace diffipc::gpu

@@ -152,7 +152,7 @@ TEST(AmgHierarchy, PatternsHoldTheGalerkinProducts2D) { check_plan(2, { 30, 12 }
 
 TEST(AmgHierarchy, PlanDoesNotDependOnTheThreads)
 {
-    const test::ElasticBox box = test::make_elastic_box(3, { 30, 12, 12 }, -1, 0.1, 0.0, 9);
+    const test::ElasticBox box = test::make_elastic_box(3, { 40, 12, 12 }, -1, 0.1, 0.0, 9);
     const gpu::BlockPattern pattern = test::box_pattern(box);
     gpu::AmgPlanSettings one, two;
     one.threads = 1;
@@ -160,8 +160,10 @@ TEST(AmgHierarchy, PlanDoesNotDependOnTheThreads)
     const gpu::AmgPlan a = gpu::plan_amg(3, pattern, box.x_vector(), test::clamped_face(box), one);
     const gpu::AmgPlan b = gpu::plan_amg(3, pattern, box.x_vector(), test::clamped_face(box), two);
     ASSERT_EQ(a.levels.size(), b.levels.size());
-    // 5,239 rows in chunks of 2,048: thread 0 builds chunks 0 and 2, thread 1 chunk 1.
-    ASSERT_GT(a.levels.front().matrix.rows(), 2 * 2048) << "a thread with two chunks";
+    // 6,929 rows in chunks of 2,048: thread 0 builds chunks 0 and 2, thread 1 chunks 1 and 3; more than
+    // 256 aggregates: the tentative prolongator's factorizations run on both threads.
+    ASSERT_GT(a.levels.front().matrix.rows(), 3 * 2048) << "threads with two chunks";
+    ASSERT_GT(a.levels.front().num_aggregates(), 256) << "factorizations on two threads";
     for (size_t l = 0; l < a.levels.size(); ++l) {
         const gpu::AmgLevelPlan &x = a.levels[l], &y = b.levels[l];
         EXPECT_EQ(x.prolongator.cols, y.prolongator.cols);
