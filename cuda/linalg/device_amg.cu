@@ -442,6 +442,9 @@ struct DeviceAmg::Impl {
         int p_blocks = 0, w_blocks = 0, c_blocks = 0;
         mutable DeviceArray<double> x, b_vec, y;
         int size() const { return rows * b; }
+        /// y = A_l x on `stream`: a thread per scalar row on the fine level (few blocks per row), a warp per
+        /// block row on the coarse ones.
+        void multiply(bool fine, const double* x, double* y, cudaStream_t stream) const;
     };
     AmgSettings settings;
     std::vector<Level> levels;
@@ -600,12 +603,7 @@ bool DeviceAmg::setup(const DeviceBsrMatrix& A)
             // rho(D^-1 A) by power iteration from the free dofs' indicator: x holds v, y A v, b_vec D^-1 A v.
             power_start<<<grid(n), THREADS>>>(n, L.fixed.data(), L.x.data());
             for (int it = 0; it <= m.settings.power_iterations; ++it) {
-                if (l == 0)
-                    multiply<B, B, false><<<grid(n), THREADS>>>(
-                        n, L.offsets.data(), L.cols.data(), L.values.data(), L.x.data(), L.y.data());
-                else
-                    multiply_by_warps<B><<<grid(long(L.rows) * WARP), THREADS>>>(
-                        L.rows, L.offsets.data(), L.cols.data(), L.values.data(), L.x.data(), L.y.data());
+                L.multiply(l == 0, L.x.data(), L.y.data(), 0);
                 apply_block_diagonal<B><<<grid(n), THREADS>>>(n, L.inverses.data(), L.y.data(), L.b_vec.data());
                 check_launch("launch of the AMG's power iteration");
                 deterministic_dot(L.b_vec.data(), L.b_vec.data(), size_t(n), m.partials.data(), rho2);
@@ -668,6 +666,20 @@ bool DeviceAmg::setup(const DeviceBsrMatrix& A)
     return failed == 0;
 }
 
+void DeviceAmg::Impl::Level::multiply(bool fine, const double* x, double* y, cudaStream_t stream) const
+{
+    with_block(b, [&](auto Bc) {
+        constexpr int B = decltype(Bc)::value;
+        if (fine)
+            gpu::multiply<B, B, false>
+                <<<grid(size()), THREADS, 0, stream>>>(size(), offsets.data(), cols.data(), values.data(), x, y);
+        else
+            multiply_by_warps<B><<<grid(long(rows) * WARP), THREADS, 0, stream>>>(
+                rows, offsets.data(), cols.data(), values.data(), x, y);
+    });
+    check_launch("launch of the AMG's matrix product");
+}
+
 void DeviceAmg::Impl::cycle(size_t l, const double* b, double* x, cudaStream_t stream) const
 {
     if (l == levels.size()) {
@@ -684,18 +696,7 @@ void DeviceAmg::Impl::cycle(size_t l, const double* b, double* x, cudaStream_t s
     const Level* next = l + 1 < levels.size() ? &levels[l + 1] : nullptr;
     double* bc = next ? next->b_vec.data() : cb_vec.data();
     double* xc = next ? next->x.data() : cx.data();
-    const auto residual = [&] {
-        with_block(L.b, [&](auto Bc) {
-            constexpr int B = decltype(Bc)::value;
-            if (l == 0) // the fine level's rows hold few blocks
-                multiply<B, B, false><<<grid(n), THREADS, 0, stream>>>(
-                    n, L.offsets.data(), L.cols.data(), L.values.data(), x, L.y.data());
-            else
-                multiply_by_warps<B><<<grid(long(L.rows) * WARP), THREADS, 0, stream>>>(
-                    L.rows, L.offsets.data(), L.cols.data(), L.values.data(), x, L.y.data());
-        });
-        check_launch("launch of the AMG's residual");
-    };
+    const auto residual = [&] { L.multiply(l == 0, x, L.y.data(), stream); };
     const auto sweep = [&](bool first) {
         with_block(L.b, [&](auto Bc) {
             constexpr int B = decltype(Bc)::value;
