@@ -100,9 +100,21 @@ namespace {
         r[k] = fixed && fixed[k] ? 0.0 : b[k] - q[k];
     }
 
+    /// v -= (scalars[slot] * inverse) d: removes v's component along the constraint (d = a, inverse =
+    /// 1 / a.a, scalars[slot] = a.v) or the preconditioner's (d = M a, inverse = 1 / a.M a, scalars[slot] =
+    /// M a . r).
+    __global__ void remove_component(int n, const double* __restrict__ scalars, int slot, double inverse,
+        const double* __restrict__ d, double* __restrict__ v)
+    {
+        const int k = blockIdx.x * blockDim.x + threadIdx.x;
+        if (k >= n)
+            return;
+        v[k] -= scalars[slot] * inverse * d[k];
+    }
+
     // Device scalars: (r.z, r.r) of even iterates at 0, 1, of odd ones at 2, 3; p.Ap at 4; the
-    // true residual's r.r at 5.
-    constexpr int PAP = 4, TRUE_RR = 5, NUM_SCALARS = 6;
+    // true residual's r.r at 5; a constraint's products at 6 (and 7 for its set-up's a.a, a.M a).
+    constexpr int PAP = 4, TRUE_RR = 5, PROJECTION = 6, NUM_SCALARS = 8;
 
 } // namespace
 
@@ -156,18 +168,51 @@ PcgResult DevicePCG::solve_device(
                 <<<grid(rows), THREADS>>>(rows, m_diagonal.data(), fixed, m_inverse_diagonal.data());
         check_launch("launch of the block-Jacobi setup");
     }
-    auto precondition = [&]() {
+    // A constraint (set_constraint): M a, a.a and a.M a once per solve.
+    const double* a = m_constraint;
+    double inverse_aa = 0, inverse_ama = 0;
+    auto apply_preconditioner = [&](const double* from, double* to) {
         if (preconditioner)
-            preconditioner->apply(r, z);
+            preconditioner->apply(from, to);
         else if (B == 2)
-            apply_block_diagonal<2><<<grid(n), THREADS>>>(n, m_inverse_diagonal.data(), r, z);
+            apply_block_diagonal<2><<<grid(n), THREADS>>>(n, m_inverse_diagonal.data(), from, to);
         else
-            apply_block_diagonal<3><<<grid(n), THREADS>>>(n, m_inverse_diagonal.data(), r, z);
+            apply_block_diagonal<3><<<grid(n), THREADS>>>(n, m_inverse_diagonal.data(), from, to);
         check_launch("launch of the preconditioner");
+    };
+    if (a) {
+        m_constraint_image.resize(size_t(n));
+        apply_preconditioner(a, m_constraint_image.data());
+        deterministic_dot2(a, a, a, m_constraint_image.data(), size_t(n), partials, s + PROJECTION);
+        double products[2];
+        detail::copy_device_to_host(products, s + PROJECTION, sizeof(products));
+        if (!(products[0] > 0) || !(products[1] > 0) || !std::isfinite(products[0]) || !std::isfinite(products[1]))
+            throw std::invalid_argument("DevicePCG: the constraint direction is zero or not finite (a.a = "
+                + std::to_string(products[0]) + ", a.M a = " + std::to_string(products[1]) + ")");
+        inverse_aa = 1 / products[0];
+        inverse_ama = 1 / products[1];
+    }
+    // Without the component along a (the constraint's multiplier times a).
+    auto project = [&](double* v) {
+        if (!a)
+            return;
+        deterministic_dot(a, v, size_t(n), partials, s + PROJECTION);
+        remove_component<<<grid(n), THREADS>>>(n, s, PROJECTION, inverse_aa, a, v);
+        check_launch("launch of the constraint's projection");
+    };
+    auto precondition = [&]() {
+        apply_preconditioner(r, z);
+        if (!a)
+            return;
+        // z = M r - (M a . r / a.M a) M a, orthogonal to a.
+        deterministic_dot(m_constraint_image.data(), r, size_t(n), partials, s + PROJECTION);
+        remove_component<<<grid(n), THREADS>>>(n, s, PROJECTION, inverse_ama, m_constraint_image.data(), z);
+        check_launch("launch of the constrained preconditioner");
     };
 
     masked_copy<<<grid(n), THREADS>>>(n, d_b, fixed, r, d_x);
     check_launch("launch of the PCG start");
+    project(r);
     precondition();
     detail::copy_device_to_device(p, z, size_t(n) * sizeof(double));
     deterministic_dot2(r, z, r, r, size_t(n), partials, s + 0);
@@ -189,6 +234,7 @@ PcgResult DevicePCG::solve_device(
         deterministic_dot(p, q, size_t(n), partials, s + PAP);
         update_solution<<<grid(n), THREADS>>>(n, s, old_slot, PAP, p, q, d_x, r);
         check_launch("launch of the PCG update");
+        project(r);
         precondition();
         deterministic_dot2(r, z, r, r, size_t(n), partials, s + new_slot);
         update_direction<<<grid(n), THREADS>>>(n, s, new_slot, old_slot, z, p);
@@ -209,10 +255,12 @@ PcgResult DevicePCG::solve_device(
             result.converged = true;
     }
 
-    // The true residual at the returned x.
+    // The true residual at the returned x (kept on the hyperplane against the drift of round-off).
+    project(d_x);
     A.multiply(d_x, q, fixed);
     masked_residual<<<grid(n), THREADS>>>(n, d_b, q, fixed, r);
     check_launch("launch of the PCG residual");
+    project(r);
     deterministic_dot(r, r, size_t(n), partials, s + TRUE_RR);
     detail::copy_device_to_host(host, s, sizeof(host));
     result.relative_residual = std::sqrt(host[TRUE_RR]) / bnorm;

@@ -12,6 +12,13 @@
 /// identity ones (a block that is not positive definite falls back to its inverted diagonal,
 /// or 1 where that is not positive).
 ///
+/// With a constraint (set_constraint: one direction a on the free dofs), the solve is projected PCG
+/// (Gould, Hribar and Nocedal 2001): x minimizes 1/2 x^T A x - b^T x over the free dofs with a^T x = 0,
+/// which needs A positive definite on that hyperplane only (an indefinite A past a limit point can
+/// be). The preconditioner M is replaced by M - (M a)(M a)^T / (a^T M a), whose outputs are orthogonal
+/// to a, and every residual loses its component along a (Euclidean projection), the constraint's
+/// multiplier times a: r, ||P b|| and the reported residual are those projected ones.
+///
 /// Stopping: ||r_k|| <= relative_tolerance ||P b|| for the recursively updated residual r_k
 /// (2-norms), or max_iterations, or a breakdown (p^T A p <= 0 or not finite: A is not positive
 /// definite on the free dofs); the result reports the true residual ||P (b - A x)|| / ||P b||,
@@ -62,6 +69,13 @@ public:
     /// SparseAssembler::apply_constraints' `constrained`); an empty vector fixes none.
     void set_fixed_dofs(const std::vector<char>& fixed);
 
+    /// @brief Restricts the following solves to a^T x = 0 (file comment); nullptr: unconstrained again.
+    /// @param d_a A.size() doubles on the device, zero on the fixed dofs and not all zero; read at each
+    ///            solve, so it must stay valid while set (solve_device throws std::invalid_argument if a
+    ///            is zero or not finite)
+    void set_constraint(const double* d_a) { m_constraint = d_a; }
+    const double* constraint() const { return m_constraint; }
+
     /// @brief Solves for x from x = 0 (layout and semantics in the file comment).
     /// @param A   symmetric positive definite on the free dofs, b by b blocks (device)
     /// @param d_b right-hand side, A.size() doubles on the device
@@ -78,6 +92,8 @@ private:
 
     PcgSettings m_settings;
     DeviceArray<unsigned char> m_fixed; // empty: no fixed dofs
+    const double* m_constraint = nullptr; // a of set_constraint
+    DeviceArray<double> m_constraint_image; // M a
     DeviceArray<double> m_r, m_z, m_p, m_q, m_diagonal, m_inverse_diagonal, m_partials, m_scalars;
 };
 

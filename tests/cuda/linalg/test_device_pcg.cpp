@@ -1,14 +1,18 @@
 // DevicePCG (cuda/linalg/device_pcg.hpp) on the GPU: the projected Newton system of an elastic box
-// with a Dirichlet face, against a CPU direct solve; repeatability; breakdown. Skipped without a GPU.
+// with a Dirichlet face, against a CPU direct solve; repeatability; breakdown; the solve on a hyperplane
+// (set_constraint) against the dense KKT system. Skipped without a GPU.
 
 #include "cuda/elastic/device_elastic_mesh.hpp"
 #include "cuda/linalg/device_pcg.hpp"
 #include "tests/cuda/elastic_test_utils.hpp"
 
+#include <Eigen/Dense>
 #include <Eigen/SparseCholesky>
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <cstdio>
+#include <random>
 
 using namespace diffipc;
 
@@ -141,6 +145,119 @@ TEST(DevicePCG, ZeroRightHandSideAndAllFixed)
             pcg.solve(A, { 1, 2, 3, 4 }, x);
         },
         std::invalid_argument);
+}
+
+/// The solve on the hyperplane a^T x = 0 (set_constraint) against the dense KKT system
+/// [A_ff a_f; a_f^T 0] [x_f; lambda] = [b_f; 0] of the free dofs, solved by LU on the CPU.
+void expect_constrained_solve(const gpu::HostBsrMatrix& host, const std::vector<char>& fixed,
+    const std::vector<double>& b, const std::vector<double>& a, const char* name)
+{
+    const int n = host.size();
+    std::vector<int> free_dofs;
+    for (int k = 0; k < n; ++k)
+        if (!fixed[size_t(k)])
+            free_dofs.push_back(k);
+    const int nf = int(free_dofs.size());
+    Eigen::MatrixXd K = Eigen::MatrixXd::Zero(nf + 1, nf + 1);
+    VectorXd rhs = VectorXd::Zero(nf + 1);
+    for (int i = 0; i < nf; ++i) {
+        for (int j = 0; j < nf; ++j)
+            K(i, j) = host.coeff(free_dofs[size_t(i)], free_dofs[size_t(j)]);
+        K(i, nf) = K(nf, i) = a[size_t(free_dofs[size_t(i)])];
+        rhs[i] = b[size_t(free_dofs[size_t(i)])];
+    }
+    const VectorXd kkt = K.fullPivLu().solve(rhs);
+
+    gpu::DeviceBsrMatrix A;
+    A.upload(host);
+    gpu::DeviceArray<double> d_a(a);
+    gpu::DevicePCG pcg(gpu::PcgSettings { 1e-10, 10000 });
+    pcg.set_fixed_dofs(fixed);
+    pcg.set_constraint(d_a.data());
+    std::vector<double> x;
+    const gpu::PcgResult r = pcg.solve(A, b, x);
+    EXPECT_TRUE(r.converged) << name;
+    EXPECT_FALSE(r.breakdown) << name;
+    EXPECT_LE(r.relative_residual, 3e-10) << name;
+    double difference = 0, reference = 0, ax = 0, norm_a = 0, norm_x = 0;
+    for (int i = 0; i < nf; ++i) {
+        const size_t k = size_t(free_dofs[size_t(i)]);
+        difference += std::pow(x[k] - kkt[i], 2);
+        reference += kkt[i] * kkt[i];
+        ax += a[k] * x[k];
+        norm_a += a[k] * a[k];
+        norm_x += x[k] * x[k];
+    }
+    for (int k = 0; k < n; ++k)
+        if (fixed[size_t(k)])
+            EXPECT_EQ(x[size_t(k)], 0.0) << name;
+    difference = std::sqrt(difference / reference);
+    EXPECT_LE(difference, 1e-7) << name;
+    EXPECT_LE(std::abs(ax), 1e-12 * std::sqrt(norm_a * norm_x)) << name << ": off the hyperplane";
+    std::printf("%s: %d free dofs, %d PCG iterations, relative residual %.2e, relative difference to the KKT "
+                "solve %.2e, multiplier %.3e, a.x / |a||x| %.1e\n",
+        name, nf, r.iterations, r.relative_residual, difference, kkt[nf], ax / std::sqrt(norm_a * norm_x));
+    // The same bits again, and unconstrained again after set_constraint(nullptr).
+    std::vector<double> again;
+    const gpu::PcgResult second = pcg.solve(A, b, again);
+    EXPECT_EQ(second.iterations, r.iterations) << name;
+    EXPECT_EQ(again, x) << name;
+    pcg.set_constraint(nullptr);
+    EXPECT_EQ(pcg.constraint(), nullptr);
+}
+
+TEST(DevicePCG, SolvesOnAHyperplaneLikeTheKktSystem)
+{
+    DIFFIPC_SKIP_WITHOUT_GPU();
+    const int dim = 3;
+    const test::ElasticBox box = test::make_elastic_box(dim, { 5, 4, 3 }, -1, 0.15, 0.1, 37);
+    gpu::DeviceElasticMesh m;
+    m.upload(dim, box.rest_flat(), box.elements_flat(), box.model_codes(), box.mu_vector(), box.lambda_vector());
+    const std::vector<double> x = box.x_vector();
+    gpu::HostBsrMatrix host = m.hessian_bsr(x, true).download();
+    std::vector<double> b = m.gradient(x);
+    for (double& v : b)
+        v = -v;
+    const size_t n = b.size();
+    std::vector<char> fixed(n, 0);
+    for (Index v = 0; v < box.mesh.num_vertices(); ++v)
+        if (box.mesh.rest_positions(v, 0) == 0)
+            for (int i = 0; i < dim; ++i)
+                fixed[size_t(v * dim + i)] = 1;
+    // A dense direction on the free dofs, with the (positive definite) projected Hessian.
+    std::mt19937 random(5);
+    std::uniform_real_distribution<double> uniform(-1, 1);
+    std::vector<double> a(n, 0.0);
+    for (size_t k = 0; k < n; ++k)
+        a[k] = fixed[k] ? 0.0 : uniform(random);
+    expect_constrained_solve(host, fixed, b, a, "dense direction");
+
+    // An indefinite matrix that is positive definite on the hyperplane: dof j's diagonal made negative
+    // (e_j^T A e_j < 0), and a = e_j. Past a limit point the true Hessian is like this along the load.
+    size_t j = 0;
+    while (fixed[j])
+        ++j;
+    const int row = int(j) / dim, c = int(j) % dim;
+    double row_sum = 0;
+    for (int col = 0; col < host.size(); ++col)
+        row_sum += std::abs(host.coeff(int(j), col));
+    for (int slot = host.row_offsets[size_t(row)]; slot < host.row_offsets[size_t(row) + 1]; ++slot)
+        if (host.col_indices[size_t(slot)] == row)
+            host.values[size_t(slot) * dim * dim + size_t(c * dim + c)] -= 3 * row_sum;
+    ASSERT_LT(host.coeff(int(j), int(j)), 0);
+    std::vector<double> e(n, 0.0);
+    e[j] = 1;
+    expect_constrained_solve(host, fixed, b, e, "indefinite, positive definite on the hyperplane");
+
+    // A direction that is zero is refused.
+    gpu::DeviceBsrMatrix A;
+    A.upload(host);
+    gpu::DeviceArray<double> zero(std::vector<double>(n, 0.0));
+    gpu::DevicePCG pcg;
+    pcg.set_fixed_dofs(fixed);
+    pcg.set_constraint(zero.data());
+    std::vector<double> y;
+    EXPECT_THROW(pcg.solve(A, b, y), std::invalid_argument);
 }
 
 } // namespace
