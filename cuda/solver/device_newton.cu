@@ -4,6 +4,7 @@
 #include "cuda/contact/sum_operator.hpp"
 #include "cuda/elastic/material.cuh"
 #include "cuda/linalg/device_amg.hpp"
+#include "cuda/linalg/reduction.hpp"
 #include "cuda/periodic/device_periodic_map.hpp"
 #include "cuda/periodic/reduced_operator.hpp"
 #include "cuda/solver/inversion_bound.cuh"
@@ -302,6 +303,14 @@ namespace {
             y[k] += x[k];
     }
 
+    /// y += a x
+    __global__ void add_scaled(size_t n, double a, const double* __restrict__ x, double* __restrict__ y)
+    {
+        const size_t k = size_t(blockIdx.x) * blockDim.x + threadIdx.x;
+        if (k < n)
+            y[k] += a * x[k];
+    }
+
     /// y = a x
     __global__ void scale_into(size_t n, double a, const double* __restrict__ x, double* __restrict__ y)
     {
@@ -348,7 +357,8 @@ namespace {
     constexpr int S_ENERGY = 10; // 2
     constexpr int S_RESIDUAL = 12; // 2
     constexpr int S_BALANCE = 14; // 2
-    constexpr int NUM_SCALARS = 16;
+    constexpr int S_CONTROL = 16; // 2
+    constexpr int NUM_SCALARS = 18;
 
 } // namespace
 
@@ -370,8 +380,30 @@ struct DeviceNewton::Impl {
     // constraints are set, from that solve's state; `multigrid_unavailable` once planning failed.
     bool multigrid = false, multigrid_unavailable = false;
     int multigrid_threads = 0; // for the plan's patterns (0: the hardware's)
+    int multigrid_coarsest = AmgPlanSettings().max_coarsest_dofs; // the plan's max_coarsest_dofs
     std::unique_ptr<DeviceAmg> amg;
     std::vector<char> constrained;
+    // Load control (solve()'s `control`, for that solve only): a on the device and a^T a.
+    DeviceLoadControl* control = nullptr;
+    DeviceArray<double> control_a;
+    double control_aa = 0;
+    /// Under load control: lambda = a^T v / a^T a, returned, and v -= lambda a (its multiplier's share,
+    /// the load the constraint carries, is no residual); a^T x into *ax if given. 0 without control.
+    double remove_carried(double* v, double* ax = nullptr)
+    {
+        if (!control)
+            return 0;
+        deterministic_dot2(
+            control_a.data(), v, control_a.data(), x.data(), n, partials.data(), scalars.data() + S_CONTROL);
+        double products[2];
+        detail::copy_device_to_host(products, scalars.data() + S_CONTROL, sizeof(products));
+        const double lambda = products[0] / control_aa;
+        add_scaled<<<grid(n), THREADS>>>(n, -lambda, control_a.data(), v);
+        check_launch("launch of the carried load's removal");
+        if (ax)
+            *ax = products[1];
+        return lambda;
+    }
     DeviceContact* contact = nullptr;
     DeviceFriction* friction = nullptr; // lagged friction (needs contact)
     SumOperator sum; // H + the contact Hessian (+ the friction Hessian)
@@ -719,6 +751,7 @@ struct DeviceNewton::Impl {
     void residual_of_trial(double* out)
     {
         gradient_to_unknowns(g_trial, u_g_trial());
+        remove_carried(g_trial.data()); // under load control (never a periodic cell's)
         reduce<2>(ResidualTerm { u_g_trial().data(), u_fixed() }, nu(), RESIDUAL_OPS, partials.data(),
             scalars.data() + S_RESIDUAL);
         detail::copy_device_to_host(out, scalars.data() + S_RESIDUAL, 2 * sizeof(double));
@@ -872,15 +905,25 @@ void DeviceNewton::set_constrained(const std::vector<char>& constrained)
     m_impl->multigrid_unavailable = false;
 }
 
-void DeviceNewton::set_adjoint_multigrid(bool on, int plan_threads)
+void DeviceNewton::set_adjoint_multigrid(bool on, int plan_threads, int max_coarsest_dofs)
 {
-    if (plan_threads < 0)
-        throw std::invalid_argument("DeviceNewton::set_adjoint_multigrid: plan_threads must be >= 0");
-    m_impl->multigrid = on;
-    m_impl->multigrid_threads = plan_threads;
+    if (plan_threads < 0 || max_coarsest_dofs < 0)
+        throw std::invalid_argument(
+            "DeviceNewton::set_adjoint_multigrid: plan_threads and max_coarsest_dofs must be >= 0");
+    Impl& m = *m_impl;
+    m.multigrid = on;
+    m.multigrid_threads = plan_threads;
+    const int coarsest = max_coarsest_dofs > 0 ? max_coarsest_dofs : AmgPlanSettings().max_coarsest_dofs;
+    if (coarsest != m.multigrid_coarsest) {
+        m.multigrid_coarsest = coarsest;
+        m.amg.reset();
+        m.multigrid_unavailable = false;
+    }
 }
 
 bool DeviceNewton::adjoint_multigrid() const { return m_impl->multigrid; }
+
+int DeviceNewton::adjoint_multigrid_levels() const { return m_impl->amg ? m_impl->amg->num_levels() : -1; }
 
 void DeviceNewton::set_force_reference(const std::vector<double>& reference)
 {
@@ -952,6 +995,7 @@ PcgResult DeviceNewton::solve_true_hessian(const std::vector<double>& x_host, do
                 const std::vector<char> constrained = m.constrained.empty() ? std::vector<char>(n, 0) : m.constrained;
                 AmgPlanSettings plan;
                 plan.threads = m.multigrid_threads;
+                plan.max_coarsest_dofs = m.multigrid_coarsest;
                 m.amg = std::make_unique<DeviceAmg>(
                     plan_amg(m.dim, BlockPattern { m.H.row_offsets(), m.H.col_indices() }, x_host, constrained, plan));
             } catch (const std::exception&) {
@@ -1018,7 +1062,7 @@ namespace {
 
 DeviceNewtonResult DeviceNewton::solve(std::vector<double>& x_host, const std::vector<double>& inertial_target,
     double weight, const std::vector<double>& force, const std::vector<double>& target_host, double force_scale,
-    double step_scale, const DeviceNewtonSettings& settings)
+    double step_scale, const DeviceNewtonSettings& settings, DeviceLoadControl* control)
 {
     Impl& m = *m_impl;
     if (m.periodic)
@@ -1036,6 +1080,39 @@ DeviceNewtonResult DeviceNewton::solve(std::vector<double>& x_host, const std::v
     if (m.dynamic)
         check_size(inertial_target, "inertial_target");
     check_solve_arguments("solve", weight, force_scale, step_scale, settings);
+    if (control) {
+        check_size(control->direction, "the load control's direction");
+        double aa = 0;
+        for (size_t k = 0; k < n; ++k) {
+            const double a = control->direction[k];
+            if (!std::isfinite(a) || (a != 0 && !m.constrained.empty() && m.constrained[k]))
+                throw std::invalid_argument("DeviceNewton::solve: the load control's direction is "
+                    + std::string(std::isfinite(a) ? "nonzero on constrained" : "not finite at") + " dof "
+                    + std::to_string(k));
+            aa += a * a;
+        }
+        if (!(aa > 0) || !std::isfinite(aa) || !std::isfinite(control->level) || !(control->tolerance >= 0)
+            || !std::isfinite(control->tolerance))
+            throw std::invalid_argument("DeviceNewton::solve: the load control needs a nonzero direction, a finite "
+                                        "level and a finite tolerance >= 0");
+        m.control_a.upload(control->direction);
+        m.control_aa = aa;
+    }
+    // The control holds for this solve only, however it ends.
+    struct Controlled {
+        Impl& m;
+        Controlled(Impl& impl, DeviceLoadControl* c)
+            : m(impl)
+        {
+            m.control = c;
+            m.pcg.set_constraint(c ? m.control_a.data() : nullptr);
+        }
+        ~Controlled()
+        {
+            m.control = nullptr;
+            m.pcg.set_constraint(nullptr);
+        }
+    } controlled(m, control);
     m.x.upload(x_host);
     m.target.upload(target_host);
     const DeviceNewtonResult result = iterate(inertial_target, weight, force, force_scale, step_scale, settings);
@@ -1123,22 +1200,34 @@ DeviceNewtonResult DeviceNewton::iterate(const std::vector<double>& inertial_tar
     // DIFFIPC_NEWTON_TRACE=1: one line per iteration on stderr (a diagnostic for failing steps).
     static const bool trace = std::getenv("DIFFIPC_NEWTON_TRACE") != nullptr;
 
+    DeviceLoadControl* const control = m.control;
     for (int it = 0;; ++it) {
         double gs[4];
+        double gap = 0; // under load control: level - a^T x
         {
             const auto t = Clock::now();
             m.activate_at_x();
             m.gradient(m_mesh, m.x.data(), w, m.g.data());
             m.gradient_to_unknowns(m.g, m.u_g());
+            if (control) {
+                double ax = 0;
+                control->multiplier = m.remove_carried(m.g.data(), &ax);
+                gap = control->level - ax;
+            }
             reduce<4>(GradientTerm { m.u_g().data(), m.u().data(), m.u_target().data(), fixed, m.u_pD().data() }, nu,
                 GRADIENT_OPS, m.partials.data(), m.scalars.data() + S_GRADIENT);
+            // Under load control, pD also holds p0 = gap a / a^T a on the free dofs (file comment).
+            if (control) {
+                add_scaled<<<Gu, THREADS>>>(nu, gap / m.control_aa, m.control_a.data(), m.u_pD().data());
+                check_launch("launch of the control's lift");
+            }
             detail::copy_device_to_host(gs, m.scalars.data() + S_GRADIENT, sizeof(gs));
             phase_end(t, result.assembly_time);
         }
         if (gs[3] != 0)
             return finish(DeviceStepStatus::NON_FINITE);
         const double gmax = gs[0], gnorm = std::sqrt(gs[1]), dmax = gs[2];
-        const bool lifting = dmax > 0;
+        const bool lifting = dmax > 0 || (control && std::abs(gap) > control->tolerance);
         result.residual = gmax / force_scale;
         if (!std::isfinite(result.residual))
             return finish(DeviceStepStatus::NON_FINITE);
@@ -1184,10 +1273,11 @@ DeviceNewtonResult DeviceNewton::iterate(const std::vector<double>& inertial_tar
                 m.add_mass(m.H);
                 if (m_contact)
                     m.assemble_contact(w, project);
-                if (lifting)
+                const bool coupled = lifting || control; // pD (and p0) not zero
+                if (coupled)
                     m.u_system(m_contact).multiply(m.u_pD().data(), m.u_coupling().data(), nullptr);
                 newton_rhs<<<Gu, THREADS>>>(
-                    nu, m.u_g().data(), lifting ? m.u_coupling().data() : nullptr, m.u_rhs().data());
+                    nu, m.u_g().data(), coupled ? m.u_coupling().data() : nullptr, m.u_rhs().data());
                 check_launch("launch of the Newton right-hand side");
                 phase_end(t, result.assembly_time);
             }
@@ -1200,6 +1290,10 @@ DeviceNewtonResult DeviceNewton::iterate(const std::vector<double>& inertial_tar
                 result.pcg_capped += !pcg.converged && !pcg.breakdown;
                 set_prescribed<<<Gu, THREADS>>>(nu, fixed, m.u_pD().data(), m.u_p().data());
                 check_launch("launch of the prescribed step");
+                if (control) { // p = p0 + d, d on the hyperplane: a^T p = gap
+                    add_scaled<<<Gu, THREADS>>>(nu, gap / m.control_aa, m.control_a.data(), m.u_p().data());
+                    check_launch("launch of the control's step");
+                }
                 phase_end(t, result.solve_time);
             }
             if (!project) {
@@ -1336,7 +1430,7 @@ DeviceNewtonResult DeviceNewton::iterate(const std::vector<double>& inertial_tar
         // residual is orthogonal to the Krylov space that holds p). Not where the predicted decrease is below
         // the energy's resolution: there the decrease is round-off (a last step of the 2D falling box in
         // AdaptiveTimeSteppingOfDynamicScenes was extended 4x on such noise).
-        if (settings.step_extension && alpha == 1.0 && !lifting && !unresolvable && !result.roundoff_limited
+        if (settings.step_extension && alpha == 1.0 && !lifting && !control && !unresolvable && !result.roundoff_limited
             && energy - new_energy > EXTENSION_RATIO * -slope)
             alpha = m.extend(m_mesh, w, length, settings, energy, slope, new_energy, result);
         full_step_taken = alpha >= 1.0;

@@ -22,7 +22,7 @@
 /// candidates. After each accepted iterate the end-of-iteration hook (set_end_iteration: the
 /// adaptive stiffness, which the caller owns) may change kappa; the energy is then re-evaluated.
 ///
-/// Algorithm (as NewtonSolver::solve, without contact, load control or step extension):
+/// Algorithm (as NewtonSolver::solve; contact above, load control and the step extension below):
 ///  - residual max |g_free| / force_scale; converged when <= residual_tolerance and no lifting
 ///    remains;
 ///  - lifting: constrained dofs move toward `target` by steps p_D = target - x_D, free rows of the
@@ -37,9 +37,19 @@
 /// Statuses mirror StepStatus (forward/solver/status.hpp); a failed solve leaves the host x as
 /// it was given (the caller's committed state is untouched).
 ///
+/// Load control (solve()'s `control`, the CPU's LoadControl: displacement control past a limit point,
+/// docs/math.md "Load stepping past limit points"): minimizes E on the hyperplane a^T x = level. The
+/// residual is that of g - lambda a with lambda = a^T g / a^T a (the load the constraint carries); the
+/// step is p = p0 + d with p0 = (level - a^T x) a / a^T a and d the projected PCG solve
+/// (device_pcg.hpp, set_constraint) of the search matrix on a^T d = 0, with right-hand side
+/// -(g + H (pD + p0)): the CPU's bordered step, a^T p = level - a^T x. While |level - a^T x| exceeds the
+/// control's tolerance the step lifts (bounded, not Armijo-tested), like a prescribed motion. The true
+/// Hessian (adaptive_projection) needs to be positive definite only on the hyperplane, where the CPU
+/// factorizes an indefinite one by LDL^T; no step extension under load control, as on the CPU.
+///
 /// Differences from the CPU solver: adaptive_projection keeps the true Hessian when PCG meets no
-/// negative curvature and its step descends (the CPU: when Cholesky succeeds); no step extension,
-/// load control or step_tolerance; the Newton system is
+/// negative curvature and its step descends (the CPU: when Cholesky succeeds); no step_tolerance; the
+/// Newton system is
 /// solved inexactly by PCG (forcing above) instead of by Cholesky. A PCG run that stops at its
 /// iteration cap, or on a breakdown after at least one iteration, still gives a descent direction
 /// and is used; a breakdown before any iteration (the search matrix is not positive definite on
@@ -127,6 +137,15 @@ struct DeviceNewtonSettings {
     bool step_extension = true;
 };
 
+/// A linear constraint a^T x = level on the free dofs for load control (solve(); the CPU's LoadControl,
+/// forward/solver/newton.hpp).
+struct DeviceLoadControl {
+    std::vector<double> direction; ///< a (#dofs, zero on the constrained dofs, finite, not all zero)
+    double level = 0; ///< a^T x at the solution
+    double tolerance = 0; ///< |a^T x - level| below which the constraint holds (>= 0)
+    double multiplier = 0; ///< out: lambda = a^T g / a^T a at the last iterate
+};
+
 /// The adaptive stiffness' balancing products at a state (Simulator::balancing_kappa): with gE the
 /// gradient of E without the barrier and gB the barrier's gradient without kappa, both zero on the
 /// constrained dofs: gB . gE and gB . gB; and the number of active contact pairs there.
@@ -209,11 +228,13 @@ public:
     /// @param target           #dofs, the constrained dofs' values at the end of the step
     /// @param force_scale      residual = max |g_free| / force_scale (> 0)
     /// @param step_scale       newton_step = max |alpha p| / step_scale (> 0)
+    /// @param control          if given: minimize on its hyperplane (file comment, "Load control"); its
+    ///                         multiplier is set at every iterate
     /// @throws std::invalid_argument on a size mismatch, a weight or scale that is not positive and
-    ///         finite, or invalid settings (checked before any GPU work)
+    ///         finite, invalid settings or an invalid control (checked before any GPU work)
     DeviceNewtonResult solve(std::vector<double>& x, const std::vector<double>& inertial_target, double weight,
         const std::vector<double>& force, const std::vector<double>& target, double force_scale, double step_scale,
-        const DeviceNewtonSettings& settings);
+        const DeviceNewtonSettings& settings, DeviceLoadControl* control = nullptr);
 
     /// @brief Makes this the solver of a periodic cell (cuda/periodic/device_periodic_map.hpp; the CPU's
     /// PeriodicCell): its unknowns are the cell's q = [w, L G], positions x = X + P q. The gradient and the
@@ -272,9 +293,14 @@ public:
 
     /// @brief Whether solve_true_hessian() preconditions with the multigrid or block-Jacobi (default).
     /// @param plan_threads threads for the multigrid plan's patterns (0: the hardware's, at most 16)
-    /// @throws std::invalid_argument if plan_threads < 0
-    void set_adjoint_multigrid(bool on, int plan_threads = 0);
+    /// @param max_coarsest_dofs the plan's coarsest level's largest size (AmgPlanSettings; 0: its default);
+    ///        a new value discards the plan
+    /// @throws std::invalid_argument if plan_threads or max_coarsest_dofs < 0
+    void set_adjoint_multigrid(bool on, int plan_threads = 0, int max_coarsest_dofs = 0);
     bool adjoint_multigrid() const;
+    /// The multigrid plan's levels above its coarsest (DeviceAmg::num_levels; 0: a dense solve of the
+    /// whole system), -1 while there is no plan (none built yet, or it could not be built).
+    int adjoint_multigrid_levels() const;
 
     /// @brief Adds the contact barrier (nullptr: none). The contact object must outlive its use; its
     /// kappa is read at every evaluation.

@@ -5,6 +5,8 @@
 #include "forward/common/timer.hpp"
 #include "forward/contact/barrier.hpp"
 
+#include <optional>
+
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 
@@ -484,7 +486,7 @@ NewtonResult DeviceSolver::solve_periodic(VectorXd& q, const VectorXd& target, c
 }
 
 NewtonResult DeviceSolver::solve(VectorXd& x, const VectorXd& inertial_target, double weight, const VectorXd& force,
-    const VectorXd& target, double force_scale, double step_scale, const NewtonSettings& settings)
+    const VectorXd& target, double force_scale, double step_scale, const NewtonSettings& settings, LoadControl* control)
 {
     Impl& d = *m_impl;
     if (!d.surface_rest.empty())
@@ -496,8 +498,19 @@ NewtonResult DeviceSolver::solve(VectorXd& x, const VectorXd& inertial_target, d
     d.set_terms(weight, inertial_target, force);
     d.x.assign(x.data(), x.data() + x.size());
     d.target.assign(target.data(), target.data() + target.size());
-    const gpu::DeviceNewtonResult r
-        = d.newton->solve(d.x, d.inertial_target, weight, d.force, d.target, force_scale, step_scale, s);
+    std::optional<gpu::DeviceLoadControl> device_control;
+    if (control) {
+        device_control.emplace();
+        device_control->direction.assign(
+            control->direction.data(), control->direction.data() + control->direction.size());
+        device_control->level = control->level;
+        device_control->tolerance = control->tolerance;
+        ++m_control_solves;
+    }
+    const gpu::DeviceNewtonResult r = d.newton->solve(d.x, d.inertial_target, weight, d.force, d.target, force_scale,
+        step_scale, s, device_control ? &*device_control : nullptr);
+    if (control)
+        control->multiplier = device_control->multiplier;
     NewtonResult result = host_result(r);
     account(r);
     if (result.status == StepStatus::CONVERGED)
@@ -608,8 +621,8 @@ DeviceSolver::DeviceSolver(
 
 DeviceSolver::~DeviceSolver() = default;
 
-NewtonResult DeviceSolver::solve(
-    VectorXd&, const VectorXd&, double, const VectorXd&, const VectorXd&, double, double, const NewtonSettings&)
+NewtonResult DeviceSolver::solve(VectorXd&, const VectorXd&, double, const VectorXd&, const VectorXd&, double, double,
+    const NewtonSettings&, LoadControl*)
 {
     return {};
 }

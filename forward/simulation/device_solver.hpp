@@ -81,8 +81,14 @@ public:
     /// @param inertial_target x~ (ignored for a static scene)
     /// @param weight          c h^2 of the non-inertial potentials
     /// @param force           #dofs external force f (N)
+    /// @param control         if given: displacement control on the device (NewtonSolver::solve's `control`:
+    ///                        the bordered step by projected PCG, cuda/solver/device_newton.hpp); its
+    ///                        multiplier is set. Counted by control_solves().
     NewtonResult solve(VectorXd& x, const VectorXd& inertial_target, double weight, const VectorXd& force,
-        const VectorXd& target, double force_scale, double step_scale, const NewtonSettings& settings);
+        const VectorXd& target, double force_scale, double step_scale, const NewtonSettings& settings,
+        LoadControl* control = nullptr);
+    /// Displacement-control solves on the device so far (solve() with a control).
+    long control_solves() const { return m_control_solves; }
 
     /// @brief A proximal solve of load stepping's relaxation (Simulator::relax_to_equilibrium) in a static
     /// scene: solve()'s problem plus (proximal_weight / 2) |x - center|_M^2 with the lumped masses M
@@ -193,6 +199,7 @@ private:
     /// After a solve: its PCG iterations, and the contact's times since the last solve into the profile.
     void account(const gpu::DeviceNewtonResult& r);
     long m_proximal_solves = 0;
+    long m_control_solves = 0;
     mutable ContactProfile m_profile;
 };
 

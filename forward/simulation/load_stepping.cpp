@@ -63,9 +63,8 @@ NewtonResult Simulator::solve_in_substeps(int k, const NewtonSolver& newton, dou
         h *= a.cut;
         if (h < a.min_increment * (1 - 1e-12)) {
             why = substeps_exhausted("automatic load stepping", record.substeps, t, k, ts, r.status);
-            // Past a limit point: displacement control (on the CPU's Newton in either run), then
-            // relaxation from where it got to (or from the last sub-step), on the device in a GPU run
-            // where it can (relaxation_on_device).
+            // Past a limit point: displacement control, then relaxation from where it got to (or from
+            // the last sub-step), on the device in a GPU run where it can (limit_point_on_device).
             struct OnCpu {
                 Simulator& sim;
                 explicit OnCpu(Simulator& s)
@@ -80,7 +79,7 @@ NewtonResult Simulator::solve_in_substeps(int k, const NewtonSolver& newton, dou
                     continue;
                 std::string note;
                 std::optional<OnCpu> on_cpu;
-                if (control || !relaxation_on_device())
+                if (!limit_point_on_device())
                     on_cpu.emplace(*this);
                 const NewtonResult c = control
                     ? pass_limit_point(k, newton, step_scale, t, committed, r, record, total, note)
@@ -125,16 +124,16 @@ const VectorXd& Simulator::current_inertial_target() const
     return m_integrator->dynamic() ? m_inertia->target() : none;
 }
 
-NewtonResult Simulator::solve_current(
-    const NewtonSolver& newton, VectorXd& y, const VectorXd& target, double w, double step_scale, bool on_device)
+NewtonResult Simulator::solve_current(const NewtonSolver& newton, VectorXd& y, const VectorXd& target, double w,
+    double step_scale, bool on_device, LoadControl* control)
 {
     if (m_device && on_device)
         return m_device->solve(y, current_inertial_target(), w, m_external->force(), target, w * m_force_scale,
-            step_scale, newton.settings());
-    return newton.solve(y, target, m_constrained, w * m_force_scale, step_scale);
+            step_scale, newton.settings(), control);
+    return newton.solve(y, target, m_constrained, w * m_force_scale, step_scale, control);
 }
 
-bool Simulator::relaxation_on_device() const { return m_device && !m_periodic && !m_inertia->consistent(); }
+bool Simulator::limit_point_on_device() const { return m_device && !m_periodic && !m_inertia->consistent(); }
 
 double Simulator::solve_kappa() const
 {
@@ -233,6 +232,8 @@ NewtonResult Simulator::pass_limit_point(int k, const NewtonSolver& newton, doub
     // A control solve that needs many times the easy count is cut rather than finished: failing
     // solves then cost little where the path turns.
     const NewtonSolver control_newton = newton.limited(4 * a.iteration_target);
+    // In a GPU run the solves run on the device, unless the caller handed the contact to the CPU.
+    const bool on_device = limit_point_on_device() && !m_fallback_on_cpu;
     // The last converged state on the path and its level: the secant through it and x predicts the
     // next state (a solve started there takes a few iterations, not the many that a start at x
     // takes where the path turns), shortened to what CCD and the inversion bound allow.
@@ -247,13 +248,12 @@ NewtonResult Simulator::pass_limit_point(int k, const NewtonSolver& newton, doub
             const double reach = m_problem.max_step(x, secant);
             y += std::min(1.0, 0.9 * reach) * secant;
         }
-        const double kappa = m_contact ? m_contact->kappa() : 0.0;
+        const double kappa = solve_kappa();
         restart_friction(x, m_scene.time.dt);
-        NewtonResult r = control_newton.solve(y, target, m_constrained, w * m_force_scale, step_scale, &control);
+        NewtonResult r = solve_current(control_newton, y, target, w, step_scale, on_device, &control);
         total.add_costs(r);
         if (r.status != StepStatus::CONVERGED) {
-            if (m_contact)
-                m_contact->set_kappa(kappa); // a failed solve leaves no trace
+            restore_kappa(kappa); // a failed solve leaves no trace
             ++record.cuts;
             increment_s *= a.cut;
             // Cut to a hundredth of the longest increment that converged, or to 1e-4 of the
@@ -283,18 +283,17 @@ NewtonResult Simulator::pass_limit_point(int k, const NewtonSolver& newton, doub
         VectorXd z = x, final_target = x;
         prescribed_targets_at(k, t1, final_target);
         m_external->set_force(f1);
-        const double kappa_final = m_contact ? m_contact->kappa() : 0.0;
+        const double kappa_final = solve_kappa();
         restart_friction(x, t1 - t);
-        NewtonResult last = newton.solve(z, final_target, m_constrained, w * m_force_scale, step_scale);
+        NewtonResult last = solve_current(newton, z, final_target, w, step_scale, on_device);
         total.add_costs(last);
-        last = relag_friction(newton, w, step_scale, final_target, z, last, total);
+        last = relag_friction(newton, w, step_scale, final_target, z, last, total, on_device);
         if (last.status == StepStatus::CONVERGED) {
             x = std::move(z);
             ++record.substeps;
             return last;
         }
-        if (m_contact)
-            m_contact->set_kappa(kappa_final);
+        restore_kappa(kappa_final);
     }
     why = "displacement control moved " + format_number(level - start) + " m along the load in "
         + std::to_string(record.control_steps) + " solves, carrying at most " + format_number(carried)
@@ -340,8 +339,8 @@ NewtonResult Simulator::relax_to_equilibrium(int k, const NewtonSolver& newton, 
     NewtonResult last;
     last.status = StepStatus::NEWTON_EXHAUSTED;
     // In a GPU run the solves run on the device (its proximal term the CPU's: DeviceSolver::solve_proximal),
-    // unless the caller handed the contact to the CPU (relaxation_on_device).
-    const bool on_device = relaxation_on_device() && !m_fallback_on_cpu;
+    // unless the caller handed the contact to the CPU (limit_point_on_device).
+    const bool on_device = limit_point_on_device() && !m_fallback_on_cpu;
     while (record.relaxation_steps < MAX_RELAXATION_STEPS) {
         const double kappa = solve_kappa();
         m_problem.set_weight(m_inertia.get(), plain ? 0.0 : w * c);

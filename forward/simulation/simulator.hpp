@@ -200,6 +200,7 @@ private:
     /// prescribing the displacement along it (the load is the constraint's multiplier) until the
     /// bodies carry that increment, then solves at t_k. On success x is the equilibrium at t_k.
     /// `failed` is the sub-step failure that led here: returned (with `why`) when the step changes no load.
+    /// In a GPU run its solves run on the device where limit_point_on_device() says so.
     NewtonResult pass_limit_point(int k, const NewtonSolver& newton, double step_scale, double t, VectorXd& x,
         const NewtonResult& failed, StepRecord& record, NewtonResult& total, std::string& why);
     static constexpr int MAX_CONTROL_STEPS = 2000;
@@ -209,9 +210,10 @@ private:
     /// easy solves, then a plain solve at t_k: on success x is the equilibrium at t_k.
     NewtonResult relax_to_equilibrium(int k, const NewtonSolver& newton, double step_scale, VectorXd& x,
         StepRecord& record, NewtonResult& total, std::string& why);
-    /// Whether a GPU run's relaxation runs on the device (DeviceSolver::solve_proximal): with lumped
-    /// masses outside a periodic cell; otherwise (and in a CPU run) on the CPU's Newton.
-    bool relaxation_on_device() const;
+    /// Whether a GPU run passes limit points on the device (displacement control: DeviceSolver::solve
+    /// with a LoadControl; relaxation: DeviceSolver::solve_proximal): with lumped masses outside a
+    /// periodic cell; otherwise (and in a CPU run) on the CPU's Newton.
+    bool limit_point_on_device() const;
     static constexpr int MAX_RELAXATION_STEPS = 2000;
     /// @brief Automatic step control in dynamic scenes (dynamic_substepping.cpp): dynamic step k
     /// taken in sub-steps of its time increment, each a step of the integrator with its own
@@ -246,11 +248,11 @@ private:
     /// @brief A solve of the current step problem from y toward `target` (weight w of the
     /// non-inertial potentials; in a dynamic scene the inertia's current target): on the device in a
     /// GPU run when on_device, else by `newton` (on the device with its settings). Load stepping's and
-    /// dynamic sub-stepping's sub-steps run on the device, and so does load stepping's proximal
-    /// relaxation (relaxation_on_device); its displacement control past a limit point runs on the
-    /// CPU's Newton in either run (its bordered system is the CPU problem's).
-    NewtonResult solve_current(
-        const NewtonSolver& newton, VectorXd& y, const VectorXd& target, double w, double step_scale, bool on_device);
+    /// dynamic sub-stepping's sub-steps run on the device, and so do load stepping's displacement
+    /// control and proximal relaxation past a limit point (limit_point_on_device).
+    /// control: displacement control (NewtonSolver::solve's).
+    NewtonResult solve_current(const NewtonSolver& newton, VectorXd& y, const VectorXd& target, double w,
+        double step_scale, bool on_device, LoadControl* control = nullptr);
     /// The inertia potential's current target in a dynamic scene (the step's or the sub-step's, as
     /// set last), empty in a static one: what a device solve of the current problem is given.
     const VectorXd& current_inertial_target() const;
@@ -268,10 +270,9 @@ private:
     /// Lags friction at x (FrictionPotential::lag); on the GPU path from the device's active set and
     /// kappa, and uploads the lagged data to the device (during a CPU fallback: on the CPU).
     void lag_friction_at(const VectorXd& x);
-    /// @brief In a GPU run, load stepping's displacement control (and relaxation where
-    /// relaxation_on_device() is false) run on the CPU's
-    /// Newton: the CPU contact takes the device's kappa (with the adaptive kappa also the rule, and
-    /// whether it was applied in this step) for them, and friction is lagged on the CPU meanwhile;
+    /// @brief In a GPU run where limit_point_on_device() is false, load stepping's displacement control
+    /// and relaxation run on the CPU's Newton: the CPU contact takes the device's kappa (with the adaptive kappa also
+    /// the rule, and whether it was applied in this step) for them, and friction is lagged on the CPU meanwhile;
     /// hand_contact_to_device() gives the kappa they ended with back. No-ops without a device.
     void hand_contact_to_cpu();
     void hand_contact_to_device();

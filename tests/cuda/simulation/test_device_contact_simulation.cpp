@@ -41,6 +41,7 @@ struct ContactComparison {
     int gpu_fallbacks = 0; ///< its displacement-control and relaxation solves
     int gpu_relaxation = 0; ///< of which relaxation solves
     long gpu_proximal_solves = 0; ///< proximal solves on the device (DeviceSolver::proximal_solves)
+    long gpu_control_solves = 0; ///< displacement-control solves on the device (DeviceSolver::control_solves)
     int intersecting[2] = { 0, 0 }; ///< penalty: committed states with intersecting surfaces (CPU, GPU run)
 };
 
@@ -78,6 +79,7 @@ ContactComparison run_both(json s, const std::string& name, double tolerance, co
     ContactComparison c;
     c.steps = std::min(a.committed(), b.committed());
     c.gpu_proximal_solves = gpu.device_solver()->proximal_solves();
+    c.gpu_control_solves = gpu.device_solver()->control_solves();
     int mismatched_sets = 0;
     for (int k = 1; k <= c.steps; ++k) {
         const StepRecord& ra = a.step(k);
@@ -352,9 +354,9 @@ TEST(DeviceContactSimulation, LoadSteppingPastALimitPointWithContact)
     // The shallow arch of LoadStepping.DisplacementControlPassesASnapThroughThatSubstepsCannot snaps
     // through in step 3 onto a stop (a segment under its apex, an obstacle mesh), with at most 8 Newton
     // iterations per solve: load stepping's sub-steps (on the device) reach the limit point, then
-    // displacement control (on the CPU's Newton, the contact's kappa handed over and back, with the
-    // adaptive kappa also its rule) and relaxation (on the device: DeviceSolver::solve_proximal) carry
-    // the step to its end on the stop; without displacement control, relaxation alone (as
+    // displacement control (on the device: DeviceSolver::solve with a LoadControl, the bordered step by
+    // projected PCG) and relaxation (on the device: DeviceSolver::solve_proximal) carry the step to its
+    // end on the stop; without displacement control, relaxation alone (as
     // LoadStepping.RelaxationPassesASnapThroughToo), all on the device. Both paths must end on the same
     // equilibria (asserted where their kappas agree, as in run_both).
     const std::filesystem::path directory = std::filesystem::temp_directory_path() / "diffipc_arch_on_a_stop";
@@ -373,14 +375,16 @@ TEST(DeviceContactSimulation, LoadSteppingPastALimitPointWithContact)
                 + "kappa " + (adaptive_kappa ? "adaptive" : "1e5");
             const ContactComparison c = run_both(s, name, 1e-6, directory.string());
             EXPECT_GT(c.gpu_fallbacks, 0) << name << ": the GPU run did not reach the limit point's fallbacks";
+            if (control)
+                EXPECT_GT(c.gpu_control_solves, 0) << name << ": the displacement control did not run on the device";
             if (!control) {
                 EXPECT_GT(c.gpu_relaxation, 0) << name;
                 EXPECT_GT(c.gpu_proximal_solves, 0) << name << ": the relaxation did not run on the device";
             }
-            std::printf("  %s: %d load-stepping sub-steps on the GPU, %d displacement-control (on the CPU) and %d "
-                        "relaxation solves (%ld proximal solves on the device)\n",
-                name.c_str(), c.gpu_substeps, c.gpu_fallbacks - c.gpu_relaxation, c.gpu_relaxation,
-                c.gpu_proximal_solves);
+            std::printf("  %s: %d load-stepping sub-steps on the GPU, %d displacement-control (%ld control solves on "
+                        "the device) and %d relaxation solves (%ld proximal solves on the device)\n",
+                name.c_str(), c.gpu_substeps, c.gpu_fallbacks - c.gpu_relaxation, c.gpu_control_solves,
+                c.gpu_relaxation, c.gpu_proximal_solves);
         }
 }
 

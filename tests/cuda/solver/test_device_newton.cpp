@@ -561,6 +561,56 @@ TEST(DeviceNewton, TheLastStepLandsWellBelowTheTolerance)
 // (192,000 tetrahedra, 107,163 dofs) clamped at x = 0, three implicit-Euler steps of 0.01 s from rest
 // under gravity on the GPU; the first step also with the CPU NewtonSolver (its default settings,
 // all threads of the machine) for scale.
+// The adjoint's solve with the multigrid (set_adjoint_multigrid) on a hierarchy of several levels,
+// reached through DeviceNewton's plan (its coarsest level capped at 60 dofs), with vertices fixed in
+// one component only: the same solution as block-Jacobi, in fewer iterations.
+TEST(DeviceNewton, AdjointMultigridOnSeveralLevelsEqualsBlockJacobi)
+{
+    DIFFIPC_SKIP_WITHOUT_GPU();
+    const int dim = 3;
+    const test::ElasticBox box
+        = test::make_elastic_box(dim, { 14, 6, 6 }, int(MaterialModel::NEO_HOOKEAN), 0.05, 0.05, 19);
+    gpu::DeviceElasticMesh mesh;
+    mesh.upload(dim, box.rest_flat(), box.elements_flat(), box.model_codes(), box.mu_vector(), box.lambda_vector());
+    const Index nv = box.mesh.num_vertices();
+    const double x_max = box.mesh.rest_positions.col(0).maxCoeff();
+    std::vector<char> fixed(size_t(nv * dim), 0);
+    for (Index v = 0; v < nv; ++v) {
+        if (box.mesh.rest_positions(v, 0) == 0)
+            for (int i = 0; i < dim; ++i)
+                fixed[size_t(v * dim + i)] = 1;
+        else if (box.mesh.rest_positions(v, 0) == x_max)
+            fixed[size_t(v * dim + 1)] = 1; // rollers
+    }
+    gpu::DeviceNewton newton(mesh, {});
+    newton.set_constrained(fixed);
+    std::mt19937 random(3);
+    std::uniform_real_distribution<double> uniform(-1, 1);
+    std::vector<double> b(fixed.size());
+    for (double& v : b)
+        v = uniform(random);
+    const std::vector<double> x = box.x_vector();
+    std::vector<double> y_bj, y_mg;
+    const gpu::PcgResult bj = newton.solve_true_hessian(x, 1.0, b, y_bj, 1e-11, 20000);
+    EXPECT_EQ(newton.adjoint_multigrid_levels(), -1) << "planned without the multigrid";
+    newton.set_adjoint_multigrid(true, 2, 60);
+    const gpu::PcgResult mg = newton.solve_true_hessian(x, 1.0, b, y_mg, 1e-11, 20000);
+    ASSERT_TRUE(bj.converged);
+    ASSERT_TRUE(mg.converged);
+    EXPECT_GE(newton.adjoint_multigrid_levels(), 2) << "a hierarchy of several levels";
+    EXPECT_LE(mg.relative_residual, 1e-10);
+    const double difference = (to_eigen(y_mg) - to_eigen(y_bj)).norm() / to_eigen(y_bj).norm();
+    EXPECT_LE(difference, 1e-8);
+    EXPECT_LT(2 * mg.iterations, bj.iterations) << "the multigrid fell back to block-Jacobi, or did not help";
+    for (size_t k = 0; k < fixed.size(); ++k)
+        if (fixed[k])
+            ASSERT_EQ(y_mg[k], 0.0);
+    std::printf("  %zu dofs, %d multigrid levels: block-Jacobi %d PCG iterations, multigrid %d; solutions within "
+                "%.1e\n",
+        fixed.size(), newton.adjoint_multigrid_levels(), bj.iterations, mg.iterations, difference);
+    EXPECT_THROW(newton.set_adjoint_multigrid(true, 0, -1), std::invalid_argument);
+}
+
 TEST(DeviceNewton, DISABLED_TimingsOfA200kTetBeam)
 {
     DIFFIPC_SKIP_WITHOUT_GPU();
