@@ -1228,6 +1228,10 @@ DeviceNewtonResult DeviceNewton::iterate(const std::vector<double>& inertial_tar
             return finish(DeviceStepStatus::NON_FINITE);
         const double gmax = gs[0], gnorm = std::sqrt(gs[1]), dmax = gs[2];
         const bool lifting = dmax > 0 || (control && std::abs(gap) > control->tolerance);
+        // The slope g^T p of the energy the line search tests, from direction_scalars' (g - lambda a)^T p:
+        // under load control a Newton step has a^T p = gap, so g^T p adds lambda gap (the CPU's slope).
+        auto full_slope
+            = [&](double carried_free) { return control ? carried_free + control->multiplier * gap : carried_free; };
         result.residual = gmax / force_scale;
         if (!std::isfinite(result.residual))
             return finish(DeviceStepStatus::NON_FINITE);
@@ -1301,7 +1305,7 @@ DeviceNewtonResult DeviceNewton::iterate(const std::vector<double>& inertial_tar
                 bool kept = !pcg.breakdown;
                 if (kept) {
                     m.direction_scalars(ds);
-                    kept = ds[4] == 0 && ds[0] < 0;
+                    kept = ds[4] == 0 && full_slope(ds[0]) < 0;
                 }
                 if (kept) {
                     ++result.true_hessian_steps;
@@ -1317,7 +1321,7 @@ DeviceNewtonResult DeviceNewton::iterate(const std::vector<double>& inertial_tar
         }
         if (ds[4] != 0)
             return finish(DeviceStepStatus::LINEAR_BREAKDOWN);
-        double slope = ds[0], pmax = ds[1];
+        double slope = full_slope(ds[0]), pmax = ds[1];
 
         if (!lifting && pmax <= ROUNDOFF_STEP * ds[3]) {
             // The remaining correction is within a few hundred ulps of the largest position, below what
@@ -1360,7 +1364,8 @@ DeviceNewtonResult DeviceNewton::iterate(const std::vector<double>& inertial_tar
         }
         if (!lifting && !(slope < 0)) {
             // Not a descent direction (PCG on a nearly singular matrix): the negative gradient, scaled to
-            // the rejected step's length.
+            // the rejected step's length (under load control g - lambda a, orthogonal to a: the step stays
+            // on the hyperplane, and its slope is g's).
             const double scale = gmax > 0 && pmax > 0 ? pmax / gmax : 1.0;
             gradient_direction<<<Gu, THREADS>>>(nu, fixed, m.u_g().data(), scale, m.u_p().data());
             check_launch("launch of the gradient direction");

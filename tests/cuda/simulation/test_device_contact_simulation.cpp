@@ -375,8 +375,12 @@ TEST(DeviceContactSimulation, LoadSteppingPastALimitPointWithContact)
                 + "kappa " + (adaptive_kappa ? "adaptive" : "1e5");
             const ContactComparison c = run_both(s, name, 1e-6, directory.string());
             EXPECT_GT(c.gpu_fallbacks, 0) << name << ": the GPU run did not reach the limit point's fallbacks";
-            if (control)
+            if (control) {
+                // Solves on the device, and converged ones among them (control_steps counts those only).
                 EXPECT_GT(c.gpu_control_solves, 0) << name << ": the displacement control did not run on the device";
+                EXPECT_GT(c.gpu_fallbacks - c.gpu_relaxation, 0)
+                    << name << ": no displacement-control solve on the device converged";
+            }
             if (!control) {
                 EXPECT_GT(c.gpu_relaxation, 0) << name;
                 EXPECT_GT(c.gpu_proximal_solves, 0) << name << ": the relaxation did not run on the device";
