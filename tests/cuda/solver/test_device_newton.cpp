@@ -248,23 +248,8 @@ gpu::DeviceNewtonResult gpu_solve(const Case& c, GpuSolver& s, std::vector<doubl
         to_std(c.target), c.force_scale, c.step_scale, settings, control);
 }
 
-/// max |g_free(x)| / force_scale with the CPU's gradient.
-double cpu_residual(const Case& c, const VectorXd& x)
-{
-    if (c.inertia)
-        c.inertia->set_target(c.inertial_target);
-    VectorXd g;
-    c.problem.gradient(x, g);
-    double largest = 0;
-    for (Index i = 0; i < g.size(); ++i)
-        if (!c.constrained[size_t(i)])
-            largest = std::max(largest, std::abs(g[i]));
-    return largest / c.force_scale;
-}
-
-/// max |H^-1 g_free| at x with the CPU's true Hessian (projected if that is not positive definite):
-/// the first-order distance from x to the exact minimizer.
-double newton_correction(const Case& c, const VectorXd& x)
+/// The CPU's gradient at x, zero on the constrained dofs.
+VectorXd free_gradient(const Case& c, const VectorXd& x)
 {
     if (c.inertia)
         c.inertia->set_target(c.inertial_target);
@@ -273,6 +258,20 @@ double newton_correction(const Case& c, const VectorXd& x)
     for (Index i = 0; i < g.size(); ++i)
         if (c.constrained[size_t(i)])
             g[i] = 0;
+    return g;
+}
+
+/// max |g_free(x)| / force_scale with the CPU's gradient.
+double cpu_residual(const Case& c, const VectorXd& x)
+{
+    return free_gradient(c, x).lpNorm<Eigen::Infinity>() / c.force_scale;
+}
+
+/// max |H^-1 g_free| at x with the CPU's true Hessian (projected if that is not positive definite):
+/// the first-order distance from x to the exact minimizer.
+double newton_correction(const Case& c, const VectorXd& x)
+{
+    const VectorXd g = free_gradient(c, x);
     SparseAssembler H;
     H.build(c.mesh.dim, c.mesh.num_vertices(), c.mesh.elements);
     LinearSolver linear(LinearSolverType::CHOLMOD);
@@ -448,13 +447,7 @@ void compare_control_with_cpu(const Case& c)
     const double scale = (cpu.x - c.start).lpNorm<Eigen::Infinity>();
     const double difference = (x_gpu - cpu.x).lpNorm<Eigen::Infinity>();
     // The CPU's residual at the GPU's x: max |g - lambda a| on the free dofs, lambda by least squares.
-    if (c.inertia)
-        c.inertia->set_target(c.inertial_target);
-    VectorXd g;
-    c.problem.gradient(x_gpu, g);
-    for (Index i = 0; i < g.size(); ++i)
-        if (c.constrained[size_t(i)])
-            g[i] = 0;
+    VectorXd g = free_gradient(c, x_gpu);
     g -= (a.dot(g) / a.squaredNorm()) * a;
     const double residual_at_gpu_x = g.lpNorm<Eigen::Infinity>() / c.force_scale;
     std::printf("  load control: max |x_gpu - x_cpu| = %.2e of the displacement scale %.3e m; multipliers CPU "
