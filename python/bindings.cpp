@@ -488,6 +488,33 @@ PYBIND11_MODULE(_diffipc, m)
             "constraint's functional and its gradient, from the same forward runs). Raises ValueError for a p of the "
             "wrong size or with a non-finite entry, AdjointError if a forward step fails or no gradient can be "
             "computed.")
+        .def(
+            "evaluation_of_case",
+            [](const ReducedFunctional& rf, size_t c,
+                const py::array_t<double, py::array::c_style | py::array::forcecast>& p, bool gradient,
+                bool constraints) {
+                if (c >= rf.load_cases())
+                    throw py::index_error("load case " + std::to_string(c) + " of " + std::to_string(rf.load_cases()));
+                const VectorXd pv = parameter_vector(p, rf.size());
+                py::gil_scoped_release release;
+                return rf.evaluate_case(c, pv, gradient, constraints);
+            },
+            py::arg("case"), py::arg("p"), py::arg("gradient") = true, py::arg("constraints") = false,
+            "Load case `case`'s share of evaluation(p): its weighted objective and gradient, the rows of the "
+            "constraints on it (the others zero), its times. evaluation() is the sum of the shares in case order "
+            "(sum_shares), wherever they were computed; the checks on the sum are sum_shares' caller's.")
+        .def_static(
+            "sum_shares",
+            [](const std::vector<Evaluation>& shares) {
+                Evaluation total;
+                for (const Evaluation& e : shares)
+                    ReducedFunctional::add_share(total, e);
+                return total;
+            },
+            py::arg("shares"),
+            "The Evaluation whose parts are the sums of the shares' (evaluation_of_case), added in list order: in "
+            "case order, the same bits as evaluation().")
+        .def_property_readonly("load_cases", &ReducedFunctional::load_cases, "Number of load cases (scenes).")
         .def_property_readonly(
             "constraints",
             [](const ReducedFunctional& rf) {

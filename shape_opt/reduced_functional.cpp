@@ -357,7 +357,7 @@ VectorXd ReducedFunctional::design_gradient(const VectorXd& x, const VectorXd& d
     return m_parameters->design_gradient(x, dJ_dp);
 }
 
-Evaluation ReducedFunctional::evaluate(const VectorXd& p, bool gradient, bool constraints) const
+void ReducedFunctional::check_parameters(const VectorXd& p) const
 {
     const Index n = m_parameters->size();
     if (p.size() != n)
@@ -365,97 +365,36 @@ Evaluation ReducedFunctional::evaluate(const VectorXd& p, bool gradient, bool co
     for (Index i = 0; i < n; ++i)
         if (!std::isfinite(p[i]))
             throw InputError("parameters[" + std::to_string(i) + "]", "non-finite value");
+}
+
+void ReducedFunctional::add_share(Evaluation& total, const Evaluation& share)
+{
+    const auto add = [](auto& to, const auto& from) {
+        if (to.size() == 0)
+            to = from;
+        else if (from.size() != 0)
+            to += from;
+    };
+    total.value += share.value;
+    add(total.gradient, share.gradient);
+    add(total.constraint_values, share.constraint_values);
+    add(total.constraint_gradients, share.constraint_gradients);
+    total.forward_time += share.forward_time;
+    total.adjoint_time += share.adjoint_time;
+    total.checkpoints.insert(total.checkpoints.end(), share.checkpoints.begin(), share.checkpoints.end());
+    for (const std::string& b : share.adjoint_blocks)
+        if (std::find(total.adjoint_blocks.begin(), total.adjoint_blocks.end(), b) == total.adjoint_blocks.end())
+            total.adjoint_blocks.push_back(b);
+    std::sort(total.adjoint_blocks.begin(), total.adjoint_blocks.end());
+}
+
+Evaluation ReducedFunctional::evaluate(const VectorXd& p, bool gradient, bool constraints) const
+{
+    check_parameters(p);
     Evaluation out;
-    if (gradient)
-        out.gradient = VectorXd::Zero(n);
+    for (size_t c = 0; c < m_cases.size(); ++c)
+        add_share(out, evaluate_case(c, p, gradient, constraints));
     const int m = constraints ? int(m_constraints.size()) : 0;
-    out.constraint_values = VectorXd::Zero(m);
-    if (gradient)
-        out.constraint_gradients = MatrixXd::Zero(m, n);
-    const ParameterRequest request = m_parameters->request();
-    for (size_t c = 0; c < m_cases.size(); ++c) {
-        const LoadCase& lc = *m_cases[c];
-        SimulationParameters sp = lc.base;
-        m_parameters->apply(p, sp);
-        // The functionals of this case: its objective (row -1), then the constraints on it.
-        std::vector<int> rows { -1 };
-        for (int i = 0; i < m; ++i)
-            if (m_constraints[size_t(i)].load_case == c)
-                rows.push_back(i);
-        // Row -1 is the objective (weighted; its gradient adds to out.gradient), row i >= 0
-        // constraint i (unweighted; its value and gradient fill row i).
-        const auto functional = [&](int row, const Simulator& sim) {
-            return row < 0 ? parse_objective(lc.objective, lc.field, sim)
-                           : parse_objective(m_constraints[size_t(row)].objective,
-                               m_constraints[size_t(row)].field + ".objective", sim);
-        };
-        const auto store = [&](int row, double value, const ParameterGradient* g, const Simulator& sim) {
-            if (row < 0)
-                out.value += lc.weight * value;
-            else
-                out.constraint_values[row] = value;
-            if (!g)
-                return;
-            for (const std::string& b : computed_blocks(*g))
-                if (std::find(out.adjoint_blocks.begin(), out.adjoint_blocks.end(), b) == out.adjoint_blocks.end())
-                    out.adjoint_blocks.push_back(b);
-            std::sort(out.adjoint_blocks.begin(), out.adjoint_blocks.end());
-            if (row < 0) {
-                m_parameters->add_gradient(*g, sp, sim.plane_stress(), out.gradient);
-                return;
-            }
-            VectorXd dg = VectorXd::Zero(n);
-            m_parameters->add_gradient(*g, sp, sim.plane_stress(), dg);
-            out.constraint_gradients.row(row) = dg.transpose();
-        };
-        if (gradient && m_checkpointing.mode != CheckpointSettings::Mode::NONE) {
-            // The forward runs inside checkpointed_gradient(), once per functional; values come
-            // from the adapter's copy of the states.
-            for (const int row : rows) {
-                Simulator sim(lc.scene, sp);
-                const auto objective = functional(row, sim);
-                StreamedObjectiveAdapter adapter(*objective, request, row < 0 ? lc.weight : 1.0);
-                LoadCaseCheckpoint record;
-                const ParameterGradient g
-                    = checkpointed_gradient(sim, adapter.streamed(), request, m_checkpointing, &record.records);
-                record.objective_stored_states = adapter.stored_states();
-                record.objective_stored_bytes = adapter.stored_bytes();
-                out.forward_time += record.records.forward_time;
-                out.adjoint_time += record.records.recompute_time + record.records.adjoint_time;
-                if (row < 0)
-                    out.checkpoints.push_back(record);
-                store(row, adapter.value(), &g, sim);
-            }
-            continue;
-        }
-        Simulator sim(lc.scene, sp);
-        std::vector<std::unique_ptr<Objective>> objectives;
-        for (const int row : rows)
-            objectives.push_back(functional(row, sim));
-        Timer tf;
-        sim.run();
-        out.forward_time += tf.seconds();
-        const Trajectory& tr = sim.trajectory();
-        if (tr.final_status != StepStatus::CONVERGED)
-            throw AdjointError("no value and no gradient: " + tr.failure_message);
-        // One backward sweep for all the functionals: each step's adjoint system is factorized once.
-        std::vector<double> values;
-        for (const auto& objective : objectives)
-            values.push_back(objective->value(sim, tr));
-        std::vector<ParameterGradient> gradients;
-        if (gradient) {
-            Timer ta;
-            std::vector<StateSeed> seeds(rows.size());
-            for (size_t r = 0; r < rows.size(); ++r) {
-                seeds[r].resize(int(tr.steps.size()));
-                objectives[r]->add_gradient(sim, tr, request, rows[r] < 0 ? lc.weight : 1.0, seeds[r]);
-            }
-            gradients = adjoint_gradients(sim, seeds, request);
-            out.adjoint_time += ta.seconds();
-        }
-        for (size_t r = 0; r < rows.size(); ++r)
-            store(rows[r], values[r], gradient ? &gradients[r] : nullptr, sim);
-    }
     if (!std::isfinite(out.value))
         throw ObjectiveDomainError(
             "J = " + format_number(out.value) + ": the objective overflows (check its targets, weights and exponents)");
@@ -465,6 +404,105 @@ Evaluation ReducedFunctional::evaluate(const VectorXd& p, bool gradient, bool co
                 + ": the constraint's functional overflows");
     if (gradient && (!out.gradient.allFinite() || !out.constraint_gradients.allFinite()))
         throw AdjointError("no gradient: a non-finite derivative (check the objective's parameters)");
+    return out;
+}
+
+Evaluation ReducedFunctional::evaluate_case(size_t c, const VectorXd& p, bool gradient, bool constraints) const
+{
+    if (c >= m_cases.size())
+        throw std::out_of_range("ReducedFunctional::evaluate_case: load case " + std::to_string(c) + " of "
+            + std::to_string(m_cases.size()));
+    check_parameters(p);
+    const Index n = m_parameters->size();
+    Evaluation out;
+    if (gradient)
+        out.gradient = VectorXd::Zero(n);
+    const int m = constraints ? int(m_constraints.size()) : 0;
+    out.constraint_values = VectorXd::Zero(m);
+    if (gradient)
+        out.constraint_gradients = MatrixXd::Zero(m, n);
+    const ParameterRequest request = m_parameters->request();
+    const LoadCase& lc = *m_cases[c];
+    SimulationParameters sp = lc.base;
+    m_parameters->apply(p, sp);
+    // The functionals of this case: its objective (row -1), then the constraints on it.
+    std::vector<int> rows { -1 };
+    for (int i = 0; i < m; ++i)
+        if (m_constraints[size_t(i)].load_case == c)
+            rows.push_back(i);
+    // Row -1 is the objective (weighted; its gradient adds to out.gradient), row i >= 0
+    // constraint i (unweighted; its value and gradient fill row i).
+    const auto functional = [&](int row, const Simulator& sim) {
+        return row < 0 ? parse_objective(lc.objective, lc.field, sim)
+                       : parse_objective(
+                           m_constraints[size_t(row)].objective, m_constraints[size_t(row)].field + ".objective", sim);
+    };
+    const auto store = [&](int row, double value, const ParameterGradient* g, const Simulator& sim) {
+        if (row < 0)
+            out.value += lc.weight * value;
+        else
+            out.constraint_values[row] = value;
+        if (!g)
+            return;
+        for (const std::string& b : computed_blocks(*g))
+            if (std::find(out.adjoint_blocks.begin(), out.adjoint_blocks.end(), b) == out.adjoint_blocks.end())
+                out.adjoint_blocks.push_back(b);
+        std::sort(out.adjoint_blocks.begin(), out.adjoint_blocks.end());
+        if (row < 0) {
+            m_parameters->add_gradient(*g, sp, sim.plane_stress(), out.gradient);
+            return;
+        }
+        VectorXd dg = VectorXd::Zero(n);
+        m_parameters->add_gradient(*g, sp, sim.plane_stress(), dg);
+        out.constraint_gradients.row(row) = dg.transpose();
+    };
+    if (gradient && m_checkpointing.mode != CheckpointSettings::Mode::NONE) {
+        // The forward runs inside checkpointed_gradient(), once per functional; values come
+        // from the adapter's copy of the states.
+        for (const int row : rows) {
+            Simulator sim(lc.scene, sp);
+            const auto objective = functional(row, sim);
+            StreamedObjectiveAdapter adapter(*objective, request, row < 0 ? lc.weight : 1.0);
+            LoadCaseCheckpoint record;
+            const ParameterGradient g
+                = checkpointed_gradient(sim, adapter.streamed(), request, m_checkpointing, &record.records);
+            record.objective_stored_states = adapter.stored_states();
+            record.objective_stored_bytes = adapter.stored_bytes();
+            out.forward_time += record.records.forward_time;
+            out.adjoint_time += record.records.recompute_time + record.records.adjoint_time;
+            if (row < 0)
+                out.checkpoints.push_back(record);
+            store(row, adapter.value(), &g, sim);
+        }
+        return out;
+    }
+    Simulator sim(lc.scene, sp);
+    std::vector<std::unique_ptr<Objective>> objectives;
+    for (const int row : rows)
+        objectives.push_back(functional(row, sim));
+    Timer tf;
+    sim.run();
+    out.forward_time += tf.seconds();
+    const Trajectory& tr = sim.trajectory();
+    if (tr.final_status != StepStatus::CONVERGED)
+        throw AdjointError("no value and no gradient: " + tr.failure_message);
+    // One backward sweep for all the functionals: each step's adjoint system is factorized once.
+    std::vector<double> values;
+    for (const auto& objective : objectives)
+        values.push_back(objective->value(sim, tr));
+    std::vector<ParameterGradient> gradients;
+    if (gradient) {
+        Timer ta;
+        std::vector<StateSeed> seeds(rows.size());
+        for (size_t r = 0; r < rows.size(); ++r) {
+            seeds[r].resize(int(tr.steps.size()));
+            objectives[r]->add_gradient(sim, tr, request, rows[r] < 0 ? lc.weight : 1.0, seeds[r]);
+        }
+        gradients = adjoint_gradients(sim, seeds, request);
+        out.adjoint_time += ta.seconds();
+    }
+    for (size_t r = 0; r < rows.size(); ++r)
+        store(rows[r], values[r], gradient ? &gradients[r] : nullptr, sim);
     return out;
 }
 

@@ -96,6 +96,21 @@ public:
     ///         AdjointError (no gradient) if a forward step fails.
     Evaluation evaluate(const VectorXd& p, bool gradient, bool constraints = false) const;
 
+    /// @brief Load case c's share of evaluate(p, ...): its weighted objective and gradient, the rows
+    /// of the constraints on it (the other rows zero), its blocks, times and checkpoint record.
+    /// evaluate() is the sum of the shares in case order (add_share), whatever evaluated them: a
+    /// distributed run that evaluates the cases apart and adds their shares in that order gets the
+    /// same bits. The checks on p are evaluate()'s (check_parameters); those on the sum are not made.
+    /// @throws AdjointError (no gradient) if a forward step of the case fails; InputError from its
+    ///         functionals.
+    Evaluation evaluate_case(size_t c, const VectorXd& p, bool gradient, bool constraints = false) const;
+    /// @brief total += share, one load case's (evaluate_case) after those before it: sums of values,
+    /// gradients, constraint rows and times; the union of the adjoint blocks (sorted); its checkpoint
+    /// record appended. An empty total (default-constructed) takes the share's shape.
+    static void add_share(Evaluation& total, const Evaluation& share);
+    /// @throws InputError naming "parameters" for a p of the wrong size or with non-finite entries.
+    void check_parameters(const VectorXd& p) const;
+
     /// The design variables x (docs/parametrizations.md): per parameter entry, the inputs of
     /// its "maps"; p = P(x). Without maps x = p.
     Index design_size() const;
