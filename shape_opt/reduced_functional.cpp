@@ -54,6 +54,15 @@ namespace {
         return c;
     }
 
+    /// into = the sorted union of into and from (the adjoint blocks of an Evaluation).
+    void merge_blocks(std::vector<std::string>& into, const std::vector<std::string>& from)
+    {
+        for (const std::string& b : from)
+            if (std::find(into.begin(), into.end(), b) == into.end())
+                into.push_back(b);
+        std::sort(into.begin(), into.end());
+    }
+
 } // namespace
 
 ReducedFunctional::~ReducedFunctional() = default;
@@ -382,10 +391,7 @@ void ReducedFunctional::add_share(Evaluation& total, const Evaluation& share)
     total.forward_time += share.forward_time;
     total.adjoint_time += share.adjoint_time;
     total.checkpoints.insert(total.checkpoints.end(), share.checkpoints.begin(), share.checkpoints.end());
-    for (const std::string& b : share.adjoint_blocks)
-        if (std::find(total.adjoint_blocks.begin(), total.adjoint_blocks.end(), b) == total.adjoint_blocks.end())
-            total.adjoint_blocks.push_back(b);
-    std::sort(total.adjoint_blocks.begin(), total.adjoint_blocks.end());
+    merge_blocks(total.adjoint_blocks, share.adjoint_blocks);
 }
 
 Evaluation ReducedFunctional::evaluate(const VectorXd& p, bool gradient, bool constraints) const
@@ -444,10 +450,7 @@ Evaluation ReducedFunctional::evaluate_case(size_t c, const VectorXd& p, bool gr
             out.constraint_values[row] = value;
         if (!g)
             return;
-        for (const std::string& b : computed_blocks(*g))
-            if (std::find(out.adjoint_blocks.begin(), out.adjoint_blocks.end(), b) == out.adjoint_blocks.end())
-                out.adjoint_blocks.push_back(b);
-        std::sort(out.adjoint_blocks.begin(), out.adjoint_blocks.end());
+        merge_blocks(out.adjoint_blocks, computed_blocks(*g));
         if (row < 0) {
             m_parameters->add_gradient(*g, sp, sim.plane_stress(), out.gradient);
             return;

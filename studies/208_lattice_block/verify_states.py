@@ -46,7 +46,7 @@ def main():
         one["time"]["steps"] = 1
         one["time"].pop("adaptive", None)
         one["output"] = {"directory": tempfile.gettempdir(), "vtu_every": 0}
-        simulator = diffipc.Simulator(diffipc._scene_from_json_text(json.dumps(one), base))
+        simulator = diffipc.Simulator(diffipc.scene(one, base))
         simulator.set_initial_state(positions[k], np.zeros_like(positions[k]))
         status = simulator.step()
         record = simulator.trajectory()
