@@ -10,9 +10,11 @@
 
 namespace diffipc {
 
-int gradcheck(const std::string& problem_path, int directions, const std::string& device)
+int gradcheck(const std::string& problem_path, int directions, const std::string& device,
+    std::shared_ptr<CaseDistribution> distribution)
 {
-    const ReducedFunctional rf = ReducedFunctional::load(problem_path, device);
+    ReducedFunctional rf = ReducedFunctional::load(problem_path, device);
+    rf.set_distribution(distribution);
     const auto& settings = rf.check_settings();
     const int count = directions > 0 ? directions : settings.directions;
     // At the design's start: the entries' "initial" design values through their maps (so a

@@ -7,6 +7,7 @@
 #include "adjoint/adjoint.hpp"
 #include "cli/bench.hpp"
 #include "cli/check.hpp"
+#include "cli/distributed_run.hpp"
 #include "cli/gradcheck.hpp"
 #include "cli/optimize.hpp"
 #include "cli/simulate.hpp"
@@ -57,7 +58,13 @@ std::string version_text()
     const std::string gpu = DeviceSolver::available(&why)
         ? DeviceSolver::describe_device() + " (\"device\": \"gpu\" runs there)"
         : "none usable: " + why + " (\"device\": \"gpu\" is refused)";
-    return "diffipc " DIFFIPC_VERSION "\n" + describe(thread_config()) + "gpu: " + gpu + "\n";
+#ifdef DIFFIPC_HAVE_MPI
+    const std::string mpi
+        = "built with MPI (mpirun -n N diffipc optimize|gradcheck spreads the load cases over N ranks)";
+#else
+    const std::string mpi = "not built (configure with -DDIFFIPC_MPI=ON and libopenmpi-dev to run over ranks)";
+#endif
+    return "diffipc " DIFFIPC_VERSION "\n" + describe(thread_config()) + "gpu: " + gpu + "\nmpi: " + mpi + "\n";
 }
 
 } // namespace
@@ -66,6 +73,15 @@ int main(int argc, char** argv)
 {
     // Before anything else: libgomp must see OMP_WAIT_POLICY when it is loaded (threads.hpp).
     prepare_process_environment(argv);
+    // Under mpirun (a build with MPI): after the re-execution above, before anything else.
+    std::unique_ptr<DistributedRun> distributed;
+    try {
+        distributed = DistributedRun::start(&argc, &argv);
+    } catch (const std::exception& e) {
+        std::fprintf(stderr, "diffipc: MPI: %s\n", e.what());
+        return 3;
+    }
+    const bool serving = distributed && distributed->rank() > 0;
 
     CLI::App app { "diffipc: differentiable IPC elastodynamics" };
     app.require_subcommand(1);
@@ -177,22 +193,42 @@ int main(int argc, char** argv)
 
     try {
         app.parse(argc, argv);
-    } catch (const CLI::CallForHelp& e) {
-        return app.exit(e);
-    } catch (const CLI::CallForAllHelp& e) {
-        return app.exit(e);
-    } catch (const CLI::CallForVersion& e) {
-        return app.exit(e);
-    } catch (const CLI::ParseError& e) {
+    } catch (const CLI::Error& e) {
+        if (serving)
+            return distributed->serve(); // rank 0 answers (help, version, a usage error) and ends the run
+        if (dynamic_cast<const CLI::CallForHelp*>(&e) || dynamic_cast<const CLI::CallForAllHelp*>(&e)
+            || dynamic_cast<const CLI::CallForVersion*>(&e))
+            return app.exit(e);
         // A usage error is bad input like any other: exit 1, one line (and where to look).
         std::fprintf(stderr, "diffipc: error: %s (see diffipc --help)\n", e.what());
         return 1;
+    }
+    if (serving) {
+        // Ranks > 0 evaluate load cases for rank 0 until it ends the run, whatever the command: rank 0
+        // runs it and reports any error, here one that rank 0 meets too.
+        try {
+            ensure_threads_configured();
+            if (threads > 0)
+                set_threads(threads, ThreadSource::EXPLICIT, "--threads");
+            distributed->divide_cores();
+        } catch (const std::exception&) {
+        }
+        return distributed->serve();
     }
 
     try {
         ensure_threads_configured();
         if (threads > 0)
             set_threads(threads, ThreadSource::EXPLICIT, "--threads");
+        if (distributed) {
+            distributed->divide_cores();
+            if (!(*opt_cmd || *grad_cmd) && distributed->size() > 1)
+                std::fprintf(stderr,
+                    "diffipc: %d ranks: this command runs on rank 0 alone (optimize and gradcheck spread their load "
+                    "cases)\n",
+                    distributed->size());
+            optimize_options.distribution = distributed->distribution();
+        }
         if (*info_cmd) {
             std::printf("%s", version_text().c_str());
             return 0;
@@ -211,7 +247,8 @@ int main(int argc, char** argv)
         if (*bench_cmd)
             return run_bench(bench_options);
         if (*grad_cmd)
-            return gradcheck(problem_path, directions, grad_device);
+            return gradcheck(
+                problem_path, directions, grad_device, distributed ? distributed->distribution() : nullptr);
         if (*study_cmd) {
             if (study_options.name.empty() && !study_options.list)
                 throw InputError("study", "name a study (diffipc study --list shows them)");

@@ -2,6 +2,7 @@
 
 #include "cli/optimize.hpp"
 
+#include "cli/distributed_run.hpp"
 #include "cli/stop_signal.hpp"
 
 #include "forward/common/error.hpp"
@@ -203,7 +204,8 @@ int optimize(const OptimizeOptions& options)
     if (problem_path.empty())
         throw InputError("problem", "a problem file is required (or --resume DIR)");
 
-    const ReducedFunctional rf = ReducedFunctional::load(problem_path, options.device);
+    ReducedFunctional rf = ReducedFunctional::load(problem_path, options.device);
+    rf.set_distribution(options.distribution);
     OptimizerSettings settings = parse_optimizer_settings(JsonField(rf.optimizer_spec(), "optimizer"));
     settings.lower = rf.design_lower();
     settings.upper = rf.design_upper();
@@ -451,6 +453,8 @@ int optimize(const OptimizeOptions& options)
     summary["wall_time"]["validity"] = design_problem.times().validity;
     if (rf.remesh_settings().enabled())
         summary["wall_time"]["remeshing"] = design_problem.remesh_seconds(); // every attempt, used or not
+    if (options.distribution)
+        summary["processes"] = distribution_summary(*options.distribution);
     write_json((dir / "summary.json").string(), summary);
 
     if (!options.quiet)

@@ -1,7 +1,10 @@
 #pragma once
+#include <memory>
 #include <string>
 
 namespace diffipc {
+
+class CaseDistribution;
 
 /// What `diffipc optimize` was asked to do.
 struct OptimizeOptions {
@@ -12,6 +15,8 @@ struct OptimizeOptions {
     int max_iterations = -1; ///< >= 0: replaces the file's optimizer.max_iterations
     double max_seconds = -1; ///< >= 0: replaces the file's optimizer.max_seconds
     std::string device; ///< "cpu" or "gpu": replaces the scenes' "device" ("": theirs)
+    /// Under mpirun: the load cases over the ranks (rank 0 runs optimize; null: this process alone).
+    std::shared_ptr<CaseDistribution> distribution;
 };
 
 /// @brief `diffipc optimize PROBLEM.json -o DIR` and `diffipc optimize --resume DIR`: runs the

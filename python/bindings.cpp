@@ -549,4 +549,8 @@ PYBIND11_MODULE(_diffipc, m)
         void bind_microstructure(py::module_&);
         bind_microstructure(m);
     } // CellFamily, CellDesign (microstructure_bindings.cpp)
+    {
+        void bind_distribution(py::module_&);
+        bind_distribution(m);
+    } // Communicator, _distribute (distribution_bindings.cpp)
 }

@@ -9,6 +9,7 @@ PACKAGES=(
   nlohmann-json3-dev libcli11-dev libspdlog-dev libfmt-dev libmuparser-dev
   libgtest-dev libgmock-dev libbenchmark-dev
   pybind11-dev python3-dev python3-numpy python3-pytest python3-h5py python3-scipy python3-meshio
+  libopenmpi-dev openmpi-bin python3-mpi4py
   coinor-libipopt-dev libnlopt-cxx-dev python3-matplotlib libgmsh-dev python3-gmsh
 )
 

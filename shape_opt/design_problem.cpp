@@ -205,6 +205,7 @@ bool DesignProblem::remesh_if_needed(const VectorXd& x, int iteration, bool forc
                 + " is not above the old one's " + std::to_string(record.quality_before) + "; kept the old mesh");
         fresh = std::make_unique<ReducedFunctional>(
             doc, m_functional->base_directory(), "remeshed problem", m_functional->device_override());
+        fresh->set_distribution(m_functional->distribution()); // over the same processes
         if (fresh->design_layout() != m_functional->design_layout())
             return failed("the design variables change with the mesh");
         // J and the constraints at x on both meshes: the remesh's discretization change.

@@ -1,5 +1,7 @@
 #include "shape_opt/distribution.hpp"
 
+#include "shape_opt/byte_buffer.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
@@ -44,58 +46,11 @@ namespace {
     // The checkpoint records are copied whole: a field added to them that is not a plain value fails here.
     static_assert(std::is_trivially_copyable<CheckpointStatistics>::value, "CheckpointStatistics is copied whole");
 
-    struct Writer {
-        std::string bytes;
-        template <class T> void put(const T& v)
-        {
-            static_assert(std::is_trivially_copyable<T>::value, "bytes of a trivially copyable value");
-            bytes.append(reinterpret_cast<const char*>(&v), sizeof(T));
-        }
-        void put_doubles(const double* v, size_t n)
-        {
-            put(uint64_t(n));
-            bytes.append(reinterpret_cast<const char*>(v), n * sizeof(double));
-        }
-    };
-
-    struct Reader {
-        const std::string& bytes;
-        size_t at = 0;
-        void need(size_t n, const char* what)
-        {
-            if (n > bytes.size() - at)
-                throw std::invalid_argument(std::string("unpack_evaluation: truncated at ") + what + " (byte "
-                    + std::to_string(at) + " of " + std::to_string(bytes.size()) + ")");
-        }
-        template <class T> T get(const char* what)
-        {
-            need(sizeof(T), what);
-            T v;
-            std::memcpy(&v, bytes.data() + at, sizeof(T));
-            at += sizeof(T);
-            return v;
-        }
-        uint64_t count(const char* what, uint64_t element_bytes)
-        {
-            const uint64_t n = get<uint64_t>(what);
-            if (element_bytes > 0 && n > (bytes.size() - at) / element_bytes)
-                throw std::invalid_argument(std::string("unpack_evaluation: ") + what + " claims " + std::to_string(n)
-                    + " entries, more than the bytes left");
-            return n;
-        }
-        void doubles(double* to, uint64_t n, const char* what)
-        {
-            need(n * sizeof(double), what);
-            std::memcpy(to, bytes.data() + at, n * sizeof(double));
-            at += n * sizeof(double);
-        }
-    };
-
 } // namespace
 
 std::string pack_evaluation(const Evaluation& e)
 {
-    Writer w;
+    ByteWriter w;
     w.put(e.value);
     w.put(e.forward_time);
     w.put(e.adjoint_time);
@@ -106,8 +61,7 @@ std::string pack_evaluation(const Evaluation& e)
     w.put_doubles(e.constraint_gradients.data(), size_t(e.constraint_gradients.size()));
     w.put(uint64_t(e.adjoint_blocks.size()));
     for (const std::string& b : e.adjoint_blocks) {
-        w.put(uint64_t(b.size()));
-        w.bytes += b;
+        w.put_string(b);
     }
     w.put(uint64_t(e.checkpoints.size()));
     for (const LoadCaseCheckpoint& c : e.checkpoints) {
@@ -120,7 +74,7 @@ std::string pack_evaluation(const Evaluation& e)
 
 Evaluation unpack_evaluation(const std::string& bytes)
 {
-    Reader r { bytes };
+    ByteReader r { bytes, "unpack_evaluation" };
     Evaluation e;
     e.value = r.get<double>("value");
     e.forward_time = r.get<double>("forward_time");
@@ -138,10 +92,7 @@ Evaluation unpack_evaluation(const std::string& bytes)
     r.doubles(e.constraint_gradients.data(), entries, "constraint_gradients");
     const uint64_t blocks = r.count("adjoint_blocks", sizeof(uint64_t));
     for (uint64_t i = 0; i < blocks; ++i) {
-        const uint64_t length = r.count("adjoint_blocks", 1);
-        r.need(length, "adjoint_blocks");
-        e.adjoint_blocks.push_back(bytes.substr(r.at, length));
-        r.at += length;
+        e.adjoint_blocks.push_back(r.string("adjoint_blocks"));
     }
     const uint64_t checkpoints = r.count("checkpoints", sizeof(CheckpointStatistics));
     for (uint64_t i = 0; i < checkpoints; ++i) {
@@ -151,8 +102,7 @@ Evaluation unpack_evaluation(const std::string& bytes)
         c.objective_stored_bytes = r.get<size_t>("checkpoints");
         e.checkpoints.push_back(c);
     }
-    if (r.at != bytes.size())
-        throw std::invalid_argument("unpack_evaluation: " + std::to_string(bytes.size() - r.at) + " bytes left over");
+    r.finish();
     return e;
 }
 

@@ -1,5 +1,6 @@
 #include "shape_opt/reduced_functional.hpp"
 
+#include "shape_opt/case_distribution.hpp"
 #include "shape_opt/problem_parameters.hpp"
 
 #include "forward/scene/json_input.hpp"
@@ -12,6 +13,7 @@
 #include "objectives/streamed.hpp"
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -68,6 +70,16 @@ namespace {
 ReducedFunctional::~ReducedFunctional() = default;
 ReducedFunctional::ReducedFunctional(ReducedFunctional&&) noexcept = default;
 
+namespace {
+
+    uint64_t next_problem_id()
+    {
+        static std::atomic<uint64_t> next { 1 };
+        return next++;
+    }
+
+} // namespace
+
 ReducedFunctional ReducedFunctional::load(const std::string& path, const std::string& device)
 {
     const json doc = parse_json_text(read_input_file(path, "problem file"), path);
@@ -102,6 +114,8 @@ namespace {
 ReducedFunctional::ReducedFunctional(
     const json& document, const std::string& base_directory, const std::string& source, const std::string& device)
     : m_device(device)
+    , m_source(source)
+    , m_id(next_problem_id())
 {
     if (!document.is_object())
         throw InputError(source, "a problem file is a JSON object");
@@ -396,10 +410,18 @@ void ReducedFunctional::add_share(Evaluation& total, const Evaluation& share)
 
 Evaluation ReducedFunctional::evaluate(const VectorXd& p, bool gradient, bool constraints) const
 {
+    if (m_distribution)
+        return m_distribution->evaluate(*this, p, gradient, constraints);
     check_parameters(p);
     Evaluation out;
     for (size_t c = 0; c < m_cases.size(); ++c)
         add_share(out, evaluate_case(c, p, gradient, constraints));
+    check_sum(out, gradient, constraints);
+    return out;
+}
+
+void ReducedFunctional::check_sum(const Evaluation& out, bool gradient, bool constraints) const
+{
     const int m = constraints ? int(m_constraints.size()) : 0;
     if (!std::isfinite(out.value))
         throw ObjectiveDomainError(
@@ -410,7 +432,6 @@ Evaluation ReducedFunctional::evaluate(const VectorXd& p, bool gradient, bool co
                 + ": the constraint's functional overflows");
     if (gradient && (!out.gradient.allFinite() || !out.constraint_gradients.allFinite()))
         throw AdjointError("no gradient: a non-finite derivative (check the objective's parameters)");
-    return out;
 }
 
 Evaluation ReducedFunctional::evaluate_case(size_t c, const VectorXd& p, bool gradient, bool constraints) const

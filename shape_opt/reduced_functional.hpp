@@ -22,12 +22,14 @@
 
 #include <nlohmann/json.hpp>
 
+#include <cstdint>
 #include <memory>
 #include <string>
 #include <vector>
 
 namespace diffipc {
 
+class CaseDistribution;
 class JsonField;
 class ProblemParameters;
 struct ShapeLatticeInput;
@@ -110,6 +112,20 @@ public:
     static void add_share(Evaluation& total, const Evaluation& share);
     /// @throws InputError naming "parameters" for a p of the wrong size or with non-finite entries.
     void check_parameters(const VectorXd& p) const;
+    /// @brief evaluate()'s checks on the sum of the shares: a finite J and constraint values, and
+    /// with `gradient` finite derivatives.
+    /// @throws ObjectiveDomainError for a J or constraint value that is not finite; AdjointError for a
+    ///         derivative that is not
+    void check_sum(const Evaluation& total, bool gradient, bool constraints) const;
+
+    /// @brief From now on evaluate() runs through `distribution` (shape_opt/case_distribution.hpp:
+    /// the load cases over processes, the same bits); null: here, case after case.
+    void set_distribution(std::shared_ptr<CaseDistribution> distribution) { m_distribution = std::move(distribution); }
+    const std::shared_ptr<CaseDistribution>& distribution() const { return m_distribution; }
+    /// A number no other ReducedFunctional of this process has (a distribution's name for the problem).
+    uint64_t id() const { return m_id; }
+    /// What the problem was loaded from (its path, or a description), as errors name it.
+    const std::string& source() const { return m_source; }
 
     /// The design variables x (docs/parametrizations.md): per parameter entry, the inputs of
     /// its "maps"; p = P(x). Without maps x = p.
@@ -183,6 +199,9 @@ private:
     nlohmann::json m_optimizer, m_document;
     std::string m_base_directory;
     std::string m_device;
+    std::string m_source;
+    uint64_t m_id = 0;
+    std::shared_ptr<CaseDistribution> m_distribution;
 };
 
 } // namespace diffipc

@@ -29,6 +29,11 @@ class ReducedFunctional(_diffipc.ReducedFunctional):
     ValueError naming the field; a failed forward step or a gradient that cannot
     be computed raises AdjointError and returns nothing.
 
+    ``comm=MPI.COMM_WORLD`` (mpi4py) spreads the load cases over the ranks: every
+    evaluation is then collective, called by every rank with the same p, and gives
+    every rank the serial evaluation's bits (diffipc/mpi.py; ``distribution``
+    has the ranks' times). ``evaluation_of_case`` stays local.
+
     ``J(p)``, ``J.gradient(p)`` and ``J.value_and_gradient(p)`` share one cached
     evaluation: asking for the gradient at the p just evaluated runs only what
     is missing. ``evaluate(p, gradient=True)`` (no cache) and ``size``,
@@ -36,7 +41,7 @@ class ReducedFunctional(_diffipc.ReducedFunctional):
     compiled class.
     """
 
-    def __init__(self, problem, base_directory=None, device=""):
+    def __init__(self, problem, base_directory=None, device="", comm=None):
         if not isinstance(device, str):
             raise TypeError('device must be "cpu", "gpu" or "" (the scenes\' own)')
         if isinstance(problem, dict):
@@ -47,9 +52,23 @@ class ReducedFunctional(_diffipc.ReducedFunctional):
             super().__init__(os.fspath(problem), device)
         else:
             raise TypeError("problem must be a path to a JSON problem file or a dict")
+        #: With ``comm`` (an mpi4py communicator): the diffipc.mpi.MpiCommunicator that spreads the load cases.
+        self.communicator = None
+        if comm is not None:
+            from .mpi import MpiCommunicator
+
+            self.communicator = MpiCommunicator(comm)
+            _diffipc._distribute(self, self.communicator)
         self._last = None  # (p, J, dJ/dp or None) of the last successful evaluation
         #: Seconds and counts summed over this object's evaluations (cache hits excluded).
         self.timings = {"forward": 0.0, "adjoint": 0.0, "evaluations": 0, "gradients": 0}
+
+    @property
+    def distribution(self):
+        """With comm: the ranks, evaluations, rank 0's wall seconds in them, and per rank its seconds in its
+        load cases and their count (on rank 0; the others count their own), and the last assignment of cases
+        to ranks; else None."""
+        return _diffipc._distribution_times(self)
 
     def _cached(self, p, gradient):
         p = np.array(p, dtype=float)  # a copy: the caller may change p afterwards
