@@ -30,17 +30,7 @@ std::unique_ptr<DistributedRun> DistributedRun::start(int* argc, char*** argv)
         return nullptr;
     std::unique_ptr<DistributedRun> run(new DistributedRun());
     run->m_session = std::make_unique<Session>(argc, argv);
-    const std::shared_ptr<Communicator> world = run->m_session->mpi.world();
-    run->m_distribution = std::make_shared<CaseDistribution>(world, CaseDistribution::Mode::DRIVER);
-    if (world->rank() == 0) {
-        // If the job is ended while rank 0 waits (a rank died; mpirun signals the rest), say for whom.
-        end_on_signals_while_waiting();
-        run->m_distribution->on_wait = [](const std::string& ranks) {
-            set_waiting_message(ranks.empty() ? ""
-                                              : "diffipc: rank 0 was stopped while it waited for the load cases of "
-                        + ranks + "; a rank that ended is named by mpirun; the iterations written so far are kept\n");
-        };
-    }
+    run->m_world = run->m_session->mpi.world();
     return run;
 #else
     (void)argc;
@@ -62,8 +52,25 @@ DistributedRun::~DistributedRun()
     m_distribution.reset();
 }
 
-int DistributedRun::rank() const { return m_distribution->rank(); }
-int DistributedRun::size() const { return m_distribution->size(); }
+int DistributedRun::rank() const { return m_world->rank(); }
+int DistributedRun::size() const { return m_world->size(); }
+
+const std::shared_ptr<CaseDistribution>& DistributedRun::distribution()
+{
+    if (m_distribution)
+        return m_distribution;
+    m_distribution = std::make_shared<CaseDistribution>(m_world, CaseDistribution::Mode::DRIVER);
+    if (m_world->rank() == 0) {
+        // If the job is ended while rank 0 waits (a rank died; mpirun signals the rest), say for whom.
+        end_on_signals_while_waiting();
+        m_distribution->on_wait = [](const std::string& ranks) {
+            set_waiting_message(ranks.empty() ? ""
+                                              : "diffipc: rank 0 was stopped while it waited for the load cases of "
+                        + ranks + "; a rank that ended is named by mpirun; the iterations written so far are kept\n");
+        };
+    }
+    return m_distribution;
+}
 
 void DistributedRun::divide_cores()
 {
@@ -83,7 +90,7 @@ void DistributedRun::divide_cores()
 
 int DistributedRun::serve()
 {
-    m_distribution->serve();
+    distribution()->serve();
     return 0;
 }
 

@@ -2,7 +2,8 @@
 /// @file distributed_run.hpp
 /// The CLI under mpirun (issue 18): `mpirun -n N diffipc optimize|gradcheck PROBLEM.json` runs the
 /// command on rank 0, which drives, prints and writes; ranks 1..N-1 evaluate the load cases rank 0
-/// gives them (CaseDistribution::serve) until it is done. Other commands run on rank 0 alone.
+/// gives them (CaseDistribution::serve) until it is done. `sweep` runs on every rank (each its share of
+/// the runs); other commands run on rank 0 alone.
 /// Without DIFFIPC_MPI, or when no MPI launcher started the process, there is no DistributedRun.
 
 #include "shape_opt/case_distribution.hpp"
@@ -23,7 +24,10 @@ public:
 
     int rank() const;
     int size() const;
-    const std::shared_ptr<CaseDistribution>& distribution() const { return m_distribution; }
+    /// Every rank of the job (MPI_COMM_WORLD), for a command all ranks run (sweep).
+    const std::shared_ptr<Communicator>& world() const { return m_world; }
+    /// Rank 0 driving the others (made at the first call; then rank 0's end stops the serving ranks).
+    const std::shared_ptr<CaseDistribution>& distribution();
 
     /// @brief Threads per rank when nothing chose them (no --threads, DIFFIPC_THREADS or file
     /// setting): the cores this process may use, divided by the ranks on this node when the launcher
@@ -36,6 +40,7 @@ private:
     DistributedRun() = default;
     struct Session;
     std::unique_ptr<Session> m_session;
+    std::shared_ptr<Communicator> m_world;
     std::shared_ptr<CaseDistribution> m_distribution;
 };
 

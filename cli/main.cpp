@@ -12,6 +12,7 @@
 #include "cli/optimize.hpp"
 #include "cli/simulate.hpp"
 #include "cli/study.hpp"
+#include "cli/sweep.hpp"
 #include "forward/common/error.hpp"
 #include "forward/common/threads.hpp"
 #include "forward/io/output.hpp"
@@ -64,7 +65,13 @@ std::string version_text()
 #else
     const std::string mpi = "not built (configure with -DDIFFIPC_MPI=ON and libopenmpi-dev to run over ranks)";
 #endif
-    return "diffipc " DIFFIPC_VERSION "\n" + describe(thread_config()) + "gpu: " + gpu + "\nmpi: " + mpi + "\n";
+    return "diffipc " DIFFIPC_VERSION "\n" + describe(thread_config()) + "mpi: " + mpi + "\ngpu: " + gpu + "\n";
+}
+
+/// "rank N: " for a rank > 0 of an MPI job, else "".
+std::string rank_prefix(const DistributedRun* distributed)
+{
+    return distributed && distributed->rank() > 0 ? "rank " + std::to_string(distributed->rank()) + ": " : "";
 }
 
 } // namespace
@@ -167,6 +174,17 @@ int main(int argc, char** argv)
     grad_cmd->add_option("--directions", directions, "random directions (default: the file's, else 2)")
         ->check(CLI::Range(1, 1 << 20));
 
+    SweepOptions sweep_options;
+    auto* sweep_cmd = app.add_subcommand("sweep",
+        "Run a problem or scene at every point of a sweep file (a grid or a list of parameter values; "
+        "docs/sweep.md): one folder per run and sweep.csv; under mpirun the runs go to the ranks");
+    sweep_cmd->add_option("sweep", sweep_options.path, "sweep file (JSON)")->required();
+    sweep_cmd->add_option(
+        "-o,--output", sweep_options.out_dir, "output directory (default: the file's output.directory)");
+    sweep_cmd->add_option("--device", sweep_options.device,
+        "cpu | gpu: where the runs' simulations and adjoint solves run, replacing the scenes' \"device\"");
+    sweep_cmd->add_flag("-q,--quiet", sweep_options.quiet, "no progress output");
+
     OptimizeOptions optimize_options;
     auto* opt_cmd = app.add_subcommand("optimize",
         "Optimize a problem file's design (docs/optimization.md); writes history.h5, history.csv, summary.json, "
@@ -203,9 +221,9 @@ int main(int argc, char** argv)
         std::fprintf(stderr, "diffipc: error: %s (see diffipc --help)\n", e.what());
         return 1;
     }
-    if (serving) {
-        // Ranks > 0 evaluate load cases for rank 0 until it ends the run, whatever the command: rank 0
-        // runs it and reports any error, here one that rank 0 meets too.
+    if (serving && !*sweep_cmd) {
+        // Ranks > 0 evaluate load cases for rank 0 until it ends the run, whatever the command (but sweep, which
+        // every rank runs): rank 0 runs it and reports any error, here one that rank 0 meets too.
         try {
             ensure_threads_configured();
             if (threads > 0)
@@ -220,6 +238,10 @@ int main(int argc, char** argv)
         ensure_threads_configured();
         if (threads > 0)
             set_threads(threads, ThreadSource::EXPLICIT, "--threads");
+        if (distributed && *sweep_cmd) {
+            distributed->divide_cores();
+            return sweep(sweep_options, distributed->world());
+        }
         if (distributed) {
             distributed->divide_cores();
             if (!(*opt_cmd || *grad_cmd) && distributed->size() > 1)
@@ -246,6 +268,8 @@ int main(int argc, char** argv)
         }
         if (*bench_cmd)
             return run_bench(bench_options);
+        if (*sweep_cmd)
+            return sweep(sweep_options, nullptr);
         if (*grad_cmd)
             return gradcheck(
                 problem_path, directions, grad_device, distributed ? distributed->distribution() : nullptr);
@@ -255,13 +279,14 @@ int main(int argc, char** argv)
             return run_study(study_options);
         }
     } catch (const InputError& e) {
-        std::fprintf(stderr, "diffipc: error: %s\n", e.what());
+        if (!serving) // a sweep's other ranks read the same input: rank 0 says it
+            std::fprintf(stderr, "diffipc: error: %s\n", e.what());
         return 1;
     } catch (const AdjointError& e) {
-        std::fprintf(stderr, "diffipc: %s\n", e.what());
+        std::fprintf(stderr, "diffipc: %s%s\n", rank_prefix(distributed.get()).c_str(), e.what());
         return 2;
     } catch (const std::exception& e) {
-        std::fprintf(stderr, "diffipc: internal error: %s\n", e.what());
+        std::fprintf(stderr, "diffipc: %sinternal error: %s\n", rank_prefix(distributed.get()).c_str(), e.what());
         return 3;
     }
     return 0;

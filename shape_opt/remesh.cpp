@@ -286,20 +286,20 @@ Mesh remesh_domain(
     return mesh;
 }
 
-namespace {
+void absolute_mesh_paths(nlohmann::json& scene, const std::string& base)
+{
+    for (const char* list : { "bodies", "obstacles" })
+        if (scene.is_object() && scene.contains(list) && scene[list].is_array())
+            for (auto& item : scene[list])
+                if (item.is_object() && item.contains("mesh") && item["mesh"].is_object()
+                    && item["mesh"].contains("file") && item["mesh"]["file"].is_string()) {
+                    const fs::path file = item["mesh"]["file"].get<std::string>();
+                    if (file.is_relative())
+                        item["mesh"]["file"] = fs::absolute(fs::path(base) / file).lexically_normal().string();
+                }
+}
 
-    void absolute_mesh_paths(nlohmann::json& scene, const fs::path& base)
-    {
-        for (const char* list : { "bodies", "obstacles" })
-            if (scene.contains(list) && scene[list].is_array())
-                for (auto& item : scene[list])
-                    if (item.is_object() && item.contains("mesh") && item["mesh"].is_object()
-                        && item["mesh"].contains("file") && item["mesh"]["file"].is_string()) {
-                        const fs::path file = item["mesh"]["file"].get<std::string>();
-                        if (file.is_relative())
-                            item["mesh"]["file"] = fs::absolute(base / file).lexically_normal().string();
-                    }
-    }
+namespace {
 
     /// Every load case's scene object of a problem document.
     std::vector<nlohmann::json*> case_scenes(nlohmann::json& doc)
@@ -369,10 +369,10 @@ nlohmann::json self_contained_document(const ReducedFunctional& functional)
         if (scene->is_string()) {
             const fs::path file = base / scene->get<std::string>();
             nlohmann::json inlined = parse_json_text(read_input_file(file.string(), "scene file"), file.string());
-            absolute_mesh_paths(inlined, file.parent_path().empty() ? fs::path(".") : file.parent_path());
+            absolute_mesh_paths(inlined, file.parent_path().empty() ? "." : file.parent_path().string());
             *scene = std::move(inlined);
         } else
-            absolute_mesh_paths(*scene, base);
+            absolute_mesh_paths(*scene, base.string());
     }
     return doc;
 }

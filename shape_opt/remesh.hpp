@@ -115,6 +115,10 @@ nlohmann::json remesh_record_json(const RemeshRecord& record);
 /// @throws InputError naming `field` for a malformed record
 RemeshRecord remesh_record_from_json(const nlohmann::json& j, const std::string& field);
 
+/// @brief A scene document's relative mesh file paths (bodies' and obstacles' "mesh.file") made
+/// absolute against `base`, the folder they are relative to.
+void absolute_mesh_paths(nlohmann::json& scene, const std::string& base);
+
 /// @brief The problem document with scene files inlined and relative mesh paths made
 /// absolute (resolved against the scene file's folder, or the problem's for inline scenes),
 /// so that it can be written into another folder and still load.

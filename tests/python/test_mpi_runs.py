@@ -246,3 +246,24 @@ def test_a_killed_rank_ends_the_job_with_a_message_and_the_history_resumes(mpi_c
     assert resumed.returncode == 0, resumed.stderr
     with h5py.File(out / "history.h5", "r") as f:
         assert len(f["iteration"][()]) > len(iterations)
+
+
+def test_a_sweep_over_ranks_is_the_serial_sweep(mpi_cli, tmp_path):
+    """diffipc sweep under mpirun: run k on rank k mod N, the table written by rank 0 with the serial values."""
+    spec = {"problem": ring_walls(cases=2), "run": "evaluate",
+            "grid": {"scenes[0].weight": [0.5, 1.0, 2.0], "scenes[1].weight": [0.25, 0.75]}}
+    path = tmp_path / "sweep.json"
+    path.write_text(json.dumps(spec))
+    serial = run(mpi_cli, ["sweep", str(path), "-o", str(tmp_path / "serial"), "-q"])
+    assert serial.returncode == 0, serial.stderr
+    expected = json.loads((tmp_path / "serial" / "sweep.json").read_text())["runs"]
+    assert len(expected) == 6 and len({r["J"] for r in expected}) == 6
+    for ranks in (2, 3, 4):
+        out = tmp_path / f"ranks{ranks}"
+        result = run(mpi_cli, ["sweep", str(path), "-o", str(out), "-q"], ranks)
+        assert result.returncode == 0, result.stderr
+        rows = json.loads((out / "sweep.json").read_text())["runs"]
+        assert [r["rank"] for r in rows] == [k % ranks for k in range(6)]
+        times = ("rank", "seconds", "forward_seconds", "adjoint_seconds")
+        assert [{k: v for k, v in r.items() if k not in times} for r in rows] == \
+            [{k: v for k, v in r.items() if k not in times} for r in expected]
