@@ -100,7 +100,7 @@ nlohmann::json distribution_summary(const CaseDistribution& distribution)
     nlohmann::json ranks = nlohmann::json::array();
     for (int r = 0; r < distribution.size(); ++r)
         ranks.push_back({ { "rank", r }, { "load_cases_evaluated", t.cases[size_t(r)] },
-            { "seconds_in_load_cases", t.compute[size_t(r)] } });
+            { "seconds_in_load_cases", t.compute[size_t(r)] }, { "seconds_loading_problems", t.loading[size_t(r)] } });
     return { { "ranks", distribution.size() }, { "evaluations", t.evaluations }, { "evaluation_wall_seconds", t.wall },
         { "per_rank", ranks } };
 }

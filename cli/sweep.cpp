@@ -44,8 +44,12 @@ namespace {
         json* at = &document;
         std::string where;
         size_t i = 0;
-        if (path.empty())
-            throw InputError(field, "an empty path");
+        if (path.empty()) { // the whole document: a point that is a problem or scene of its own
+            if (!value.is_object())
+                throw InputError(field, "the path \"\" (the whole document) takes an object");
+            document = value;
+            return;
+        }
         while (i < path.size()) {
             if (path[i] == '[') {
                 const size_t close = path.find(']', i);
@@ -237,7 +241,7 @@ namespace {
         const std::string input = (dir / (problem ? "problem.json" : "scene.json")).string();
         write_json(input, run.document);
         json row = { { "run", run.index }, { "point", run.point }, { "repetition", run.repetition }, { "rank", rank },
-            { "values", run.values } };
+            { "folder", dir.filename().string() }, { "values", run.values } };
         const Timer timer;
         int code = 0;
         std::string message;
@@ -324,8 +328,13 @@ namespace {
             results = { "J", "gradient_norm", "forward_seconds", "adjoint_seconds" };
         else
             results = { "status_of_run", "steps_committed", "newton_iterations" };
-        std::string csv = "run,point,repetition,rank";
+        // The path "" (a whole document per point) has no column: its values are in sweep.json.
+        std::vector<std::string> columns;
         for (const std::string& p : s.paths)
+            if (!p.empty())
+                columns.push_back(p);
+        std::string csv = "run,point,repetition,rank,folder";
+        for (const std::string& p : columns)
             csv += "," + csv_field(p);
         csv += ",status,exit_code,seconds";
         for (const std::string& r : results)
@@ -333,8 +342,8 @@ namespace {
         csv += ",message\n";
         for (const json& row : rows) {
             csv += row["run"].dump() + "," + row["point"].dump() + "," + row["repetition"].dump() + ","
-                + row["rank"].dump();
-            for (const std::string& p : s.paths)
+                + row["rank"].dump() + "," + csv_field(row["folder"]);
+            for (const std::string& p : columns)
                 csv += "," + csv_field(row["values"].contains(p) ? row["values"][p] : json());
             csv += "," + csv_field(row["status"]) + "," + row["exit_code"].dump() + "," + row["seconds"].dump();
             for (const std::string& r : results)

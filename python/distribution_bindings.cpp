@@ -89,6 +89,7 @@ void bind_distribution(py::module_& m)
             out["evaluations"] = d.times().evaluations;
             out["wall"] = d.times().wall;
             out["compute"] = d.times().compute;
+            out["loading"] = d.times().loading;
             out["cases"] = d.times().cases;
             out["assignment"] = d.last_assignment();
             out["assignment_costs"] = d.last_assignment_costs();

@@ -43,6 +43,8 @@ export OPAL_PREFIX="$B" OPAL_BINDIR="$B/bin" OPAL_LIBDIR="$B/lib" OPAL_PKGLIBDIR
   OPAL_PKGDATADIR="$B/share/openmpi" OPAL_DATADIR="$B/share" OPAL_DATAROOTDIR="$B/share" OPAL_SYSCONFDIR="$B/etc"
 export OMPI_MCA_mca_base_component_path="$B/openmpi3" PMIX_MCA_mca_base_component_path="$B/pmix"
 export PMIX_INSTALL_PREFIX="$B" OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1
+# PMIx also tries the components' build-time folder (there, a system one may exist): not an error worth a line.
+export OMPI_MCA_mca_base_component_show_load_errors=0 PMIX_MCA_mca_base_component_show_load_errors=0
 EOF
 tar -C "$dir" -cJf "$dir/ompi.tar.xz" ompi
 rm -rf "$ompi"

@@ -135,6 +135,7 @@ CaseDistribution::CaseDistribution(std::shared_ptr<Communicator> communicator, M
     m_rank = m_comm->rank();
     m_size = m_comm->size();
     m_times.compute.assign(size_t(m_size), 0.0);
+    m_times.loading.assign(size_t(m_size), 0.0);
     m_times.cases.assign(size_t(m_size), 0);
 }
 
@@ -242,6 +243,8 @@ std::string CaseDistribution::evaluate_mine(
     }
     ByteWriter reply;
     reply.put(compute);
+    reply.put(m_unreported_loading);
+    m_unreported_loading = 0;
     reply.put(count);
     reply.bytes += records.bytes;
     return reply.bytes;
@@ -259,8 +262,10 @@ Evaluation CaseDistribution::combine(
     for (size_t r = 0; r < replies.size(); ++r) {
         ByteReader reader { replies[r], "evaluation reply" };
         const double compute = reader.get<double>("compute");
+        const double loading = reader.get<double>("loading");
         const uint64_t count = reader.get<uint64_t>("count");
         m_times.compute[r] += compute;
+        m_times.loading[r] += loading;
         m_times.cases[r] += int(count);
         for (uint64_t i = 0; i < count; ++i) {
             const uint64_t c = reader.get<uint64_t>("case");
@@ -387,12 +392,14 @@ void CaseDistribution::serve()
                 const std::string document = r.string("document"), base = r.string("base_directory"),
                                   source = r.string("source"), device = r.string("device");
                 r.finish();
+                const Timer timer;
                 try {
                     problems[id]
                         = std::make_unique<ReducedFunctional>(nlohmann::json::parse(document), base, source, device);
                 } catch (const std::exception& e) {
                     load_errors[id] = "rank " + std::to_string(m_rank) + " could not load the problem: " + e.what();
                 }
+                m_unreported_loading += timer.seconds();
                 order.push_back(id);
                 while (order.size() > held_problems) {
                     problems.erase(order.front());

@@ -50,11 +50,13 @@ public:
     void stop();
 
     /// Time of the evaluations so far, s: rank 0's wall time in evaluate(), and per rank the time in
-    /// its cases (compute); the rest of a rank's wall time went to communication and waiting.
+    /// its cases (compute) and in loading problems (loading, counted with the evaluation after the
+    /// load); the rest of a rank's wall time went to communication and waiting.
     struct Times {
         int evaluations = 0;
         double wall = 0;
         std::vector<double> compute; ///< per rank
+        std::vector<double> loading; ///< per rank: loading the problems rank 0 sent (ranks > 0, DRIVER mode)
         std::vector<int> cases; ///< cases evaluated, per rank
     };
     const Times& times() const { return m_times; }
@@ -83,6 +85,7 @@ private:
     // Rank 0: the last measured seconds of each case of the problem with this id (empty: none yet).
     uint64_t m_cost_problem = 0;
     std::vector<double> m_costs, m_assignment_costs;
+    double m_unreported_loading = 0; ///< a serving rank's seconds in LOAD since its last reply
     // DRIVER mode: the problems the serving ranks hold, oldest first (rank 0's copy of the list).
     std::deque<uint64_t> m_loaded;
 };

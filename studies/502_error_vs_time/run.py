@@ -27,14 +27,15 @@ Cases (the error of each is defined in its docstring below and in the README):
   hertz       a half cylinder pressed onto a plane (Hertz's contact half-width), knobs the mesh size
               at the contact, dhat, both together, and the penalty baseline's stiffness
 
-Each run is a single-threaded process (--threads 1); --jobs runs that many at once.
+The runs are one `diffipc sweep` (docs/sweep.md), each run single-threaded (--threads 1); --jobs N deals
+them to N MPI ranks (mpirun -n N diffipc sweep, docs/mpi.md; without mpirun, one after the other).
 """
 import argparse
-import concurrent.futures
 import copy
 import json
 import math
 import os
+import shutil
 import subprocess
 import sys
 
@@ -433,22 +434,45 @@ def hertz_sweeps(out, full):
 # ---------------------------------------------------------------- running
 
 
-def run_one(cli, out, index, case, variant, knob, value, build):
-    scene, measure = build()
-    folder = os.path.join(out, f"{case}_{index:03d}")
-    os.makedirs(folder, exist_ok=True)
-    path = os.path.join(folder, "scene.json")
+def run_all(cli, out, todo, ranks):
+    """Every run of `todo` as one `diffipc sweep` (docs/sweep.md): a point per scene, each run single-threaded;
+    with ranks > 1 under mpirun (docs/mpi.md), the runs dealt to the ranks. The rows, with the errors measured."""
+    built = [entry[-1]() for entry in todo]
+    scenes = []
+    for scene, _ in built:
+        scene = copy.deepcopy(scene)
+        scene.setdefault("output", {}).setdefault("vtu_every", 0)  # frames only where a case asks for them
+        scenes.append(scene)
+    os.makedirs(out, exist_ok=True)
+    path = os.path.join(out, "sweep.json")
     with open(path, "w") as f:
-        json.dump(scene, f, indent=1)
-    vtu = str(scene.get("output", {}).get("vtu_every", 0))
-    cmd = [cli, "simulate", path, "-o", folder, "-q", "--vtu-every", vtu, "--threads", "1"]
-    done = subprocess.run(cmd, capture_output=True, text=True)
+        json.dump({"description": "study 502: the reference cases' runs", "scene": scenes[0],
+                   "points": [{"": scene} for scene in scenes]}, f)
+    folder = os.path.join(out, "runs")
+    shutil.rmtree(folder, ignore_errors=True)  # fresh runs: the times are what the study measures
+    command = [cli, "--threads", "1", "sweep", path, "-o", folder, "-q"]
+    env = dict(os.environ)
+    if ranks > 1:
+        # OpenMPI refuses root unless told (containers); more ranks than cores need --oversubscribe.
+        command = [shutil.which("mpirun") or "mpirun", "-n", str(ranks), "--oversubscribe"] + command
+        env.update(OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1")
+    done = subprocess.run(command, capture_output=True, text=True, env=env)
+    if done.returncode not in (0, 2):  # 2: some runs failed (their rows say so; the study reports them)
+        raise SystemExit(f"{' '.join(command)}: exit code {done.returncode}\n{done.stdout}{done.stderr}")
+    with open(os.path.join(folder, "sweep.json")) as f:
+        table = json.load(f)["runs"]
+    return [row_of(os.path.join(folder, r["folder"]), r["exit_code"], entry[:4], scene, measure)
+            for r, entry, (scene, measure) in zip(table, todo, built)]
+
+
+def row_of(folder, exit_code, what, scene, measure):
+    case, variant, knob, value = what
     summary = json.load(open(os.path.join(folder, "summary.json")))
     row = dict(case=case, variant=variant, knob=knob, value=value, status=summary["status"],
                steps=summary["steps_committed"], newton=summary["counts"]["newton_iterations"],
                time=summary["wall_time"]["total"], measured=float("nan"), error=float("nan"),
                min_gap=float("nan"), note="", folder=os.path.relpath(folder, ROOT))
-    if done.returncode == 0:
+    if exit_code == 0:
         with h5py.File(os.path.join(folder, "trajectory.h5"), "r") as f:
             measured = measure(f, folder)
             if isinstance(measured, tuple):
@@ -617,14 +641,16 @@ def main(argv=None):
     p.add_argument("--full", action="store_true", help="finer time steps and meshes")
     p.add_argument("--cases", nargs="*",
                    default=["free_fall", "uniaxial", "cantilever", "slope", "stopping", "rolling", "hertz", "bounce"])
-    p.add_argument("--jobs", type=int, default=2)
+    p.add_argument("--jobs", type=int, default=2,
+                   help="runs at once: MPI ranks of one diffipc sweep (mpirun; 1: the sweep alone)")
     p.add_argument("--results", default=None, help="write results.md, results.csv and the figures here")
     a = p.parse_args(argv)
+    output = os.path.abspath(a.output)
     todo = [s for s in sweeps(a.full) if s[0] in a.cases]
     if "hertz" in a.cases:
-        todo += hertz_sweeps(a.output, a.full)
-    with concurrent.futures.ThreadPoolExecutor(a.jobs) as pool:
-        rows = list(pool.map(lambda k: run_one(a.cli, a.output, k, *todo[k]), range(len(todo))))
+        todo += hertz_sweeps(output, a.full)
+    ranks = a.jobs if a.jobs > 1 and shutil.which("mpirun") else 1
+    rows = run_all(a.cli, output, todo, ranks)
     refs = finish_errors(rows)
     if not a.results:
         for r in rows:
@@ -633,7 +659,7 @@ def main(argv=None):
     os.makedirs(a.results, exist_ok=True)
     diffipc.studies.write_csv(os.path.join(a.results, "results.csv"), rows)
     text = diffipc.studies.provenance(ROOT, __file__, sys.argv[1:] if argv is None else argv)
-    text += f"\n{len(rows)} runs, each single-threaded, {a.jobs} at a time.\n"
+    text += f"\n{len(rows)} runs, each single-threaded, {ranks} at a time (one diffipc sweep over {ranks} MPI ranks).\n"
     for case in a.cases:
         png = f"{case}.png"
         plot_case(case, [r for r in rows if r["case"] == case], os.path.join(a.results, png))

@@ -147,3 +147,20 @@ def test_a_bad_sweep_file_stops_before_any_run(cli, tmp_path, change, field):
 def test_a_missing_sweep_file_is_named(cli, tmp_path):
     result = sweep(cli, tmp_path / "none.json")
     assert result.returncode == 1 and "none.json" in result.stderr
+
+
+def test_the_empty_path_makes_each_point_a_document_of_its_own(cli, tmp_path):
+    """{"": scene}: the point is that scene (study 502 runs its cases so); no column for it in the table."""
+    scenes = [box_scene(steps=2), box_scene(dim=3, steps=3)]
+    spec = {"scene": scenes[0], "points": [{"": s} for s in scenes]}
+    path = tmp_path / "docs.json"
+    path.write_text(json.dumps(spec))
+    result = sweep(cli, path, "-o", str(tmp_path / "out"), "-q")
+    assert result.returncode == 0, result.stderr
+    rows = table(tmp_path / "out")
+    assert [r["steps_committed"] for r in rows] == ["2", "3"] and "" not in rows[0]
+    assert json.loads((tmp_path / "out" / rows[1]["folder"] / "scene.json").read_text())["dimension"] == 3
+    bad = {"scene": scenes[0], "points": [{"": 3}]}
+    path.write_text(json.dumps(bad))
+    result = sweep(cli, path, "-o", str(tmp_path / "bad"))
+    assert result.returncode == 1 and "points[0]." in result.stderr and "whole document" in result.stderr
