@@ -41,10 +41,12 @@ std::unique_ptr<DistributedRun> DistributedRun::start(int* argc, char*** argv)
 
 DistributedRun::~DistributedRun()
 {
-    if (m_distribution && m_distribution->rank() == 0) {
+    if (m_world && m_world->rank() == 0 && !m_every_rank) {
+        // The serving ranks wait for rank 0's next message however it ended (a usage error, --help, a command
+        // other than optimize or gradcheck): tell them to stop.
         set_waiting_message("");
         try {
-            m_distribution->stop();
+            distribution()->stop();
         } catch (...) {
             // The other ranks are gone already.
         }
@@ -66,7 +68,7 @@ const std::shared_ptr<CaseDistribution>& DistributedRun::distribution()
         m_distribution->on_wait = [](const std::string& ranks) {
             set_waiting_message(ranks.empty() ? ""
                                               : "diffipc: rank 0 was stopped while it waited for the load cases of "
-                        + ranks + "; a rank that ended is named by mpirun; the iterations written so far are kept\n");
+                        + ranks + " (if a rank ended, mpirun names it); the iterations written so far are kept\n");
         };
     }
     return m_distribution;

@@ -35,6 +35,9 @@ public:
     void divide_cores();
     /// @brief Ranks > 0: serve rank 0 until it stops the run; returns the exit code (0).
     int serve();
+    /// @brief A command every rank runs (sweep): then no rank serves, and rank 0's end stops none. Otherwise
+    /// rank 0's end (whatever ended it: a command, an error, --help) stops the serving ranks.
+    void run_on_every_rank() { m_every_rank = true; }
 
 private:
     DistributedRun() = default;
@@ -42,6 +45,7 @@ private:
     std::unique_ptr<Session> m_session;
     std::shared_ptr<Communicator> m_world;
     std::shared_ptr<CaseDistribution> m_distribution;
+    bool m_every_rank = false;
 };
 
 /// The processes of a run for summary.json: ranks, evaluations, and per rank its cases and seconds

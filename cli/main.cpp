@@ -221,29 +221,32 @@ int main(int argc, char** argv)
         std::fprintf(stderr, "diffipc: error: %s (see diffipc --help)\n", e.what());
         return 1;
     }
+    // The pools' threads: --threads, else DIFFIPC_THREADS, else a file's, else the cores (under mpirun: the rank's
+    // share of its node's).
+    const auto configure_threads = [&] {
+        ensure_threads_configured();
+        if (threads > 0)
+            set_threads(threads, ThreadSource::EXPLICIT, "--threads");
+        if (distributed)
+            distributed->divide_cores();
+    };
+    if (distributed && *sweep_cmd)
+        distributed->run_on_every_rank(); // no rank serves: rank 0 has none to stop at its end
     if (serving && !*sweep_cmd) {
         // Ranks > 0 evaluate load cases for rank 0 until it ends the run, whatever the command (but sweep, which
         // every rank runs): rank 0 runs it and reports any error, here one that rank 0 meets too.
         try {
-            ensure_threads_configured();
-            if (threads > 0)
-                set_threads(threads, ThreadSource::EXPLICIT, "--threads");
-            distributed->divide_cores();
+            configure_threads();
         } catch (const std::exception&) {
         }
         return distributed->serve();
     }
 
     try {
-        ensure_threads_configured();
-        if (threads > 0)
-            set_threads(threads, ThreadSource::EXPLICIT, "--threads");
-        if (distributed && *sweep_cmd) {
-            distributed->divide_cores();
+        configure_threads();
+        if (distributed && *sweep_cmd)
             return sweep(sweep_options, distributed->world());
-        }
         if (distributed) {
-            distributed->divide_cores();
             if (!(*opt_cmd || *grad_cmd) && distributed->size() > 1)
                 std::fprintf(stderr,
                     "diffipc: %d ranks: this command runs on rank 0 alone (optimize and gradcheck spread their load "

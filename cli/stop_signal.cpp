@@ -3,6 +3,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <atomic>
 #include <csignal>
 #include <cstring>
 
@@ -23,6 +24,7 @@ namespace {
         const std::sig_atomic_t length = g_waiting_length;
         if (length <= 0)
             return;
+        std::atomic_signal_fence(std::memory_order_acquire); // the bytes written before the length was
         ssize_t written = 0;
         while (written < length) {
             const ssize_t n = ::write(STDERR_FILENO, g_waiting + written, size_t(length - written));
@@ -77,8 +79,10 @@ void end_on_signals_while_waiting()
 void set_waiting_message(const std::string& message)
 {
     g_waiting_length = 0;
+    std::atomic_signal_fence(std::memory_order_seq_cst); // no handler reads the bytes while they change
     const size_t length = std::min(message.size(), sizeof g_waiting - 1);
     std::memcpy(g_waiting, message.data(), length);
+    std::atomic_signal_fence(std::memory_order_release); // the bytes before the length that publishes them
     g_waiting_length = std::sig_atomic_t(length);
 }
 

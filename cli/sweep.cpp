@@ -2,6 +2,8 @@
 
 #include "cli/sweep.hpp"
 
+#include "cli/json_path.hpp"
+
 #include "cli/optimize.hpp"
 #include "cli/simulate.hpp"
 
@@ -36,57 +38,6 @@ namespace {
         json values = json::object(); ///< path -> value of this point
         json document; ///< the problem or scene with the point's values
     };
-
-    /// Sets the value at a path like "scenes[1].scene.time.dt" (objects by key, lists by index); missing object
-    /// keys are made, lists must have the index already.
-    void set_path(json& document, const std::string& path, const json& value, const std::string& field)
-    {
-        json* at = &document;
-        std::string where;
-        size_t i = 0;
-        if (path.empty()) { // the whole document: a point that is a problem or scene of its own
-            if (!value.is_object())
-                throw InputError(field, "the path \"\" (the whole document) takes an object");
-            document = value;
-            return;
-        }
-        while (i < path.size()) {
-            if (path[i] == '[') {
-                const size_t close = path.find(']', i);
-                const std::string digits = close == std::string::npos ? "" : path.substr(i + 1, close - i - 1);
-                if (digits.empty() || digits.find_first_not_of("0123456789") != std::string::npos)
-                    throw InputError(field, "\"" + path + "\": a list index is [digits]");
-                const size_t k = std::stoul(digits);
-                if (!at->is_array())
-                    throw InputError(
-                        field, "\"" + path + "\": " + (where.empty() ? "the document" : where) + " is not a list");
-                if (k >= at->size())
-                    throw InputError(field,
-                        "\"" + path + "\": index " + digits + " is out of range (" + where + " has "
-                            + std::to_string(at->size()) + " entries)");
-                at = &(*at)[k];
-                where += "[" + digits + "]";
-                i = close + 1;
-                if (i < path.size() && path[i] == '.')
-                    ++i;
-                continue;
-            }
-            const size_t end = path.find_first_of(".[", i);
-            const std::string key = path.substr(i, end == std::string::npos ? std::string::npos : end - i);
-            if (key.empty())
-                throw InputError(field, "\"" + path + "\": an empty key");
-            if (!at->is_object())
-                throw InputError(field,
-                    "\"" + path + "\": " + (where.empty() ? "the document" : where) + " is not an object"
-                        + (at->is_string() ? " (a file name: put the file's content there)" : ""));
-            at = &(*at)[key]; // made (null) if missing
-            where += (where.empty() ? "" : ".") + key;
-            i = end == std::string::npos ? path.size() : end;
-            if (i < path.size() && path[i] == '.')
-                ++i;
-        }
-        *at = value;
-    }
 
     struct Sweep {
         RunKind kind = RunKind::OPTIMIZE;
@@ -188,6 +139,7 @@ namespace {
             bool new_path = false;
             for (const auto& [key, value] : points[k].items()) {
                 set_path(document, key, value, point_field + "." + key);
+                absolute_paths(document, folder);
                 if (std::find(loaded.begin(), loaded.end(), key) == loaded.end()) {
                     loaded.push_back(key);
                     new_path = true;
@@ -236,23 +188,27 @@ namespace {
     json execute(const Sweep& s, const Run& run, const std::string& device, int rank)
     {
         const fs::path dir = run_folder(s, run);
-        fs::create_directories(dir);
         const bool problem = s.kind != RunKind::SIMULATE;
         const std::string input = (dir / (problem ? "problem.json" : "scene.json")).string();
-        write_json(input, run.document);
         json row = { { "run", run.index }, { "point", run.point }, { "repetition", run.repetition }, { "rank", rank },
             { "folder", dir.filename().string() }, { "values", run.values } };
         const Timer timer;
         int code = 0;
         std::string message;
+        // The command's options for this run: its input and folder, quiet, the sweep's device.
+        const auto in_folder = [&](auto options) {
+            options.out_dir = dir.string();
+            options.quiet = true;
+            options.device = device;
+            return options;
+        };
         try {
+            fs::create_directories(dir);
+            write_json(input, run.document);
             if (s.kind == RunKind::OPTIMIZE) {
                 OptimizeOptions o;
                 o.problem_path = input;
-                o.out_dir = dir.string();
-                o.quiet = true;
-                o.device = device;
-                code = optimize(o);
+                code = optimize(in_folder(o));
                 const json summary = read_json_file(dir / "summary.json");
                 for (const char* key : { "stop_reason", "iterations", "evaluations", "initial_J", "final_J" })
                     if (summary.contains(key))
@@ -277,10 +233,7 @@ namespace {
             } else {
                 SimulateOptions o;
                 o.scene_path = input;
-                o.out_dir = dir.string();
-                o.quiet = true;
-                o.device = device;
-                code = simulate(o);
+                code = simulate(in_folder(o));
                 const json summary = read_json_file(dir / "summary.json");
                 if (summary.contains("status"))
                     row["status_of_run"] = summary["status"];
@@ -387,11 +340,12 @@ int sweep(const SweepOptions& options, const std::shared_ptr<Communicator>& comm
         if (int(run.index % size_t(size)) != rank || interrupted)
             continue;
         const fs::path row_path = fs::path(run_folder(s, run)) / "row.json";
-        // A run done before (same document) keeps its row: an interrupted sweep goes on.
+        // A run done before (the same command, device and document) keeps its row: an interrupted sweep goes on.
+        const json input = { { "run", to_string(s.kind) }, { "device", options.device }, { "document", run.document } };
         const json done = read_json_file(row_path);
-        if (done.is_object() && done.contains("document") && done["document"] == run.document) {
+        if (done.is_object() && done.contains("input") && done["input"] == input) {
             json row = done;
-            row.erase("document");
+            row.erase("input");
             mine.push_back(row);
             continue;
         }
@@ -402,8 +356,13 @@ int sweep(const SweepOptions& options, const std::shared_ptr<Communicator>& comm
             continue;
         }
         json stored = row;
-        stored["document"] = run.document;
-        write_json(row_path.string(), stored);
+        stored["input"] = input;
+        try {
+            write_json(row_path.string(), stored);
+        } catch (const std::exception& e) { // the run is done; only its record is not (it runs again next time)
+            row["message"] = row["message"].get<std::string>() + (row["message"].get<std::string>().empty() ? "" : "; ")
+                + "row.json not written: " + e.what();
+        }
         if (!options.quiet && rank == 0)
             std::printf("run %zu of %zu: %s (%.2f s)%s%s\n", run.index + 1, s.runs.size(),
                 row["status"].get<std::string>().c_str(), row["seconds"].get<double>(),
@@ -419,10 +378,14 @@ int sweep(const SweepOptions& options, const std::shared_ptr<Communicator>& comm
                 rows.push_back(row);
     } else
         rows = mine;
-    std::string verdict = "0";
+    std::string verdict = "0", table_error;
     if (rank == 0) {
         std::sort(rows.begin(), rows.end(), [](const json& a, const json& b) { return a["run"] < b["run"]; });
-        write_table(s, options.path, rows);
+        try {
+            write_table(s, options.path, rows);
+        } catch (const std::exception& e) { // the other ranks still wait for the verdict
+            table_error = e.what();
+        }
         int failed = 0, stopped = 0, stop_code = 0;
         for (const json& row : rows) {
             failed += row["status"] != "ok" && row["status"] != "interrupted";
@@ -436,10 +399,12 @@ int sweep(const SweepOptions& options, const std::shared_ptr<Communicator>& comm
             std::printf("diffipc sweep: %zu of %zu runs ok, %d failed%s; wrote %s/sweep.csv\n",
                 rows.size() - size_t(failed) - size_t(stopped), s.runs.size(), failed, stopped ? ", stopped" : "",
                 s.out_dir.c_str());
-        verdict = std::to_string(code);
+        verdict = table_error.empty() ? std::to_string(code) : "3";
     }
     if (communicator && size > 1)
         communicator->broadcast(verdict);
+    if (!table_error.empty())
+        throw std::runtime_error("the sweep's table: " + table_error);
     return std::stoi(verdict);
 }
 

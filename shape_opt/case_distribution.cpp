@@ -17,8 +17,19 @@ namespace {
     // FAILED: COLLECTIVE mode, rank 0 could not make the request (its error follows).
     enum Command : char { LOAD = 'L', EVALUATE = 'E', STOP = 'S', FAILED = 'X' };
     // How a case (or a collective evaluation) ended: its share, or the kind of error it threw.
-    enum Outcome : uint8_t { SHARE = 0, INPUT = 1, OBJECTIVE_DOMAIN = 2, ADJOINT = 3, OTHER = 4 };
-    // The problems a serving rank holds: the one evaluated and the one before (a remesh evaluates both).
+    enum Outcome : uint8_t {
+        SHARE = 0,
+        INPUT = 1,
+        OBJECTIVE_DOMAIN = 2,
+        ADJOINT = 3,
+        OTHER = 4, ///< std::runtime_error with the message
+        INVALID_ARGUMENT = 5,
+        OUT_OF_RANGE = 6,
+        LOGIC = 7,
+        NO_MEMORY = 8,
+        LAST = NO_MEMORY
+    };
+    // The problems a serving rank holds: the two evaluated last (a remesh evaluates the old and the new).
     constexpr size_t held_problems = 2;
 
     struct Failure {
@@ -37,6 +48,14 @@ namespace {
             return { INPUT, e.field(), e.message() };
         } catch (const AdjointError& e) {
             return { ADJOINT, "", e.what() };
+        } catch (const std::invalid_argument& e) {
+            return { INVALID_ARGUMENT, "", e.what() };
+        } catch (const std::out_of_range& e) {
+            return { OUT_OF_RANGE, "", e.what() };
+        } catch (const std::logic_error& e) {
+            return { LOGIC, "", e.what() };
+        } catch (const std::bad_alloc& e) {
+            return { NO_MEMORY, "", e.what() };
         } catch (const std::exception& e) {
             return { OTHER, "", e.what() };
         } catch (...) {
@@ -44,7 +63,8 @@ namespace {
         }
     }
 
-    // Throws the error current_failure() described, with its type and message.
+    // Throws the error current_failure() described, with its type and message (an InputError's message longer
+    // than error.hpp's clip is clipped once more: its "(N more characters)" can differ from the serial run's).
     [[noreturn]] void rethrow(const Failure& f)
     {
         switch (f.kind) {
@@ -54,6 +74,14 @@ namespace {
             throw ObjectiveDomainError(f.message);
         case ADJOINT:
             throw AdjointError(f.message);
+        case INVALID_ARGUMENT:
+            throw std::invalid_argument(f.message);
+        case OUT_OF_RANGE:
+            throw std::out_of_range(f.message);
+        case LOGIC:
+            throw std::logic_error(f.message);
+        case NO_MEMORY:
+            throw std::bad_alloc();
         default:
             throw std::runtime_error(f.message);
         }
@@ -68,7 +96,7 @@ namespace {
 
     Failure get_failure(ByteReader& r, uint8_t kind)
     {
-        if (kind < INPUT || kind > OTHER)
+        if (kind < INPUT || kind > LAST)
             throw std::invalid_argument(std::string(r.context) + ": outcome " + std::to_string(kind) + " unknown");
         Failure f;
         f.kind = Outcome(kind);
@@ -161,8 +189,15 @@ void CaseDistribution::stop()
 
 void CaseDistribution::load_on_servers(const ReducedFunctional& J)
 {
-    if (m_size == 1 || std::find(m_loaded.begin(), m_loaded.end(), J.id()) != m_loaded.end())
+    if (m_size == 1)
         return;
+    // The serving ranks hold the two problems evaluated last (least recently evaluated dropped), as this list.
+    const auto held = std::find(m_loaded.begin(), m_loaded.end(), J.id());
+    if (held != m_loaded.end()) {
+        m_loaded.erase(held);
+        m_loaded.push_back(J.id());
+        return;
+    }
     ByteWriter w;
     w.put(char(LOAD));
     w.put(J.id());
@@ -412,6 +447,12 @@ void CaseDistribution::serve()
                 throw std::invalid_argument(std::string("unknown command '") + message[0] + "'");
             const Request q = read_request(message);
             m_last_owner = q.owner;
+            // The least recently evaluated problem goes first (rank 0 keeps the same order).
+            const auto used = std::find(order.begin(), order.end(), q.problem);
+            if (used != order.end()) {
+                order.erase(used);
+                order.push_back(q.problem);
+            }
             const auto held = problems.find(q.problem);
             const auto error = load_errors.find(q.problem);
             const std::string reply = evaluate_mine(held == problems.end() ? nullptr : held->second.get(), message,

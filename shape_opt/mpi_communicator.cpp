@@ -13,14 +13,36 @@ namespace diffipc {
 
 namespace {
 
-    void check(int status, const char* call)
+    std::string failure(int status, const char* call)
     {
-        if (status == MPI_SUCCESS)
-            return;
         char text[MPI_MAX_ERROR_STRING];
         int length = 0;
         MPI_Error_string(status, text, &length);
-        throw std::runtime_error(std::string(call) + " failed: " + std::string(text, size_t(length)));
+        return std::string(call) + " failed: " + std::string(text, size_t(length));
+    }
+
+    void check(int status, const char* call)
+    {
+        if (status != MPI_SUCCESS)
+            throw std::runtime_error(failure(status, call));
+    }
+
+    [[noreturn]] void end_job(const std::string& message)
+    {
+        int rank = -1;
+        MPI_Comm_rank(MPI_COMM_WORLD, &rank);
+        std::fprintf(stderr, "diffipc: rank %d: %s\n", rank, message.c_str());
+        std::fflush(stderr);
+        MPI_Abort(MPI_COMM_WORLD, 3);
+        std::_Exit(3);
+    }
+
+    /// A collective operation that failed on this rank leaves the others inside it: end the job, as the
+    /// others cannot be told (no exception would reach them).
+    void collective(int status, const char* call)
+    {
+        if (status != MPI_SUCCESS)
+            end_job(failure(status, call));
     }
 
     // MPI counts are ints: larger messages go in pieces.
@@ -107,11 +129,11 @@ void MpiCommunicator::broadcast(std::string& bytes)
 {
     const MPI_Comm comm = MPI_Comm_f2c(MPI_Fint(m_handle));
     uint64_t length = bytes.size();
-    check(MPI_Bcast(&length, 1, MPI_UINT64_T, 0, comm), "MPI_Bcast");
+    collective(MPI_Bcast(&length, 1, MPI_UINT64_T, 0, comm), "MPI_Bcast");
     bytes.resize(size_t(length));
     for (size_t at = 0; at < bytes.size(); at += piece) {
         const int count = int(std::min(piece, bytes.size() - at));
-        check(MPI_Bcast(&bytes[at], count, MPI_BYTE, 0, comm), "MPI_Bcast");
+        collective(MPI_Bcast(&bytes[at], count, MPI_BYTE, 0, comm), "MPI_Bcast");
     }
 }
 
@@ -120,22 +142,22 @@ std::vector<std::string> MpiCommunicator::gather(const std::string& mine)
     const MPI_Comm comm = MPI_Comm_f2c(MPI_Fint(m_handle));
     const int me = rank(), n = size();
     if (mine.size() > size_t(INT_MAX))
-        throw std::runtime_error("MpiCommunicator::gather: a message of " + std::to_string(mine.size())
+        end_job("MpiCommunicator::gather: a message of " + std::to_string(mine.size())
             + " bytes, more than MPI_Gatherv's int count");
     const int length = int(mine.size());
     std::vector<int> lengths(me == 0 ? size_t(n) : 0);
-    check(MPI_Gather(&length, 1, MPI_INT, lengths.data(), 1, MPI_INT, 0, comm), "MPI_Gather");
+    collective(MPI_Gather(&length, 1, MPI_INT, lengths.data(), 1, MPI_INT, 0, comm), "MPI_Gather");
     std::vector<int> offsets(lengths.size());
     long long total = 0;
     for (size_t r = 0; r < lengths.size(); ++r) {
         offsets[r] = int(total);
         total += lengths[r];
         if (total > INT_MAX)
-            throw std::runtime_error("MpiCommunicator::gather: " + std::to_string(total)
+            end_job("MpiCommunicator::gather: " + std::to_string(total)
                 + " bytes in all, more than MPI_Gatherv's int displacements");
     }
     std::string all(size_t(total), '\0');
-    check(MPI_Gatherv(mine.data(), length, MPI_BYTE, &all[0], lengths.data(), offsets.data(), MPI_BYTE, 0, comm),
+    collective(MPI_Gatherv(mine.data(), length, MPI_BYTE, &all[0], lengths.data(), offsets.data(), MPI_BYTE, 0, comm),
         "MPI_Gatherv");
     std::vector<std::string> out;
     for (size_t r = 0; r < lengths.size(); ++r)

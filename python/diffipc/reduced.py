@@ -65,9 +65,9 @@ class ReducedFunctional(_diffipc.ReducedFunctional):
 
     @property
     def distribution(self):
-        """With comm: the ranks, evaluations, rank 0's wall seconds in them, and per rank its seconds in its
-        load cases and their count (on rank 0; the others count their own), and the last assignment of cases
-        to ranks; else None."""
+        """With comm: the ranks, this rank, the evaluations, the wall seconds in them, per rank its seconds in
+        its load cases and their count (filled on rank 0 only: the other ranks' lists stay zero), and the last
+        assignment of cases to ranks with the costs it was made by (rank 0); else None."""
         return _diffipc._distribution_times(self)
 
     def _cached(self, p, gradient):

@@ -209,16 +209,62 @@ def rank_process(rank, marker):
     return None
 
 
+def start_optimize(cli, problem, ranks, tmp_path):
+    """mpirun -n RANKS diffipc optimize PROBLEM in the background: the job and its output folder."""
+    path = tmp_path / "problem.json"
+    path.write_text(json.dumps(problem))
+    out = tmp_path / "run"
+    job = subprocess.Popen([MPIEXEC, "-n", str(ranks), cli, "optimize", str(path), "-o", str(out), "-q"],
+                           stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=ENV)
+    return job, out
+
+
+def test_a_rank_killed_while_rank_0_waits_is_named_with_its_cases(mpi_cli, tmp_path):
+    """Two ranks, case 0 a few steps (rank 0's, round robin) and case 1 long (rank 1's): a second into the first
+    evaluation rank 0 is waiting for case 1 when rank 1 is killed, and says so."""
+    problem = ring_walls(cases=2, algorithm="lbfgsb", iterations=20)
+    del problem["constraints"]
+    fast, slow = problem["scenes"]
+    fast["scene"]["time"]["steps"] = 4
+    fast["objective"] = dict(fast["objective"], steps=[4])
+    slow["scene"]["time"].update(steps=3000, dt=0.08 / 3000)
+    slow["objective"] = dict(slow["objective"], steps=[3000])
+    job, out = start_optimize(mpi_cli, problem, 2, tmp_path)
+    try:
+        deadline = time.time() + 60
+        while not (out / "initial_problem.json").exists() and time.time() < deadline:
+            assert job.poll() is None, job.communicate()
+            time.sleep(0.02)
+        time.sleep(1.0)
+        assert not (out / "history.csv").exists() or len((out / "history.csv").read_text().splitlines()) <= 1
+        victim = rank_process(1, str(out))
+        assert victim is not None
+        os.kill(victim, signal.SIGKILL)
+        _, stderr = job.communicate(timeout=60)
+    finally:
+        if job.poll() is None:
+            job.kill()
+    assert job.returncode != 0
+    assert "rank 0 was stopped while it waited for the load cases of rank 1: load case 1 " in stderr, stderr
+    assert "process rank 1 " in stderr, stderr  # mpirun's line about the rank that ended
+
+
+def test_help_and_usage_errors_under_mpirun_end_every_rank(mpi_cli):
+    """Rank 0 answers and ends; the serving ranks must not wait for it (a hang before the review's mend)."""
+    for args, code in ((["--help"], 0), (["nosuchcommand"], 1), (["optimize", "/no/such/problem.json"], 1)):
+        result = run(mpi_cli, args, ranks=3, timeout=60)
+        assert result.returncode == code, (args, result.stdout, result.stderr)
+    result = subprocess.run([MPIEXEC, "-n", "2", mpi_cli, "optimize", "x.json"], capture_output=True, text=True,
+                            timeout=60, env=dict(ENV, DIFFIPC_THREADS="abc"))
+    assert result.returncode == 1 and "DIFFIPC_THREADS" in result.stderr
+
+
 def test_a_killed_rank_ends_the_job_with_a_message_and_the_history_resumes(mpi_cli, tmp_path):
     problem = ring_walls(cases=4, iterations=400)
     for case in problem["scenes"]:  # slower cases: the kill lands inside an evaluation
         case["scene"]["time"].update(steps=40, dt=0.002)
         case["scene"]["bodies"][0]["mesh"]["annulus"].update(segments=96, layers=4)
-    path = tmp_path / "long.json"
-    path.write_text(json.dumps(problem))
-    out = tmp_path / "run"
-    job = subprocess.Popen([MPIEXEC, "-n", "3", mpi_cli, "optimize", str(path), "-o", str(out), "-q"],
-                           stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=ENV)
+    job, out = start_optimize(mpi_cli, problem, 3, tmp_path)
     try:
         deadline = time.time() + 120
         while time.time() < deadline:

@@ -2,6 +2,7 @@
 per run and one table. The values in the table are checked against the same documents evaluated here through
 the Python module; a stopped sweep goes on where it stopped; a bad path stops it before any run. The sweep over
 MPI ranks is in test_mpi_runs.py."""
+import copy
 import csv
 import json
 import os
@@ -164,3 +165,28 @@ def test_the_empty_path_makes_each_point_a_document_of_its_own(cli, tmp_path):
     path.write_text(json.dumps(bad))
     result = sweep(cli, path, "-o", str(tmp_path / "bad"))
     assert result.returncode == 1 and "points[0]." in result.stderr and "whole document" in result.stderr
+
+
+def test_relative_paths_in_points_are_relative_to_the_sweep_file(cli, tmp_path):
+    """A point that names a scene file by a relative path: checked against the sweep file's folder before the
+    runs, and found by the run in its own folder."""
+    (tmp_path / "scenes").mkdir()
+    ring = json.loads(RING.read_text())
+    faster = copy.deepcopy(ring["scene"])
+    faster["bodies"][0]["initial_velocity"] = [3.5, 0.5]
+    (tmp_path / "scenes" / "faster.json").write_text(json.dumps(faster))
+    spec = {"problem": str(RING), "run": "evaluate", "points": [{"scene": "scenes/faster.json"}]}
+    path = tmp_path / "rel.json"
+    path.write_text(json.dumps(spec))
+    result = sweep(cli, path, "-o", str(tmp_path / "out"), "-q")
+    assert result.returncode == 0, result.stdout + result.stderr
+    row = table(tmp_path / "out")[0]
+    assert row["status"] == "ok", row
+    J = diffipc.ReducedFunctional(dict(ring, scene="scenes/faster.json"), base_directory=tmp_path)
+    assert float(row["J"]) == pytest.approx(J(J.parameters_of(J.design_initial)), rel=1e-12)
+    # A file that is not there is named with the sweep file's folder before any run.
+    spec["points"] = [{"scene": "scenes/none.json"}]
+    path.write_text(json.dumps(spec))
+    result = sweep(cli, path, "-o", str(tmp_path / "bad"), "-q")
+    assert result.returncode == 1 and str(tmp_path / "scenes" / "none.json") in result.stderr, result.stderr
+    assert not (tmp_path / "bad").exists()
