@@ -317,3 +317,38 @@ def test_a_sweep_over_ranks_is_the_serial_sweep(mpi_cli, tmp_path):
         times = ("rank", "seconds", "forward_seconds", "adjoint_seconds")
         assert [{k: v for k, v in r.items() if k not in times} for r in rows] == \
             [{k: v for k, v in r.items() if k not in times} for r in expected]
+
+
+def test_a_remeshed_problem_travels_to_the_ranks(mpi_cli, tmp_path):
+    """test_optimize_remesh.py's beam with two load cases (two tip loads) remeshes once in 12 Ipopt iterations;
+    rank 0 sends the remeshed problem (its new mesh file in the run's folder) to the other ranks, and the run is
+    the serial run bit for bit before and after the remesh."""
+    from test_optimize_remesh import beam
+    problem = beam(iterations=12)
+    scene, objective = problem.pop("scene"), problem.pop("objective")
+    lighter = json.loads(json.dumps(scene))
+    lighter["neumann"][0]["traction"] = [0, "-2e4*t"]
+    problem["scenes"] = [{"scene": scene, "objective": objective},
+                         {"scene": lighter, "objective": objective, "weight": 0.5}]
+    problem["constraints"][0]["case"] = 0
+    path = tmp_path / "beam.json"
+    path.write_text(json.dumps(problem))
+    serial = run(mpi_cli, ["optimize", str(path), "-o", str(tmp_path / "serial"), "-q"])
+    assert serial.returncode == 0, serial.stderr
+    data, outcome = history(tmp_path / "serial")
+    remeshes = json.loads((tmp_path / "serial" / "summary.json").read_text())["remeshes"]
+    assert len(remeshes) == 1 and 0 < remeshes[0]["iteration"] < outcome["iterations"]
+    for ranks in (2, 3):
+        out = tmp_path / f"ranks{ranks}"
+        result = run(mpi_cli, ["optimize", str(path), "-o", str(out), "-q"], ranks)
+        assert result.returncode == 0, result.stderr
+        other, other_outcome = history(out)
+        assert other_outcome == outcome
+        for key in data:
+            assert same_bits(other[key], data[key]), (ranks, key)
+        summary = json.loads((out / "summary.json").read_text())
+        assert [r["iteration"] for r in summary["remeshes"]] == [remeshes[0]["iteration"]]
+        # Rank 1 evaluated a case at every evaluation, after the remesh too, and loaded both problems.
+        rank1 = summary["processes"]["per_rank"][1]
+        assert rank1["load_cases_evaluated"] == summary["processes"]["evaluations"]
+        assert rank1["seconds_loading_problems"] > 0
