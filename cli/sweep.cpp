@@ -11,6 +11,7 @@
 #include "forward/common/error.hpp"
 #include "forward/common/timer.hpp"
 #include "forward/io/output.hpp"
+#include "forward/io/replace_file.hpp"
 #include "forward/scene/json_field.hpp"
 #include "forward/scene/json_input.hpp"
 #include "forward/scene/scene.hpp"
@@ -304,14 +305,7 @@ namespace {
             csv += "," + csv_field(row["message"]) + "\n";
         }
         const fs::path dir = s.out_dir;
-        const std::string temporary = (dir / "sweep.csv.partial").string();
-        {
-            std::ofstream out(temporary, std::ios::trunc);
-            out << csv;
-            if (!out)
-                throw InputError(temporary, "could not be written");
-        }
-        fs::rename(temporary, dir / "sweep.csv");
+        write_replacing((dir / "sweep.csv").string(), [&](std::ostream& out) { out << csv; });
         write_json((dir / "sweep.json").string(),
             { { "sweep", fs::absolute(sweep_path).lexically_normal().string() }, { "run", to_string(s.kind) },
                 { "paths", s.paths }, { "runs", rows } });

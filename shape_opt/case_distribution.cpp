@@ -251,30 +251,23 @@ std::string CaseDistribution::evaluate_mine(
         if (q.owner[c] != m_rank)
             continue;
         ++count;
-        records.put(uint64_t(c));
         const Timer timer;
-        if (!mismatch.empty()) {
-            records.put(0.0);
-            put_failure(records, { OTHER, "", mismatch });
-            continue;
-        }
-        std::string share;
-        Failure failure;
-        try {
-            share = pack_evaluation(J->evaluate_case(c, q.p, q.gradient, q.constraints));
-        } catch (...) {
-            failure = current_failure();
-            const double seconds = timer.seconds();
-            compute += seconds;
-            records.put(seconds);
-            put_failure(records, failure);
-            continue;
-        }
+        ByteWriter outcome;
+        if (!mismatch.empty())
+            put_failure(outcome, { OTHER, "", mismatch });
+        else
+            try {
+                const std::string share = pack_evaluation(J->evaluate_case(c, q.p, q.gradient, q.constraints));
+                outcome.put(uint8_t(SHARE));
+                outcome.put_string(share);
+            } catch (...) {
+                put_failure(outcome, current_failure());
+            }
         const double seconds = timer.seconds();
         compute += seconds;
+        records.put(uint64_t(c));
         records.put(seconds);
-        records.put(uint8_t(SHARE));
-        records.put_string(share);
+        records.bytes += outcome.bytes;
     }
     ByteWriter reply;
     reply.put(compute);
