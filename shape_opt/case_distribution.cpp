@@ -319,6 +319,9 @@ Evaluation CaseDistribution::combine(
         if (!seen[c])
             throw std::runtime_error("load case " + std::to_string(c) + " was not evaluated (rank "
                 + std::to_string(m_last_owner[c]) + " did not return it)");
+    if (case_cost)
+        for (size_t c = 0; c < cases; ++c)
+            seconds[c] = case_cost(c, seconds[c]);
     m_costs = seconds;
     if (first_failed < cases)
         rethrow(failure);

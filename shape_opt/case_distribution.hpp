@@ -65,6 +65,12 @@ public:
     const std::vector<int>& last_assignment() const { return m_last_owner; }
     const std::vector<double>& last_assignment_costs() const { return m_assignment_costs; }
 
+    /// Rank 0: the cost that the next assignment balances a case by, from the seconds the case took in
+    /// this evaluation (unset: those seconds). Measured seconds vary from run to run on a busy machine;
+    /// a caller that knows its cases' relative costs (and the tests, which must not depend on timings)
+    /// sets this to make the assignment reproducible.
+    std::function<double(size_t load_case, double seconds)> case_cost;
+
     /// Called by rank 0 while it waits for the other ranks' shares: with a line naming each rank and
     /// its cases before, with "" after (the CLI keeps it to print if the job is ended meanwhile).
     std::function<void(const std::string&)> on_wait;

@@ -11,6 +11,8 @@
 #include <tbb/parallel_for.h>
 
 #ifdef DIFFIPC_HAVE_CUDA
+#include "forward/simulation/device_conversion.hpp"
+
 #include "cuda/common/device.hpp"
 #include "cuda/contact/device_contact.hpp"
 #include "cuda/contact/device_friction.hpp"

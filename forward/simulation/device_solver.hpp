@@ -22,7 +22,9 @@
 /// (the step record, which the HDF5 output and the adjoint read).
 ///
 /// Builds without CUDA compile this file too: constructing a DeviceSolver then throws an
-/// InputError naming the scene's "device" field.
+/// InputError naming the scene's "device" field. Nothing here depends on whether the build has
+/// CUDA (device_conversion.hpp holds what does), so that turning DIFFIPC_CUDA on or off
+/// recompiles device_solver.cpp, not every file that includes the scene.
 
 #include "forward/contact/contact_potential.hpp"
 #include "forward/contact/friction/friction_potential.hpp"
@@ -36,11 +38,6 @@
 #include <utility>
 #include <vector>
 
-#ifdef DIFFIPC_HAVE_CUDA
-#include "cuda/broad_phase/step_bound.hpp" // plain C++: gpu::CollisionMeshData, gpu::PlaneObstacle
-#include "cuda/contact/device_contact.hpp" // plain C++: gpu::DeviceContactSettings
-#include "cuda/contact/device_friction.hpp" // plain C++: gpu::FrictionPair
-#endif
 
 namespace diffipc {
 
@@ -48,17 +45,6 @@ namespace gpu {
     struct DeviceNewtonResult;
 }
 
-#ifdef DIFFIPC_HAVE_CUDA
-/// The CPU's CollisionMesh in cuda/broad_phase's plain arrays (field for field).
-gpu::CollisionMeshData to_device(const CollisionMesh& mesh);
-/// The CPU's plane obstacles as the device's (cuda/broad_phase/step_bound.hpp).
-std::vector<gpu::PlaneObstacle> to_device(const std::vector<ContactPlane>& planes);
-/// The barrier's settings as the device contact takes them (kappa, dhat, dmin, the CCD's).
-gpu::DeviceContactSettings to_device(const ContactSettings& settings);
-/// One lagged friction pair as the device takes it: its vertices (kind, vertices, plane) and its
-/// frozen data (weights, tangents, mu lambda).
-std::pair<gpu::BarrierPair, gpu::FrictionPair> to_device(const FrictionContact& contact);
-#endif
 
 class DeviceSolver {
 public:

@@ -26,7 +26,9 @@ so a clean case takes well under a second. Environment:
     DIFFIPC_FUZZ_SEED=7       campaign seed (default 1: the default run is the same every time)
     DIFFIPC_FUZZ_ONLY=12,40   run only these case indices (to reproduce)
     DIFFIPC_FUZZ_JOBS=2       cases run in parallel (default 2)
-    DIFFIPC_FUZZ_TIMEOUT=60   seconds per command
+    DIFFIPC_FUZZ_TIMEOUT=60   CPU seconds per command (a hang that spins); a command that sleeps
+                              is stopped at 10 times that in wall time. CPU time, not wall time,
+                              so that a busy machine does not turn a slow case into a "hang"
     DIFFIPC_FUZZ_MEMORY_MB=4096  address-space limit per command
     DIFFIPC_FUZZ_OUT=DIR      where failing cases are saved (default $TMPDIR/diffipc_fuzz/seed_<seed>)
 
@@ -139,18 +141,28 @@ class Outcome:
         self.stdout, self.stderr, self.seconds, self.timed_out = stdout, stderr, seconds, timed_out
 
 
-def _limits():
+def _limits(cpu_seconds):
     resource.setrlimit(resource.RLIMIT_AS, (MEMORY_BYTES, MEMORY_BYTES))
     resource.setrlimit(resource.RLIMIT_CORE, (0, 0))
+    # The hang detector counts the command's CPU time (SIGXCPU at the limit, SIGKILL 5 s later), which
+    # other work on the machine does not stretch as it stretches wall time.
+    cpu = int(cpu_seconds) + 1
+    resource.setrlimit(resource.RLIMIT_CPU, (cpu, cpu + 5))
+
+
+def _out_of_cpu_time(rc):
+    return rc in (-signal.SIGXCPU, -signal.SIGKILL)
 
 
 def _run(name, argv, cwd, timeout=None):
     t0 = time.monotonic()
     try:
-        p = subprocess.run(argv, cwd=cwd, capture_output=True, timeout=timeout or TIMEOUT, env=ENV,
-                           preexec_fn=_limits)
+        cpu_seconds = timeout or TIMEOUT
+        p = subprocess.run(argv, cwd=cwd, capture_output=True, timeout=max(10 * cpu_seconds, 60), env=ENV,
+                           preexec_fn=lambda: _limits(cpu_seconds))
         return Outcome(name, argv, p.returncode, p.stdout.decode(errors="replace"),
-                       p.stderr.decode(errors="replace"), time.monotonic() - t0)
+                       p.stderr.decode(errors="replace"), time.monotonic() - t0,
+                       timed_out=_out_of_cpu_time(p.returncode))
     except subprocess.TimeoutExpired as e:
         out = (e.stdout or b"").decode(errors="replace")
         err = (e.stderr or b"").decode(errors="replace")
@@ -203,9 +215,9 @@ class Checker:
         # reported as tolerated. Everywhere else it is a failure, and so is a signal always.
         if o.timed_out:
             if self.case.size_touched:
-                self.tolerated.append((f"timeout (a size field was changed): {o.name}", f"> {TIMEOUT:.0f} s"))
+                self.tolerated.append((f"timeout (a size field was changed): {o.name}", f"> {TIMEOUT:.0f} CPU s"))
             else:
-                self.issue(f"timeout: {o.name}", f"> {TIMEOUT:.0f} s")
+                self.issue(f"timeout: {o.name}", f"> {TIMEOUT:.0f} CPU s")
             return False
         if o.rc < 0:
             name = signal.Signals(-o.rc).name if -o.rc in signal.Signals._value2member_map_ else str(-o.rc)
@@ -399,15 +411,15 @@ def save_failure(case, check, outcomes, cli):
     shutil.rmtree(folder, ignore_errors=True)
     fm.write_case(case, folder)
     lines = ["#!/bin/sh", f"# diffipc fuzz seed {case.seed} case {case.index} ({case.origin}, {case.kind})",
-             'cd "$(dirname "$0")"']
+             'cd "$(dirname "$0")"', f"ulimit -t {int(TIMEOUT) + 1}  # the fuzzer's limit: CPU seconds"]
     for o in outcomes:
         if o.name == "python":
             (folder / "driver.py").write_text(DRIVER)
-            lines.append(f"PYTHONPATH={os.environ.get('PYTHONPATH', '')} timeout -s KILL {TIMEOUT:.0f} "
+            lines.append(f"PYTHONPATH={os.environ.get('PYTHONPATH', '')} timeout -s KILL {10 * TIMEOUT:.0f} "
                          f"{' '.join(o.argv)}; echo \"exit $?\"")
         else:
             # SIGKILL: a step that never ends ignores SIGTERM (the CLI finishes the current step first).
-            lines.append(" ".join([f"timeout -s KILL {TIMEOUT:.0f}", "\"${DIFFIPC_CLI:-%s}\"" % cli] + o.argv[1:])
+            lines.append(" ".join([f"timeout -s KILL {10 * TIMEOUT:.0f}", "\"${DIFFIPC_CLI:-%s}\"" % cli] + o.argv[1:])
                          + "; echo \"exit $?\"")
     (folder / "repro.sh").write_text("\n".join(lines) + "\n")
     report = [f"seed {case.seed} case {case.index}: {case.origin} {case.kind} via {case.mode}",
@@ -504,3 +516,12 @@ def test_unmutated_seeds_run_clean(cli, tmp_path):
                 bad.append(f"{s.name} ({mode}): {[(o.name, o.rc, o.stderr[-300:]) for o in outcomes]} "
                            f"{check.issues}")
     assert not bad, "\n".join(bad)
+
+
+def test_a_command_that_spins_is_a_timeout_and_one_that_waits_is_not(tmp_path):
+    """The hang detector: CPU time past the limit is a timeout; wall time spent waiting (as on a busy
+    machine) is not."""
+    spin = _run("spin", [sys.executable, "-c", "while True: pass"], tmp_path, timeout=1)
+    assert spin.timed_out, (spin.rc, spin.stderr)
+    wait = _run("wait", [sys.executable, "-c", "import time; time.sleep(3)"], tmp_path, timeout=1)
+    assert not wait.timed_out and wait.rc == 0, (wait.rc, wait.stderr)

@@ -186,6 +186,14 @@ TEST(CaseDistribution, TwoRanksGiveTheSerialBitsAndBalanceByCost)
     const ReducedFunctional serial(strips(), ".", "strips");
     ReducedFunctional J(strips(), ".", "strips");
     TwoRanks ranks;
+    // The cases' costs are their step counts (3, 4 and 12), not their measured seconds: on a busy machine the
+    // seconds need not follow the steps, and the assignment must not depend on them here.
+    const std::vector<double> steps { 3, 4, 12 };
+    std::vector<double> measured(3, -1.0);
+    ranks.driver->case_cost = [&](size_t c, double seconds) {
+        measured.at(c) = seconds;
+        return steps.at(c);
+    };
     J.set_distribution(ranks.driver);
     for (const double E : { 1e5, 1.3e5, 0.8e5 }) {
         const VectorXd p = VectorXd::Constant(1, E);
@@ -197,13 +205,12 @@ TEST(CaseDistribution, TwoRanksGiveTheSerialBitsAndBalanceByCost)
     EXPECT_EQ(t.cases[0] + t.cases[1], 18);
     EXPECT_GT(t.cases[1], 0);
     EXPECT_GT(t.compute[1], 0);
-    // After the first evaluation the cases go by their measured seconds: case 2 (12 steps) costs more than case 0
-    // (3 steps) and has rank 0 to itself.
-    const std::vector<double>& costs = ranks.driver->last_assignment_costs();
-    ASSERT_EQ(costs.size(), 3u);
-    EXPECT_GT(costs[2], costs[0]);
-    EXPECT_EQ(ranks.driver->last_assignment(), longest_first(costs, 2));
+    // After the first evaluation the cases go by their costs: case 2 (12 steps) has rank 0 to itself.
+    EXPECT_EQ(ranks.driver->last_assignment_costs(), steps);
+    EXPECT_EQ(ranks.driver->last_assignment(), longest_first(steps, 2));
     EXPECT_EQ(ranks.driver->last_assignment(), (std::vector<int> { 1, 1, 0 }));
+    for (const double s : measured) // every case's seconds were measured and handed to the cost
+        EXPECT_GE(s, 0.0);
     EXPECT_TRUE(ranks.server_error.empty()) << ranks.server_error;
 }
 

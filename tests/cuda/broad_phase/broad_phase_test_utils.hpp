@@ -7,6 +7,7 @@
 #include "cuda/common/device.hpp"
 #include "forward/contact/broad_phase/broad_phase.hpp"
 #include "forward/contact/contact_potential.hpp"
+#include "forward/simulation/device_conversion.hpp"
 #include "forward/simulation/device_solver.hpp"
 #include "tests/forward/periodic/post_cell.hpp"
 #include "tests/forward/test_utils.hpp"

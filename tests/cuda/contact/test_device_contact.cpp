@@ -4,6 +4,7 @@
 // without a GPU.
 
 #include "cuda/contact/device_contact.hpp"
+#include "forward/simulation/device_conversion.hpp"
 #include "forward/simulation/device_solver.hpp"
 #include "tests/cuda/contact/contact_test_utils.hpp"
 

@@ -5,6 +5,7 @@
 
 #include "cuda/contact/pair_friction.cuh"
 #include "forward/contact/friction/friction_potential.hpp"
+#include "forward/simulation/device_conversion.hpp"
 #include "forward/simulation/device_solver.hpp"
 #include "tests/cuda/contact/contact_test_utils.hpp"
 
