@@ -20,6 +20,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include <algorithm>
 #include <cmath>
 #include <stdexcept>
 
@@ -124,7 +125,6 @@ namespace {
 
     std::unique_ptr<Objective> parse_stress_norm(const JsonField& j, const Simulator& sim)
     {
-        j.require_object({ "type", "p", "norm", "stress", "normalized", "body", "time", "include_initial" });
         StressNormOptions o;
         if (j.has("p")) {
             o.p = j["p"].number();
@@ -184,7 +184,6 @@ namespace {
         for (const char* k : { "vertices", "points", "targets" })
             if (j.has(k))
                 j[k].fail("not with \"file\": the file gives the markers and their positions");
-        j.require_object({ "type", "file", "vertex_tolerance", "steps", "weights", "sigma" });
         const Scene& scene = sim.scene();
         const double tolerance = j.has("vertex_tolerance") ? j["vertex_tolerance"].positive() : 0.0;
         MarkerData data = read_marker_file(j["file"].string(), sim.mesh(), sim.mesh().rest_positions,
@@ -208,7 +207,8 @@ namespace {
     {
         if (j.has("file"))
             return parse_marker_file(j, sim);
-        j.require_object({ "type", "vertices", "points", "targets", "steps", "weights", "sigma" });
+        if (j.has("vertex_tolerance"))
+            j["vertex_tolerance"].fail("only applies with \"file\"");
         const Mesh& mesh = sim.mesh();
         const int d = mesh.dim;
         std::vector<MarkerPoint> markers;
@@ -262,7 +262,6 @@ namespace {
 
     std::unique_ptr<Objective> parse_center_of_mass(const JsonField& j, const Simulator& sim)
     {
-        j.require_object({ "type", "targets", "steps", "weight", "body" });
         const int d = sim.mesh().dim;
         const JsonField t = j["targets"];
         t.require_array(1);
@@ -308,7 +307,6 @@ namespace {
     /// {"type": "body_force", "body": name | index, "axis": "y", "time": "final" | "sum" | {"max_p": p}}.
     std::unique_ptr<Objective> parse_body_force(const JsonField& j, const Simulator& sim)
     {
-        j.require_object({ "type", "body", "axis", "time" });
         const int body = parse_body(j, sim);
         if (body < 0)
             j.fail("body_force needs \"body\"");
@@ -366,8 +364,6 @@ namespace {
     /// a periodic cell's average stress or macro displacement gradient.
     std::unique_ptr<Objective> parse_macro(const JsonField& j, const Simulator& sim)
     {
-        j.require_object(
-            { "type", "component", "time", "include_initial", "targets", "steps", "weight", "sigma", "side" });
         const std::string type = j["type"].string();
         if (!sim.periodic())
             j["type"].fail(type + " needs a periodic cell (the scene's \"periodic\")");
@@ -385,8 +381,6 @@ namespace {
 
     std::unique_ptr<Objective> parse_reaction_force(const JsonField& j, const Simulator& sim)
     {
-        j.require_object({ "type", "dirichlet", "obstacle", "axis", "targets", "steps", "weight", "sigma", "side",
-            "time", "include_initial" });
         if (sim.friction())
             j["type"].fail("reaction_force is not available in scenes with friction (a coefficient > 0)");
         const int condition = parse_reaction_condition(j, sim);
@@ -417,7 +411,6 @@ namespace {
 
     std::unique_ptr<Objective> parse_sum(const JsonField& j, const Simulator& sim)
     {
-        j.require_object({ "type", "terms" });
         const JsonField terms = j["terms"];
         terms.require_array(1);
         std::vector<WeightedSum::Term> parsed;
@@ -432,14 +425,12 @@ namespace {
 
     std::unique_ptr<Objective> parse_power(const JsonField& j, const Simulator& sim)
     {
-        j.require_object({ "type", "q", "objective" });
         const double q = j["q"].number();
         return std::make_unique<Power>(parse(j["objective"], sim), q);
     }
 
     std::unique_ptr<Objective> parse_constraint(const JsonField& j, const Simulator& sim)
     {
-        j.require_object({ "type", "objective", "upper", "lower", "weight" });
         if (j.has("upper") == j.has("lower"))
             j.fail("give exactly one of \"upper\" (objective <= bound) and \"lower\" (objective >= bound)");
         const bool upper = j.has("upper");
@@ -449,64 +440,117 @@ namespace {
             parse(j["objective"], sim), upper ? ConstraintSense::UPPER : ConstraintSense::LOWER, bound, weight);
     }
 
+    std::unique_ptr<Objective> parse_volume(const JsonField& j, const Simulator& sim)
+    {
+        std::vector<Index> elements = parse_elements(j, sim);
+        const std::string configuration = j.has("configuration") ? j["configuration"].string() : "current";
+        if (configuration != "current" && configuration != "rest")
+            j["configuration"].fail("expected \"current\" or \"rest\", got \"" + configuration + "\"");
+        return aggregate(std::make_unique<Volume>(std::move(elements), configuration == "rest"), j);
+    }
+
+    using Builder = std::unique_ptr<Objective> (*)(const JsonField& j, const Simulator& sim);
+
+    struct Entry {
+        ObjectiveType type;
+        Builder build; ///< called once the keys are checked against type.keys
+    };
+
+    /// Every objective type, its keys and its builder: the factory, registered_objective_types()
+    /// and the "unknown objective type" message all read this one list.
+    const std::vector<Entry>& registry()
+    {
+        static const std::vector<Entry> entries = {
+            { { "stress_norm", { "p", "norm", "stress", "normalized", "body", "time", "include_initial" } },
+                parse_stress_norm },
+            { { "elastic_energy", { "body", "time", "include_initial" } },
+                [](const JsonField& j, const Simulator& sim) -> std::unique_ptr<Objective> {
+                    return aggregate(std::make_unique<ElasticEnergy>(parse_elements(j, sim)), j);
+                } },
+            { { "compliance", { "time", "include_initial" } },
+                [](const JsonField& j, const Simulator&) -> std::unique_ptr<Objective> {
+                    return aggregate(std::make_unique<Compliance>(), j);
+                } },
+            { { "volume", { "body", "time", "include_initial", "configuration" } }, parse_volume },
+            { { "kinetic_energy", { "body", "time", "include_initial" } },
+                [](const JsonField& j, const Simulator& sim) -> std::unique_ptr<Objective> {
+                    return aggregate(std::make_unique<KineticEnergy>(parse_elements(j, sim)), j);
+                } },
+            // One key list for both forms; parse_markers refuses the keys of the other form.
+            { { "markers",
+                  { "vertices", "points", "targets", "steps", "weights", "sigma", "file", "vertex_tolerance" } },
+                parse_markers },
+            { { "center_of_mass", { "targets", "steps", "weight", "body" } }, parse_center_of_mass },
+            { { "reaction_force",
+                  { "dirichlet", "obstacle", "axis", "targets", "steps", "weight", "sigma", "side", "time",
+                      "include_initial" } },
+                parse_reaction_force },
+            { { "body_force", { "body", "axis", "time" } }, parse_body_force },
+            { { "macro_stress",
+                  { "component", "time", "include_initial", "targets", "steps", "weight", "sigma", "side" } },
+                parse_macro },
+            { { "macro_gradient",
+                  { "component", "time", "include_initial", "targets", "steps", "weight", "sigma", "side" } },
+                parse_macro },
+            { { "boundary_smoothness", { "body" } },
+                [](const JsonField& j, const Simulator& sim) -> std::unique_ptr<Objective> {
+                    return std::make_unique<BoundarySmoothness>(sim.scene(), parse_body(j, sim));
+                } },
+            { { "sum", { "terms" } }, parse_sum },
+            { { "power", { "q", "objective" } }, parse_power },
+            { { "constraint", { "objective", "upper", "lower", "weight" } }, parse_constraint },
+        };
+        return entries;
+    }
+
+    /// JsonField::require_object with a list known only at run time (same message).
+    void require_keys(const JsonField& j, const ObjectiveType& type)
+    {
+        std::string list = "type";
+        for (const std::string& key : type.keys)
+            list += ", " + key;
+        for (auto it = j.json().begin(); it != j.json().end(); ++it) {
+            if (it.key() == "type" || std::find(type.keys.begin(), type.keys.end(), it.key()) != type.keys.end())
+                continue;
+            const std::string key = it.key().empty() ? "\"\"" : it.key();
+            throw InputError(
+                j.path().empty() ? key : j.path() + "." + key, "unknown field (allowed here: " + list + ")");
+        }
+    }
+
     std::unique_ptr<Objective> parse(const JsonField& j, const Simulator& sim)
     {
         if (!j.is_object())
             j.fail("expected an objective object with a \"type\"");
         const JsonField type_field = j["type"];
         const std::string type = type_field.string();
-        if (type == "stress_norm")
-            return parse_stress_norm(j, sim);
-        if (type == "elastic_energy" || type == "volume" || type == "kinetic_energy") {
-            if (type == "volume")
-                j.require_object({ "type", "body", "time", "include_initial", "configuration" });
-            else
-                j.require_object({ "type", "body", "time", "include_initial" });
-            std::vector<Index> elements = parse_elements(j, sim);
-            if (type == "elastic_energy")
-                return aggregate(std::make_unique<ElasticEnergy>(elements), j);
-            if (type == "volume") {
-                const std::string configuration = j.has("configuration") ? j["configuration"].string() : "current";
-                if (configuration != "current" && configuration != "rest")
-                    j["configuration"].fail("expected \"current\" or \"rest\", got \"" + configuration + "\"");
-                return aggregate(std::make_unique<Volume>(elements, configuration == "rest"), j);
+        const std::vector<Entry>& entries = registry();
+        for (const Entry& entry : entries)
+            if (entry.type.name == type) {
+                require_keys(j, entry.type);
+                return entry.build(j, sim);
             }
-            return aggregate(std::make_unique<KineticEnergy>(elements), j);
-        }
-        if (type == "compliance") {
-            j.require_object({ "type", "time", "include_initial" });
-            return aggregate(std::make_unique<Compliance>(), j);
-        }
-        if (type == "markers")
-            return parse_markers(j, sim);
-        if (type == "center_of_mass")
-            return parse_center_of_mass(j, sim);
-        if (type == "reaction_force")
-            return parse_reaction_force(j, sim);
-        if (type == "macro_stress" || type == "macro_gradient")
-            return parse_macro(j, sim);
-        if (type == "body_force")
-            return parse_body_force(j, sim);
-        if (type == "boundary_smoothness") {
-            j.require_object({ "type", "body" });
-            return std::make_unique<BoundarySmoothness>(sim.scene(), parse_body(j, sim));
-        }
-        if (type == "sum")
-            return parse_sum(j, sim);
-        if (type == "power")
-            return parse_power(j, sim);
-        if (type == "constraint")
-            return parse_constraint(j, sim);
-        type_field.fail("unknown objective type \"" + type
-            + "\" (expected stress_norm, elastic_energy, compliance, volume, kinetic_energy, markers, "
-              "center_of_mass, reaction_force, macro_stress, macro_gradient, boundary_smoothness, sum, power or "
-              "constraint)");
+        std::string expected;
+        for (size_t i = 0; i < entries.size(); ++i)
+            expected += (i == 0 ? "" : i + 1 == entries.size() ? " or " : ", ") + entries[i].type.name;
+        type_field.fail("unknown objective type \"" + type + "\" (expected " + expected + ")");
     }
 } // namespace
 
 std::unique_ptr<Objective> parse_objective(const nlohmann::json& j, const std::string& field, const Simulator& sim)
 {
     return parse(JsonField(j, field), sim);
+}
+
+const std::vector<ObjectiveType>& registered_objective_types()
+{
+    static const std::vector<ObjectiveType> types = [] {
+        std::vector<ObjectiveType> t;
+        for (const Entry& entry : registry())
+            t.push_back(entry.type);
+        return t;
+    }();
+    return types;
 }
 
 } // namespace diffipc

@@ -9,6 +9,7 @@
 
 #include <memory>
 #include <string>
+#include <vector>
 
 namespace diffipc {
 
@@ -19,5 +20,17 @@ namespace diffipc {
 /// @param sim   the simulation the objective will be evaluated on
 /// @throws InputError naming the offending field, e.g. "objective.terms[1].objective.p".
 std::unique_ptr<Objective> parse_objective(const nlohmann::json& j, const std::string& field, const Simulator& sim);
+
+/// One "type" that parse_objective accepts.
+struct ObjectiveType {
+    std::string name; ///< the "type" string, e.g. "stress_norm"
+    /// The other keys its object may hold, e.g. {"p", "norm", ...}; any other key is an error.
+    std::vector<std::string> keys;
+};
+
+/// @brief The objective types parse_objective accepts, from the same table it builds them with,
+/// as docs/objectives.md's "Objective types" table lists them (a test compares the two).
+/// @return one entry per type; the reference stays valid for the program's lifetime
+const std::vector<ObjectiveType>& registered_objective_types();
 
 } // namespace diffipc

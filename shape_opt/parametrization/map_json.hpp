@@ -27,6 +27,10 @@ struct EntryLayout {
 /// boundary facets (obstacle vertices and facets left out).
 Mesh bodies_mesh(const Scene& scene);
 
+/// The map types a problem file accepts ("exp", "gather", ...), in the order of the one table
+/// that parse_entry_maps reads them from.
+std::vector<std::string> registered_map_types();
+
 /// @brief The chain of `maps` (applied to the design variables in the listed order; the last
 /// gives the entry's `layout.size` values), each map's sizes derived from the one after it.
 /// @throws InputError naming the map ("parameters[0].maps[1].radius") for an unknown type or
