@@ -23,6 +23,7 @@
 #include <pybind11/stl/filesystem.h>
 
 #include <filesystem>
+#include <limits>
 #include <mutex>
 #include <unordered_set>
 
@@ -81,6 +82,25 @@ py::dict trajectory_dict(const Simulator& sim)
         out["ccd_time"] = per_step<double>(tr, [](const StepRecord& s) { return s.phases.ccd; });
         out["broad_phase_time"] = per_step<double>(tr, [](const StepRecord& s) { return s.phases.broad_phase; });
         out["friction_residual"] = per_step<double>(tr, [](const StepRecord& s) { return s.friction_residual; });
+    }
+    if (tr.macro_dim > 0) {
+        // [T, d, d] with [k, i, j] = G_ij (resp. P_ij) after step k + 1: the records hold them
+        // row-major, as trajectory.h5's macro_gradient and macro_stress do.
+        const ssize_t T = ssize_t(tr.steps.size()), dm = tr.macro_dim;
+        auto macro = [&](const VectorXd StepRecord::*member) {
+            py::array_t<double> a({ T, dm, dm });
+            double* p = a.mutable_data();
+            for (ssize_t k = 0; k < T; ++k) {
+                const VectorXd& v = tr.steps[size_t(k)].*member;
+                if (v.size() == dm * dm)
+                    std::copy(v.data(), v.data() + v.size(), p + k * dm * dm);
+                else
+                    std::fill(p + k * dm * dm, p + (k + 1) * dm * dm, std::numeric_limits<double>::quiet_NaN());
+            }
+            return a;
+        };
+        out["macro_gradient"] = macro(&StepRecord::macro_gradient);
+        out["macro_stress"] = macro(&StepRecord::macro_stress);
     }
     out["final_status"] = to_string(tr.final_status);
     out["failed_step"] = tr.failed_step;
@@ -209,7 +229,8 @@ PYBIND11_MODULE(_diffipc, m)
             return to_json(thread_config()).dump();
         },
         "The effective thread configuration as JSON text.");
-    m.def("load_scene", &load_scene, py::arg("path"), "Read and validate a JSON scene file.");
+    m.def("load_scene", static_cast<Scene (*)(const std::string&)>(&load_scene), py::arg("path"),
+        "Read and validate a JSON scene file.");
     m.def("_scene_from_json_text", &scene_from_json_text, py::arg("text"), py::arg("base_directory"));
 
     py::class_<Simulator>(m, "Simulator", "Transactional time stepping of a scene.")

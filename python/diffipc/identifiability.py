@@ -248,9 +248,52 @@ def _lame_design(problem, scene):
     return scene.get("dimension", 3) == 2 and bodies[0].get("material", {}).get("plane") == "stress"
 
 
+#: A design variable within this fraction of its bounds' range (or of max(1, |bound|) for a
+#: one-sided bound) of a bound is reported as on it.
+BOUND_TOLERANCE = 1e-6
+
+
+def active_bounds(x, lower, upper, tolerance=BOUND_TOLERANCE):
+    """Per design variable: "lo" or "hi" where x lies on (within ``tolerance`` of) its lower or
+    upper bound, else None. There the fit is a constrained minimum: J's gradient need not vanish,
+    the quadratic model behind s^2 F^-1 does not hold, and a standard error means little."""
+    out = []
+    for v, lo, hi in zip(np.asarray(x, float), np.asarray(lower, float), np.asarray(upper, float)):
+        span = hi - lo if math.isfinite(lo) and math.isfinite(hi) and hi > lo else None
+        side = None
+        for name, b in (("lo", lo), ("hi", hi)):
+            if math.isfinite(b) and abs(v - b) <= tolerance * (span if span else max(1.0, abs(b))):
+                side = name
+        out.append(side)
+    return out
+
+
+def _bound_note(sides, names=None):
+    """" (at bound lo: standard error not meaningful)" for the variables on a bound."""
+    hit = [(i, s) for i, s in enumerate(sides) if s]
+    if not hit:
+        return ""
+    if names is None:
+        return f" (at bound {hit[0][1]}: standard error not meaningful)"
+    return " (%s at bound %s: standard error not meaningful)" % (
+        ", ".join(names[i] for i, _ in hit), "/".join(dict.fromkeys(s for _, s in hit)))
+
+
+def design_bounds(problem, base_directory):
+    """(lower, upper) of the problem's design variables (-inf/+inf where unbounded)."""
+    from . import ReducedFunctional  # noqa: the package's class
+
+    p = {k: v for k, v in problem.items() if k not in ("optimizer", "output", "remesh", "checkpointing",
+                                                          "constraints")}
+    rf = ReducedFunctional(p, base_directory=os.fspath(base_directory))
+    return np.asarray(rf.design_lower, float), np.asarray(rf.design_upper, float)
+
+
 def report(run_directory, threshold=1e-6, printer=print):
     """Prints the identifiability report of a fit: ``diffipc optimize``'s output folder (its
-    optimal_problem.json is the problem at the fit). Returns (R, F, J)."""
+    optimal_problem.json is the problem at the fit). A design variable that ended on one of its
+    bounds is marked "(at bound lo: standard error not meaningful)" (or hi), and so are E and nu
+    derived from it. Returns (R, F, J)."""
     directory = pathlib.Path(run_directory)
     path = directory / "optimal_problem.json"
     if not path.is_file():
@@ -276,18 +319,21 @@ def report(run_directory, threshold=1e-6, printer=print):
                 % (lam, lam / largest if largest else 0.0, ", ".join("%.4f" % c for c in v),
                    "identifiable" if ok else "NOT identifiable from these data"))
     se = standard_errors(R, F, J)
-    printer("  design " + ", ".join("%.5g +- %s" % (a, "%.3g" % b if math.isfinite(b) else "inf")
-                                     for a, b in zip(x, se)))
+    sides = active_bounds(x, *design_bounds(problem, directory))
+    printer("  design " + ", ".join("%.5g +- %s%s" % (a, "%.3g" % b if math.isfinite(b) else "inf", _bound_note([s]))
+                                     for a, b, s in zip(x, se, sides)))
     plane_stress = _lame_design(problem, _scene_of(problem, directory))
     if plane_stress is not None:
         (E, nu), errors = young_poisson(x, covariance(R, F, J), plane_stress)
         flat = directions[-1][1]
+        # E and nu depend on both variables: a bound on either makes their errors meaningless.
+        note = _bound_note(sides, ["log mu", "log lambda"])
         if errors is not None:
-            printer("  E = %.4g Pa +- %.1f%%, nu = %.4f +- %.4f" % (E, 100 * errors[0], nu, errors[1]))
+            printer("  E = %.4g Pa +- %.1f%%, nu = %.4f +- %.4f%s" % (E, 100 * errors[0], nu, errors[1], note))
         elif abs(flat[0] - flat[1]) < 1e-3:
             nu, se_nu = poisson_along_ratio(x, R, F, J, plane_stress)
-            printer("  nu = %.4f +- %.4f; E is NOT determined by these data (%.4g Pa is where this fit stopped): "
-                    "the flat direction (1, 1) in (log mu, log lambda) scales E at fixed nu" % (nu, se_nu, E))
+            printer("  nu = %.4f +- %.4f%s; E is NOT determined by these data (%.4g Pa is where this fit stopped): "
+                    "the flat direction (1, 1) in (log mu, log lambda) scales E at fixed nu" % (nu, se_nu, note, E))
         else:
             printer("  E = %.4g Pa, nu = %.4f: F is singular, no standard errors" % (E, nu))
     return R, F, J

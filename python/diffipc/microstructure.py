@@ -1,6 +1,7 @@
 """Microstructure cells for shock-protecting cushions (docs/microstructures.md).
 
-A cell family is a wire graph (OBJ `v`/`l` records in [-1, 1]^2) with a symmetry and bounds;
+A cell family is a wire graph (OBJ `v`/`l` records in [-1, 1]^2, or a pattern library's `.wire`
+file with nodes in [0, 1]^2, read as 2 x - 1) with a symmetry and bounds;
 its design variables move the graph's nodes, thicken its edges, set the blend of the smooth
 union and stretch the cell's width. From a design p:
 
@@ -15,7 +16,8 @@ union and stretch the cell's width. From a design p:
     result = drop.evaluate(p, gradient=True)    # time, stress on the block (Pa), peak, J, gradient
     run = drop.optimize(p, algorithm="lbfgsb", fixed=["width"], max_iterations=10)
 
-All arrays are numpy arrays; bad input raises ValueError naming the field or variable.
+All arrays are numpy arrays; bad input raises ValueError naming the field or variable (a cell
+whose 3 x 3 tiling is not one connected solid: naming the graph file).
 """
 
 import os

@@ -1,6 +1,6 @@
 """diffipc.plot: PNG figures of a ``diffipc optimize`` output directory (docs/python.md).
 
-Three figures, each from what the run wrote (docs/optimization.md, "Output"):
+Four figures, each from what the run wrote (docs/optimization.md, "Output"):
 
 * ``convergence.png``: J, its relative distance to the final J, the gradient norm and the
   step norm per iteration (``history.csv``);
@@ -10,11 +10,15 @@ Three figures, each from what the run wrote (docs/optimization.md, "Output"):
   or per-step contributions (``markers``, ``center_of_mass``) over the run, at the initial
   and at the optimal design. These are not in the output: they are recomputed with
   ``diffipc.ReducedFunctional`` on the problem truncated after each step, and the value at
-  the horizon is checked against the J the run wrote before anything is drawn.
+  the horizon is checked against the J the run wrote before anything is drawn;
+* ``design.png``: the initial and the optimal design side by side (design_0.vtu and
+  design_final.vtu), coloured per element by the von Mises stress at the final load, one colour
+  scale for both (2D: the filled rest mesh; 3D: its boundary surface). The stresses come from
+  the scene re-simulated on each design's rest mesh (:func:`design_states`).
 
 From the shell: ``python3 -m diffipc.plot DIR [--problem FILE] [--refine N]``. From Python:
 ``plot_run(DIR)``, or ``plot_convergence``, ``plot_constraints``,
-``plot_objective_over_time`` for one figure; each returns a :class:`Plot` (``path``,
+``plot_objective_over_time``, ``plot_design`` for one figure; each returns a :class:`Plot` (``path``,
 ``figure``, ``data``: the arrays it drew). Matplotlib's Agg canvas is used directly (no
 pyplot, no display). A missing or malformed directory or file raises ValueError naming it.
 """
@@ -23,6 +27,7 @@ import argparse
 import copy
 import csv
 import json
+import math
 import os
 import sys
 
@@ -37,6 +42,9 @@ __all__ = [
     "plot_convergence",
     "plot_constraints",
     "plot_objective_over_time",
+    "von_mises_stresses",
+    "design_states",
+    "plot_design",
     "plot_run",
     "main",
 ]
@@ -571,12 +579,304 @@ def plot_objective_over_time(directory, path=None, problem=None, refine=1, curve
     return Plot(_save(figure, path), figure, c)
 
 
+# ---------------------------------------------------------------------------------------------
+# The design
+
+#: Parameter types whose design the re-simulation of :func:`design_states` reproduces: the rest
+#: mesh and the per-element material of the design VTU.
+DESIGN_TYPES = ("shape", "E", "nu", "mu", "lambda")
+#: Relative tolerance of the check that the re-simulated design reproduces the run's J (the
+#: renumbered mesh assembles in another order: round-off and the solver's tolerance).
+DESIGN_TOLERANCE = 1e-6
+#: Keys of an optimal problem that an evaluation of its objective does not need.
+_NOT_FOR_EVALUATION = ("constraints", "optimizer", "output", "gradcheck", "checkpointing", "description", "remesh",
+                       "parameters", "scene")
+
+
+def von_mises_stresses(model, rest, deformed, elements, mu, lam):
+    """Per element, the von Mises stress (Pa) of the Cauchy stress of P1 elements, as the VTU
+    writer's ``von_mises`` (docs/output_format.md): sqrt(3/2 s:s - 1/2 (tr s)^2) of sigma =
+    P F^T / det F, in 2D of the in-plane 2 by 2 sigma. P is the material's first Piola stress,
+    read off the element's energy gradient (``diffipc.element_gradient``): for P1, the gradient
+    at vertex a is |T| P grad N_a, so the gradients at vertices 1..d, as columns, are |T| P
+    Dm^-T with Dm the rest edge matrix.
+
+    ``model``: the material model name (one, or one per element); ``rest``, ``deformed``: #V by
+    d positions; ``elements``: #E by d+1; ``mu``, ``lam``: Lame parameters (Pa), one number or
+    one per element."""
+    import diffipc
+
+    rest = np.asarray(rest, dtype=float)
+    deformed = np.asarray(deformed, dtype=float)
+    elements = np.asarray(elements, dtype=int)
+    n, d = len(elements), rest.shape[1]
+    models = [model] * n if isinstance(model, str) else list(model)
+    mu = np.broadcast_to(np.asarray(mu, dtype=float), (n,))
+    lam = np.broadcast_to(np.asarray(lam, dtype=float), (n,))
+    out = np.empty(n)
+    for e, tet in enumerate(elements):
+        X, x = rest[tet], deformed[tet]
+        Dm = (X[1:] - X[0]).T
+        F = (x[1:] - x[0]).T @ np.linalg.inv(Dm)
+        volume = abs(np.linalg.det(Dm)) / (2.0 if d == 2 else 6.0)
+        g = np.asarray(diffipc.element_gradient(models[e], X, x, float(mu[e]), float(lam[e]))).reshape(d + 1, d)
+        P = g[1:].T @ Dm.T / volume
+        sigma = P @ F.T / np.linalg.det(F)
+        out[e] = math.sqrt(max(1.5 * np.sum(sigma * sigma) - 0.5 * np.trace(sigma) ** 2, 0.0))
+    return out
+
+
+def _read_design(path):
+    """(points #V by d, elements, cell data dict) of a design VTU written by diffipc optimize."""
+    if not os.path.isfile(path):
+        raise ValueError(f"{path}: missing (the run writes design_0.vtu with output.design_every >= 1, "
+                         "design_final.vtu at its end)")
+    import meshio
+
+    try:
+        m = meshio.read(path)
+    except Exception as e:  # meshio raises its own ReadError and others
+        raise ValueError(f"{path}: not readable as VTU ({e})") from None
+    kinds = {c.type: c.data for c in m.cells}
+    if "triangle" in kinds:
+        d, cells = 2, np.asarray(kinds["triangle"], dtype=int)
+    elif "tetra" in kinds:
+        d, cells = 3, np.asarray(kinds["tetra"], dtype=int)
+    else:
+        raise ValueError(f"{path}: no triangles or tetrahedra")
+    data = {k: np.asarray(v[0], dtype=float).ravel() for k, v in m.cell_data.items()}
+    return np.asarray(m.points, dtype=float)[:, :d], cells, data
+
+
+def _write_msh22(path, points, cells):
+    """A gmsh 2.2 ASCII mesh of P1 triangles (2D) or tetrahedra (3D)."""
+    d = points.shape[1]
+    kind = 2 if d == 2 else 4
+    with open(path, "w") as f:
+        f.write("$MeshFormat\n2.2 0 8\n$EndMeshFormat\n$Nodes\n%d\n" % len(points))
+        for i, p in enumerate(points):
+            z = p[2] if d == 3 else 0.0
+            f.write("%d %.17g %.17g %.17g\n" % (i + 1, p[0], p[1], z))
+        f.write("$EndNodes\n$Elements\n%d\n" % len(cells))
+        for i, c in enumerate(cells):
+            f.write("%d %d 2 1 1 %s\n" % (i + 1, kind, " ".join(str(v + 1) for v in c)))
+        f.write("$EndElements\n")
+
+
+def _lame(E, nu, plane_stress):
+    import diffipc
+
+    return diffipc.lame_parameters(float(E), float(nu), bool(plane_stress))
+
+
+def design_states(directory):
+    """The initial and the optimal design (design_0.vtu, design_final.vtu) re-simulated: for each,
+    the optimal problem's scene with each body's mesh replaced by the design's rest mesh (the
+    scene's regions then select on the design's rest positions) and the design's per-element E
+    and nu (or mu and lambda) set (an adaptive barrier stiffness fixed as in
+    :func:`objective_over_time`), run to its last step. Returns a dict ``initial``, ``optimal``,
+    each a dict ``rest``, ``deformed`` (#V by d, the scene's body vertices), ``elements``,
+    ``von_mises`` (Pa, per element, :func:`von_mises_stresses` at the final state), ``time`` (the
+    final state's, s) and ``J`` ((recomputed, written)): the problem's objective evaluated on the
+    re-simulated scene must reproduce the J the run wrote for that design (history.csv's first,
+    summary.json's final_J) within 1e-6 relative, which it does only if the scene selects on the
+    design's mesh what the run's selected. ValueError names what cannot be re-simulated: a problem
+    with several load cases, parameter types other than shape, E, nu, mu, lambda (the design VTU
+    does not hold them), a design file that is missing, a run that does not converge, or a J that
+    is not reproduced."""
+    import tempfile
+
+    import diffipc
+
+    run = directory if isinstance(directory, OptimizationRun) else read_run(directory)
+    problem_path = os.path.join(run.directory, "optimal_problem.json")
+    if run.problem is None:
+        raise ValueError(f"{problem_path}: missing")
+    for i, entry in enumerate(run.problem.get("parameters", [])):
+        kind = entry.get("type") if isinstance(entry, dict) else None
+        if kind not in DESIGN_TYPES:
+            raise ValueError(f"{problem_path}: parameters[{i}]: a '{kind}' design is not re-simulated for the "
+                             f"drawing (drawn: {', '.join(DESIGN_TYPES)})")
+    scene, base = _scene_and_base(run, run.problem)
+    _fix_adaptive_kappa(scene, base)  # as the reduced functional and objective_over_time fix it
+    bodies = scene.get("bodies", [])
+    written_J = {"initial": float(run.history["J"][0]),
+                 "optimal": float(run.summary.get("final_J", run.history["J"][-1]))}
+    out = {}
+    for name, file in (("initial", "design_0.vtu"), ("optimal", "design_final.vtu")):
+        path = os.path.join(run.directory, file)
+        points, cells, data = _read_design(path)
+        d = points.shape[1]
+        body_of = data.get("body", np.zeros(len(cells))).astype(int)
+        if body_of.max(initial=0) >= len(bodies):
+            raise ValueError(f"{path}: body index {body_of.max()} but the scene has {len(bodies)} bodies")
+        order = np.argsort(body_of, kind="stable")  # the scene numbers elements body by body
+        s = copy.deepcopy(scene)
+        with tempfile.TemporaryDirectory() as tmp:
+            for b, body in enumerate(s["bodies"]):
+                mine = cells[body_of == b]
+                used = np.unique(mine)
+                local = np.full(len(points), -1)
+                local[used] = np.arange(len(used))
+                msh = os.path.join(tmp, f"body{b}.msh")
+                _write_msh22(msh, points[used], local[mine])
+                body["mesh"] = {"file": msh}
+                for key in ("translation", "scale", "rotation"):
+                    body.pop(key, None)  # the design's positions are the world's
+            sc = diffipc.scene(s, base_directory=base)
+            rest = np.asarray(sc.rest_positions, dtype=float)
+            elements = np.asarray(sc.elements, dtype=int)
+            if len(elements) != len(cells):
+                raise RuntimeError(f"{path}: the re-meshed scene has {len(elements)} elements, the design "
+                                   f"{len(cells)}")
+            # The gmsh reader renumbers vertices, not elements: element k must be the design's
+            # element order[k] (the same centroid).
+            if not np.allclose(rest[elements].mean(axis=1), points[cells[order]].mean(axis=1), rtol=0,
+                               atol=1e-9 * max(1.0, np.abs(points).max())):
+                raise RuntimeError(f"{path}: the re-meshed scene's elements are not the design's")
+            E = np.empty(len(cells))
+            nu = np.empty(len(cells))
+            plane = np.zeros(len(cells), dtype=bool)
+            models = []
+            element_body = body_of[order]
+            for k, e in enumerate(order):
+                material = bodies[element_body[k]].get("material", {})
+                plane[k] = d == 2 and material.get("plane") == "stress"
+                models.append(material.get("model", "neo_hookean"))
+                if "mu" in data and "lambda" in data:
+                    m_, l_ = data["mu"][e], data["lambda"][e]
+                    if plane[k]:
+                        E[k], nu[k] = 4 * m_ * (l_ + m_) / (l_ + 2 * m_), l_ / (l_ + 2 * m_)
+                    else:
+                        E[k], nu[k] = m_ * (3 * l_ + 2 * m_) / (l_ + m_), l_ / (2 * (l_ + m_))
+                else:
+                    E[k] = data["E"][e] if "E" in data else float(material["E"])
+                    nu[k] = data["nu"][e] if "nu" in data else float(material["nu"])
+            sim = diffipc.Simulator(sc)
+            sim.set_element_materials(E, nu)
+            tr = sim.run()
+            if tr["final_status"] != "CONVERGED":
+                raise ValueError(f"{path}: the scene re-simulated on this design ended with {tr['final_status']} "
+                                 f"at step {tr['failed_step']}: {tr['failure_message']}")
+            # The run's J again, on this scene: its regions and lists must pick what the run's did.
+            q = {k: v for k, v in run.problem.items() if k not in _NOT_FOR_EVALUATION}
+            q["scene"] = s
+            q["parameters"] = [{"type": "E", "per": "element", "initial": E.tolist()},
+                               {"type": "nu", "per": "element", "initial": nu.tolist()}]
+            rf = diffipc.ReducedFunctional(q, base_directory=base)
+            again = float(rf.evaluate(rf.parameters_of(rf.design_initial), gradient=False)[0])
+        written = written_J[name]
+        if not abs(again - written) <= DESIGN_TOLERANCE * max(abs(written), 1e-300):
+            raise ValueError(f"{path}: J of the scene re-simulated on this design is {again!r}, the run wrote "
+                             f"{written!r}: the drawing would not show the run's state (the scene's regions or "
+                             "vertex lists select differently on the design's mesh)")
+        nv = len(rest)
+        deformed = np.asarray(tr["positions"][-1], dtype=float)[:nv]
+        lame = np.array([_lame(E[k], nu[k], plane[k]) for k in range(len(E))])
+        out[name] = {"rest": rest, "deformed": deformed, "elements": elements, "time": float(tr["time"][-1]),
+                     "J": (again, written),
+                     "von_mises": von_mises_stresses(models, rest, deformed, elements, lame[:, 0], lame[:, 1])}
+    return out
+
+
+def _boundary_faces(elements):
+    """(faces #F by 3, the tetrahedron of each) of the faces that belong to one tetrahedron."""
+    owner = {}
+    for t, tet in enumerate(elements):
+        for face in ((tet[1], tet[2], tet[3]), (tet[0], tet[3], tet[2]), (tet[0], tet[1], tet[3]),
+                     (tet[0], tet[2], tet[1])):
+            key = tuple(sorted(face))
+            owner[key] = None if key in owner else (face, t)
+    kept = [v for v in owner.values() if v is not None]
+    return np.array([f for f, _ in kept], dtype=int).reshape(-1, 3), np.array([t for _, t in kept], dtype=int)
+
+
+def plot_design(directory, path=None, states=None):
+    """design.png (or ``path``): the initial and the optimal design side by side, each element
+    coloured by its von Mises stress at the final load (:func:`design_states`; ``states``: its
+    result, if already computed) on ONE colour scale, 0 to the larger maximum, with one colour
+    bar; titles with each design's J (history.csv's first J, summary.json's final_J). 2D: the
+    filled rest mesh; 3D: its boundary surface seen from matplotlib's default view (the faces
+    turned towards it), each face coloured as its tetrahedron. Returns a
+    :class:`Plot` whose ``data`` holds ``initial_von_mises``, ``optimal_von_mises`` (Pa per
+    element), ``norm`` ((vmin, vmax) of the shared scale), ``J`` ((initial, optimal)) and
+    ``check`` (per design, J recomputed on the re-simulated scene and the J the run wrote)."""
+    run = directory if isinstance(directory, OptimizationRun) else read_run(directory)
+    st = states if states is not None else design_states(run)
+    import matplotlib
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.colors import Normalize
+    from matplotlib.figure import Figure
+
+    d = st["initial"]["rest"].shape[1]
+    top = max(float(st[k]["von_mises"].max()) for k in ("initial", "optimal"))
+    norm = Normalize(vmin=0.0, vmax=top if top > 0 else 1.0)
+    cmap = matplotlib.colormaps["viridis"]
+    J = (float(run.history["J"][0]), float(run.summary.get("final_J", run.history["J"][-1])))
+    lo = np.min([st[k]["rest"].min(axis=0) for k in ("initial", "optimal")], axis=0)
+    hi = np.max([st[k]["rest"].max(axis=0) for k in ("initial", "optimal")], axis=0)
+    span = hi - lo
+    if d == 2:
+        aspect = span[1] / max(span[0], 1e-300)
+        figure = Figure(figsize=(11.0, min(max(2.2 + 4.6 * aspect, 3.2), 8.0)), layout="constrained")
+    else:
+        figure = Figure(figsize=(11.0, 6.0), layout="constrained")
+    FigureCanvasAgg(figure)
+    axes = []
+    mappables = []
+    for i, (key, label) in enumerate((("initial", "initial design"), ("optimal", "optimal design"))):
+        s = st[key]
+        if d == 2:
+            ax = figure.add_subplot(1, 2, i + 1)
+            m = ax.tripcolor(s["rest"][:, 0], s["rest"][:, 1], s["elements"], facecolors=s["von_mises"],
+                             norm=norm, cmap=cmap, edgecolors="face", linewidth=0.2)
+            ax.set_aspect("equal")
+            margin = 0.03 * span.max()
+            ax.set_xlim(lo[0] - margin, hi[0] + margin)
+            ax.set_ylim(lo[1] - margin, hi[1] + margin)
+            ax.set_xlabel("x (m)")
+            ax.set_ylabel("y (m)")
+        else:
+            from mpl_toolkits.mplot3d.art3d import Poly3DCollection
+
+            ax = figure.add_subplot(1, 2, i + 1, projection="3d")
+            faces, owner = _boundary_faces(s["elements"])
+            # Matplotlib paints polygons back to front by their centres, which large triangles on
+            # the far side of the body can get wrong: only the faces turned towards the viewer
+            # are drawn (all that shows of a convex body).
+            corners = s["rest"][faces]
+            normals = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
+            elev, azim = np.radians(ax.elev), np.radians(ax.azim)
+            eye = np.array([np.cos(elev) * np.cos(azim), np.cos(elev) * np.sin(azim), np.sin(elev)])
+            front = normals @ eye > 0
+            m = Poly3DCollection(corners[front], cmap=cmap, norm=norm, edgecolors="none")
+            m.set_array(s["von_mises"][owner[front]])
+            ax.add_collection3d(m)
+            ax.set_xlim(lo[0], hi[0])
+            ax.set_ylim(lo[1], hi[1])
+            ax.set_zlim(lo[2], hi[2])
+            ax.set_box_aspect(tuple(np.maximum(span, 1e-3 * span.max())))
+            ax.set_xlabel("x (m)")
+            ax.set_ylabel("y (m)")
+            ax.set_zlabel("z (m)")
+        ax.set_title(f"{label}: J = {J[i]:.6g}\nlargest von Mises {s['von_mises'].max():.4g} Pa", fontsize=10)
+        axes.append(ax)
+        mappables.append(m)
+    bar = figure.colorbar(mappables[0], ax=axes, location="bottom", shrink=0.6, aspect=40)
+    bar.set_label(f"von Mises stress at the final load (t = {st['optimal']['time']:.4g} s), Pa; one scale for both")
+    figure.suptitle(_title(run) + " (rest designs)", fontsize=10)
+    path = path or os.path.join(run.directory, "design.png")
+    data = {"initial_von_mises": st["initial"]["von_mises"], "optimal_von_mises": st["optimal"]["von_mises"],
+            "norm": (norm.vmin, norm.vmax), "J": J, "check": {k: st[k]["J"] for k in ("initial", "optimal")}}
+    return Plot(_save(figure, path), figure, data)
+
+
 def plot_run(directory, problem=None, refine=1, objective=True, printer=None):
     """Every figure of a run into the directory: convergence.png, constraints.png (with
-    constraints), objective_over_time.png (unless ``objective`` is False). A figure that does
-    not apply (no constraints; an objective without a per-state curve; the start problem not
-    found) is skipped with a line to ``printer`` (e.g. print) saying why. Returns the list of
-    :class:`Plot`."""
+    constraints), objective_over_time.png (unless ``objective`` is False), design.png. A figure
+    that does not apply (no constraints; an objective without a per-state curve; the start
+    problem not found; no design files or a design that is not re-simulated) is skipped with a
+    line to ``printer`` (e.g. print) saying why. Returns the list of :class:`Plot`."""
     say = printer or (lambda _line: None)
     run = read_run(directory)
     plots = [plot_convergence(run)]
@@ -589,6 +889,10 @@ def plot_run(directory, problem=None, refine=1, objective=True, printer=None):
             plots.append(plot_objective_over_time(run, problem=problem, refine=refine))
         except ValueError as e:
             say(f"objective_over_time.png: not written ({e})")
+    try:
+        plots.append(plot_design(run))
+    except ValueError as e:
+        say(f"design.png: not written ({e})")
     return plots
 
 

@@ -2,6 +2,7 @@
 
 #include "forward/common/error.hpp"
 #include "forward/common/union_find.hpp"
+#include "shape_opt/microstructure/cell_tiling.hpp"
 #include "shape_opt/remesh.hpp"
 
 #include <algorithm>
@@ -372,6 +373,36 @@ Mesh mesh_cell(const CellSDF& sdf, double width, const CellMeshSettings& setting
         throw InputError("design",
             "the solid falls apart into " + std::to_string(pieces)
                 + " pieces that do not connect across the cell's sides (a beam too thin or nodes too far apart)");
+
+    // One piece once opposite sides are glued is a connected solid on the torus, not a connected
+    // tiling: a beam from the centre to a corner is one piece on the torus and tiles into separate
+    // strokes. In the 3 x 3 tiling, the middle copy's solid must be one piece (its bits cut off by
+    // its sides join their beams in the neighbouring copies) that also holds the middle copy's
+    // neighbours along x and y; then, by translation, the infinite tiling is one piece. The outer
+    // copies are not asked to be whole: their bits on the 3 x 3 block's border belong to copies
+    // outside it.
+    const CellTiling tiling(mesh, width, settings.height, 3, 3);
+    const Mesh& tiled = tiling.mesh();
+    UnionFind tiled_pieces(tiled.num_vertices());
+    for (Index e = 0; e < tiled.num_elements(); ++e)
+        for (int a = 1; a < 3; ++a)
+            tiled_pieces.join(tiled.elements(e, 0), tiled.elements(e, a));
+    const Index ne = mesh.num_elements();
+    auto copy_vertex = [&](int i, int j, Index e, int a) { return tiled.elements((Index(i) * 3 + j) * ne + e, a); };
+    const Index root = tiled_pieces.find(copy_vertex(1, 1, 0, 0));
+    bool whole
+        = tiled_pieces.find(copy_vertex(2, 1, 0, 0)) == root && tiled_pieces.find(copy_vertex(1, 2, 0, 0)) == root;
+    for (Index e = 0; e < ne && whole; ++e)
+        for (int a = 0; a < 3; ++a)
+            whole = whole && tiled_pieces.find(copy_vertex(1, 1, e, a)) == root;
+    if (!whole) {
+        const std::string& file = sdf.graph().file;
+        throw InputError(file.empty() ? "design" : file,
+            "the cell's 3 x 3 tiling is not one connected solid: its solid connects to itself across the cell's "
+            "sides but not to its copies in the neighbouring cells (a beam from the centre to a corner tiles into "
+            "separate strokes); join the graph's beams across opposite sides of the cell (a node on a side and its "
+            "image on the opposite side)");
+    }
     return mesh;
 }
 

@@ -29,7 +29,10 @@ struct CellMeshSettings {
 /// @brief The mesh of the solid phi < 0 of `sdf` in the box of the given width scale.
 /// @throws InputError naming "design" if the solid is degenerate: no solid, a piece of it
 ///         that does not connect to the rest across the box's sides, or a tiling that does not
-///         hold together along x or y (no solid on a side of the box); RemeshError if gmsh fails
+///         hold together along x or y (no solid on a side of the box); InputError naming the
+///         graph's file (sdf.graph().file, else "design") if the cell's 3 x 3 tiling is not one
+///         connected solid (its middle copy whole and joined to its neighbours along x and y);
+///         RemeshError if gmsh fails
 Mesh mesh_cell(const CellSDF& sdf, double width, const CellMeshSettings& settings);
 
 /// @brief Checks design p against its family's bounds and that no beam is thinner than the mesh

@@ -2,16 +2,27 @@
 
 #include "forward/common/error.hpp"
 
+#include <algorithm>
 #include <cmath>
+#include <filesystem>
 #include <fstream>
 #include <sstream>
 #include <vector>
 
 namespace diffipc {
 
-WireGraph parse_wire_graph(const std::string& text, const std::string& name)
+WireGraphFormat wire_graph_format(const std::string& path)
 {
+    const std::string ext = std::filesystem::path(path).extension().string();
+    return ext == ".wire" ? WireGraphFormat::WIRE : WireGraphFormat::OBJ;
+}
+
+WireGraph parse_wire_graph(const std::string& text, const std::string& name, WireGraphFormat format)
+{
+    const bool wire = format == WireGraphFormat::WIRE;
     std::vector<double> xy;
+    double first_z = 0;
+    int first_z_line = 0; // the line of the first node with a z (WIRE), 0 if none yet
     std::vector<std::pair<long, long>> edges;
     std::vector<int> edge_line;
     std::vector<long> nodes_before; // per edge: nodes read before its line (for relative indices)
@@ -29,8 +40,38 @@ WireGraph parse_wire_graph(const std::string& text, const std::string& name)
         if (kind == "v") {
             double x = 0, y = 0;
             if (!(record >> x >> y) || !std::isfinite(x) || !std::isfinite(y))
-                fail(number, "expected \"v x y [z]\" with finite coordinates");
-            if (std::abs(x) > 1 || std::abs(y) > 1)
+                fail(number,
+                    std::string("expected \"v x y ") + (wire ? "[z [w]]" : "[z]") + "\" with finite coordinates");
+            if (wire) {
+                // PyMesh's reader takes a fourth coordinate as homogeneous: (x, y, z) / w.
+                double z = 0, w = 1;
+                const bool has_z = bool(record >> z);
+                if (has_z && (record >> w) && (!std::isfinite(w) || w == 0))
+                    fail(number, "expected a finite, non-zero homogeneous coordinate w");
+                if (has_z && !std::isfinite(z))
+                    fail(number, "expected \"v x y [z [w]]\" with finite coordinates");
+                x /= w;
+                y /= w;
+                z /= w;
+                if (has_z && first_z_line == 0) {
+                    first_z = z;
+                    first_z_line = number;
+                } else if (has_z && std::abs(z - first_z) > 1e-12 * std::max(1.0, std::abs(first_z)))
+                    fail(number,
+                        "z = " + format_number(z) + " differs from line " + std::to_string(first_z_line)
+                            + "'s z = " + format_number(first_z)
+                            + ": a 3D pattern; diffipc's cells are 2D (a .wire graph's nodes all in one plane z = "
+                              "const, "
+                              "or given as \"v x y\")");
+                if (x < 0 || x > 1 || y < 0 || y > 1)
+                    fail(number,
+                        "node (" + format_number(x) + ", " + format_number(y)
+                            + ") lies outside the unit cell [0, 1]^2 of a .wire pattern (read as y = 2 x - 1 into "
+                              "diffipc's cell [-1, 1]^2); a graph whose nodes are already in [-1, 1]^2 is read as "
+                              "OBJ: give it the extension .obj");
+                x = 2 * x - 1;
+                y = 2 * y - 1;
+            } else if (std::abs(x) > 1 || std::abs(y) > 1)
                 fail(number,
                     "node (" + format_number(x) + ", " + format_number(y) + ") lies outside the cell [-1, 1]^2");
             xy.push_back(x);
@@ -79,6 +120,7 @@ WireGraph parse_wire_graph(const std::string& text, const std::string& name)
     }
     if (g.edges.rows() == 0)
         throw InputError(name, "no edge (\"l\" records): a wire graph needs at least one");
+    g.file = name;
     return g;
 }
 
@@ -89,7 +131,7 @@ WireGraph read_wire_graph(const std::string& path)
         throw InputError(path, "cannot open the wire graph file");
     std::stringstream text;
     text << file.rdbuf();
-    return parse_wire_graph(text.str(), path);
+    return parse_wire_graph(text.str(), path, wire_graph_format(path));
 }
 
 } // namespace diffipc

@@ -290,3 +290,42 @@ def test_the_report_of_a_run_says_what_the_data_determine(cli, tmp_path):
     r = subprocess.run([sys.executable, "-m", "diffipc.identifiability", str(tmp_path / "nothing")],
                        capture_output=True, text=True, timeout=60)
     assert r.returncode != 0 and "optimal_problem.json: missing" in r.stderr
+
+
+def test_active_bounds_within_the_tolerance():
+    from diffipc.identifiability import active_bounds
+    lo, hi = np.array([5.0, 5.0, -np.inf, 0.0]), np.array([20.0, 20.0, np.inf, np.inf])
+    # 15 * 1e-6 of the range is the tolerance: on, just inside it, well inside; a one-sided bound
+    assert active_bounds([5.0, 20.0 - 1e-5, 7.0, 1e-7], lo, hi) == ["lo", "hi", None, "lo"]
+    assert active_bounds([5.0 + 1e-3, 19.9, 0.0, 1e-3], lo, hi) == [None, None, None, None]
+
+
+def test_the_report_marks_a_variable_ended_on_its_bound(tmp_path):
+    """A fit that ended with log lambda on its lower bound (nu near 0): the report says that the
+    bound is active where it prints that variable's and nu's standard errors; a fit inside its
+    bounds carries no such mark. The run folder is written by hand (the problem at the design,
+    as optimal_problem.json), so no optimization is run."""
+    import sys
+    problem = synthetic(tmp_path, "traction")
+    for name, lam_lower, marked in (("on_bound", math.log(LAM / 100), True), ("inside", 5.0, False)):
+        run = tmp_path / name
+        run.mkdir()
+        (run / "markers_traction.txt").write_text((tmp_path / "markers_traction.txt").read_text())
+        p = json.loads(json.dumps(problem))
+        p["parameters"][0]["initial"] = math.log(MU)
+        p["parameters"][1]["initial"] = lam_lower if marked else math.log(LAM)
+        p["parameters"][1]["lower"] = lam_lower
+        (run / "optimal_problem.json").write_text(json.dumps(p))
+        r = subprocess.run([sys.executable, "-m", "diffipc.identifiability", str(run)],
+                           capture_output=True, text=True, timeout=300)
+        assert r.returncode == 0, r.stderr
+        design = next(line for line in r.stdout.splitlines() if line.startswith("  design "))
+        last = r.stdout.splitlines()[-1]
+        if marked:
+            first, second = design[len("  design "):].split(", ", 1)
+            assert "at bound" not in first
+            assert second.endswith("(at bound lo: standard error not meaningful)"), design
+            assert last.startswith("  E = ") and "nu = 0.0" in last, last
+            assert last.endswith("(log lambda at bound lo: standard error not meaningful)"), last
+        else:
+            assert "at bound" not in r.stdout, r.stdout

@@ -1,6 +1,11 @@
 """diffipc.microstructure from Python (docs/microstructures.md): the shipped families, the level
 set and meshes as numpy arrays, a coarse compression's stress-strain curve and gradient, a
-parameter sweep, and errors that name the variable."""
+parameter sweep, errors that name the variable, a cell whose tiling falls apart refused naming its
+graph file, and a pattern library's .wire graph read from the unit cell."""
+
+import json
+import os
+import re
 
 import numpy as np
 import pytest
@@ -93,3 +98,40 @@ def test_drop_design_from_python():
         ms.DropDesign(f, {"block": {}, "kappa": 1e17, "target_stress": 500})
     with pytest.raises(ValueError, match="fixed"):
         d.optimize(f.initial, max_iterations=1, fixed=["depth"])
+
+
+def test_a_cell_whose_tiling_falls_apart_is_refused_naming_its_graph(tmp_path):
+    """One beam from the centre to a corner is one piece on the torus but tiles into separate
+    strokes: its compression used to "succeed" at stresses near 1e-5 Pa with G_xx drifting to 1.
+    Now meshing it is refused, naming the graph file."""
+    (tmp_path / "diagonal.obj").write_text("v 0 0\nv 1 1\nl 1 2\n")
+    (tmp_path / "diagonal.json").write_text(json.dumps({"graph": "diagonal.obj"}))
+    f = ms.family(tmp_path / "diagonal.json")
+    d = ms.CellDesign(f, {"target_stress": 500, "size": 0.03, "steps": 3, "max_strain": 0.3, "samples": [3]})
+    graph = str(tmp_path / "diagonal.obj")
+    with pytest.raises(ValueError, match=re.escape(graph) + ": the cell's 3 x 3 tiling is not one connected solid"):
+        d.evaluate(f.initial, gradient=False)
+    with pytest.raises(ValueError, match=re.escape(graph)):
+        f.mesh(f.initial, size=0.03)
+
+
+def test_a_wire_pattern_in_the_unit_cell_is_the_obj_graph_rescaled(tmp_path):
+    """A pattern library's .wire file (nodes in [0, 1]^2, one edge per "l") of the square grid's
+    cross gives the same family and mesh as the shipped square_grid.obj in [-1, 1]^2."""
+    (tmp_path / "cross.wire").write_text("v 0.0 0.5 0.0\nv 0.5 0.5 0.0\nv 1.0 0.5 0.0\nv 0.5 0.0 0.0\n"
+                                         "v 0.5 1.0 0.0\nl 1 2\nl 2 3\nl 4 2\nl 2 5\n")
+    shipped = json.loads(open(os.path.join(os.path.dirname(ms.__file__), "topologies", "square_grid.json")).read())
+    shipped["graph"] = "cross.wire"
+    (tmp_path / "cross.json").write_text(json.dumps(shipped))
+    f, g = ms.family(tmp_path / "cross.json"), ms.family("square_grid")
+    assert f.names == g.names
+    assert np.array_equal(f.initial, g.initial)
+    v1, t1 = f.mesh(f.initial, size=0.05)
+    v2, t2 = g.mesh(g.initial, size=0.05)
+    assert v1.shape == v2.shape and np.allclose(v1, v2, rtol=0, atol=1e-12)
+    assert np.array_equal(t1, t2)
+    # nodes outside the unit cell: the message says how such a graph is read
+    (tmp_path / "big.wire").write_text("v -1 0\nv 1 0\nl 1 2\n")
+    (tmp_path / "big.json").write_text(json.dumps({"graph": "big.wire"}))
+    with pytest.raises(ValueError, match=r"big\.wire: line 1: .*give it the extension \.obj"):
+        ms.family(tmp_path / "big.json")

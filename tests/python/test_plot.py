@@ -1,9 +1,11 @@
 """diffipc.plot (docs/python.md): the figures of a short `diffipc optimize` run of study 401 are
 valid PNGs that draw exactly what history.csv, summary.json and the problem say; the objective
-over time reproduces the run's J and an independent aggregation of the same states; bad
-directories and files are errors naming them."""
+over time reproduces the run's J and an independent aggregation of the same states; the design
+figure's von Mises stresses agree with closed forms and with the VTU frames of `diffipc simulate`,
+on one colour scale; bad directories and files are errors naming them."""
 import csv
 import json
+import math
 import os
 import struct
 import subprocess
@@ -313,7 +315,7 @@ def test_readme_first_command_runs_the_optimization_and_plots(cli, tmp_path):
     out = tmp_path / "output" / "401_cantilever_area"
     assert f"== results in {out}/" in r.stdout
     listed = re.findall(r"^  (\S+\.(?:json|csv|png|pvd)) ", r.stdout, flags=re.M)
-    assert len(listed) == 7, r.stdout
+    assert len(listed) == 8 and "design.png" in listed, r.stdout
     for name in listed:
         assert (out / name).stat().st_size > 0, name
     summary = json.loads((out / "summary.json").read_text())
@@ -323,3 +325,170 @@ def test_readme_first_command_runs_the_optimization_and_plots(cli, tmp_path):
     r = subprocess.run(["bash", str(tmp_path / "scripts" / "run_example.sh")], capture_output=True, text=True,
                        timeout=60, env=env)
     assert r.returncode == 1 and "set both DIFFIPC_CLI and DIFFIPC_PYTHONPATH" in r.stderr
+
+
+def simple_shear_von_mises(mu, g):
+    """Neo-Hookean under simple shear F = I + g e_x e_y^T (det F = 1): sigma = mu (F F^T - I),
+    whose von Mises stress (in-plane in 2D, the full one in 3D: sigma_zz = 0 both) is
+    mu sqrt(g^4 + 3 g^2)."""
+    return mu * math.sqrt(g**4 + 3 * g**2)
+
+
+@pytest.mark.parametrize("dim", [2, 3])
+def test_von_mises_of_homogeneous_deformations_matches_closed_forms(dim):
+    # A small box mesh, rotated so that its element edges are not along the axes.
+    sc = diffipc.scene(box_scene_of(dim))
+    rest, elements = np.asarray(sc.rest_positions), np.asarray(sc.elements)
+    mu, lam = diffipc.lame_parameters(2e5, 0.3)
+    g = 0.3
+    F = np.eye(dim)
+    F[0, 1] = g
+    vm = plot.von_mises_stresses("neo_hookean", rest, rest @ F.T, elements, mu, lam)
+    np.testing.assert_allclose(vm, simple_shear_von_mises(mu, g), rtol=1e-10)
+    # A stretch diag(a, b[, c]): sigma = (mu (F F^T - I) + lam log J I) / J, principal and
+    # diagonal; von Mises sqrt(1/2 sum_{i<j} (s_i - s_j)^2) (2D: with s_z = 0 in the sum).
+    stretch = np.array([1.2, 0.9, 1.05])[:dim]
+    J = np.prod(stretch)
+    s_p = (mu * (stretch**2 - 1) + lam * math.log(J)) / J
+    full = np.concatenate([s_p, [0.0]]) if dim == 2 else s_p
+    expected = math.sqrt(0.5 * sum((full[i] - full[j]) ** 2 for i in range(3) for j in range(i + 1, 3)))
+    vm = plot.von_mises_stresses("neo_hookean", rest, rest * stretch, elements, mu, lam)
+    np.testing.assert_allclose(vm, expected, rtol=1e-10)
+    # Per-element parameters and models are taken element by element; a rigid rotation is stress free.
+    mus = np.full(len(elements), mu)
+    mus[0] *= 2
+    vm = plot.von_mises_stresses(["neo_hookean"] * len(elements), rest, rest @ F.T, elements, mus, lam)
+    assert vm[0] == pytest.approx(2 * vm[1], rel=1e-10)
+    c, s_ = math.cos(0.7), math.sin(0.7)
+    R = np.eye(dim)
+    R[:2, :2] = [[c, -s_], [s_, c]]
+    assert np.abs(plot.von_mises_stresses("neo_hookean", rest, rest @ R.T, elements, mu, lam)).max() < 1e-6 * mu
+
+
+def box_scene_of(dim):
+    hi = [0.3, 0.2] if dim == 2 else [0.3, 0.2, 0.1]
+    return {"dimension": dim,
+            "bodies": [{"name": "b", "mesh": {"box": {"min": [0.0] * dim, "max": hi, "cells": [3, 2, 1][:dim]}},
+                        "material": {"model": "neo_hookean", "E": 2e5, "nu": 0.3, "density": 1000.0}}],
+            "time": {"integrator": "static", "dt": 1.0, "steps": 1}}
+
+
+def simulate_von_mises(cli, scene, tmp_path, name):
+    """von_mises of the final frame of `diffipc simulate` (the VTU writer's, computed in C++)."""
+    meshio = pytest.importorskip("meshio")
+    s = json.loads(json.dumps(scene))
+    s["output"] = {"vtu_every": 1, "hdf5": False}
+    (tmp_path / f"{name}.json").write_text(json.dumps(s))
+    r = subprocess.run([cli, "simulate", str(tmp_path / f"{name}.json"), "-o", str(tmp_path / name), "-q"],
+                       capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stderr
+    steps = s["time"]["steps"]
+    frame = meshio.read(tmp_path / name / f"frame_{steps}.vtu")
+    return np.asarray(frame.cell_data["von_mises"][0], dtype=float).ravel(), frame
+
+
+def test_design_png_shows_both_designs_on_one_colour_scale(cli, tmp_path):
+    """design.png of a short run of study 401 (its designs written): two panels coloured by the
+    von Mises stress at the final load with the same colour limits, J in the titles. The stresses
+    are checked against `diffipc simulate`'s VTU frames: of the problem's own scene (box mesh) for
+    the initial design, and of a scene on design_final.vtu written as a gmsh mesh by meshio for
+    the optimal one."""
+    meshio = pytest.importorskip("meshio")
+
+    def designs(p):
+        p["output"]["design_every"] = 1
+    out, problem = optimize(cli, tmp_path, iterations=3, edit=designs)
+    result = plot.plot_design(out)
+    check_png(result)
+    assert os.path.basename(result.path) == "design.png"
+    d = result.data
+    h = history_columns(out)
+    summary = json.loads((out / "summary.json").read_text())
+    assert d["J"] == (h["J"][0], summary["final_J"])
+    # one colour scale: 0 to the larger maximum, on both panels, and one colour bar
+    top = max(d["initial_von_mises"].max(), d["optimal_von_mises"].max())
+    assert d["norm"] == (0.0, top)
+    panels = [ax for ax in result.figure.axes if ax.collections and ax.get_title()]
+    assert len(panels) == 2
+    for ax, name, J in zip(panels, ("initial", "optimal"), d["J"]):
+        (mesh,) = ax.collections
+        assert mesh.get_clim() == d["norm"]
+        np.testing.assert_array_equal(mesh.get_array(), d[f"{name}_von_mises"])
+        assert ax.get_title().startswith(f"{name} design: J = {J:.6g}")
+    assert len(result.figure.axes) == 3  # the two panels and the colour bar
+    # the re-simulated scenes reproduce the run's J (their regions pick the run's vertices)
+    for name, (again, written) in d["check"].items():
+        assert again == pytest.approx(written, rel=1e-9), name
+    # The initial design is the problem's own scene: its VTU frame's von Mises, element by element.
+    scene = json.loads(problem.read_text())["scene"]
+    reference, _ = simulate_von_mises(cli, scene, tmp_path, "initial")
+    np.testing.assert_allclose(d["initial_von_mises"], reference, rtol=1e-6, atol=1e-9 * reference.max())
+    # The optimal design: its rest mesh written by meshio as gmsh 2.2 (elements keep their order).
+    design = meshio.read(out / "design_final.vtu")
+    msh = tmp_path / "optimal.msh"
+    meshio.write(msh, meshio.Mesh(design.points[:, :2], [("triangle", design.cells_dict["triangle"])]),
+                 file_format="gmsh22", binary=False)
+    scene["bodies"][0]["mesh"] = {"file": str(msh)}
+    reference, _ = simulate_von_mises(cli, scene, tmp_path, "optimal")
+    np.testing.assert_allclose(d["optimal_von_mises"], reference, rtol=1e-6, atol=1e-9 * reference.max())
+    # a design whose re-simulation does not give the run's J is not drawn
+    bad = copy_run(out, tmp_path)
+    tampered = dict(summary, final_J=summary["final_J"] * 1.01)
+    (bad / "summary.json").write_text(json.dumps(tampered))
+    with pytest.raises(ValueError, match=r"design_final.vtu: J of the scene re-simulated on this design is "):
+        plot.plot_design(bad)
+    # plot_run draws it too; without design_0.vtu it says why it does not
+    lines = []
+    names = [os.path.basename(p.path) for p in plot.plot_run(out, problem=problem, printer=lines.append)]
+    assert "design.png" in names
+    (out / "design_0.vtu").unlink()
+    lines = []
+    names = [os.path.basename(p.path) for p in plot.plot_run(out, problem=problem, objective=False,
+                                                               printer=lines.append)]
+    assert "design.png" not in names
+    assert any(s.startswith("design.png: not written (") and "design_0.vtu: missing" in s for s in lines), lines
+
+
+def test_design_png_in_3d_draws_the_boundary_surface(cli, tmp_path):
+    """A 3D run (a block's Young's modulus against its compliance, two iterations): each panel
+    draws the block's boundary triangles that face the viewer (2 per face square of the 3 x 3 x 3
+    box mesh on the three sides turned towards matplotlib's default view: 54), each coloured as
+    its tetrahedron, on the shared colour scale; the initial design's stresses are those of
+    `diffipc simulate`'s frame."""
+    scene = {"dimension": 3,
+             "bodies": [{"name": "block", "mesh": {"box": {"min": [0, 0, 0], "max": [0.04] * 3, "cells": [3, 3, 3]}},
+                         "material": {"model": "neo_hookean", "E": 1e5, "nu": 0.3, "density": 1000}}],
+             "dirichlet": [{"body": "block", "region": {"min": [-1, -1, -1], "max": [1, 1e-6, 1]},
+                            "displacement": [0, 0, 0]}],
+             "neumann": [{"body": "block", "region": {"min": [-1, 0.04 - 1e-6, -1], "max": [1, 1, 1]},
+                          "traction": ["2e3*t", 0, 0]}],
+             "time": {"integrator": "static", "dt": 0.5, "steps": 2},
+             "solver": {"residual_tolerance": 1e-10}}
+    problem = {"scene": scene, "objective": {"type": "compliance"},
+               "parameters": [{"type": "E", "per": "body", "lower": 5e4, "upper": 2e5}],
+               "optimizer": {"algorithm": "lbfgsb", "max_iterations": 2},
+               "output": {"design_every": 1}}
+    (tmp_path / "problem.json").write_text(json.dumps(problem))
+    out = tmp_path / "o"
+    r = subprocess.run([cli, "optimize", str(tmp_path / "problem.json"), "-o", str(out), "-q"], capture_output=True,
+                       text=True, timeout=300)
+    assert r.returncode == 0, r.stderr
+    result = plot.plot_design(out)
+    check_png(result)
+    d = result.data
+    panels = [ax for ax in result.figure.axes if ax.name == "3d"]
+    assert len(panels) == 2
+    for ax, name in zip(panels, ("initial", "optimal")):
+        (surface,) = ax.collections
+        assert surface.get_clim() == d["norm"]
+        # the view (elevation 30, azimuth -60 degrees) looks at the sides +x, -y and +z
+        eye = [math.cos(math.radians(ax.elev)) * math.cos(math.radians(ax.azim)),
+               math.cos(math.radians(ax.elev)) * math.sin(math.radians(ax.azim)), math.sin(math.radians(ax.elev))]
+        assert eye[0] > 0 and eye[1] < 0 and eye[2] > 0
+        colours = np.asarray(surface.get_array())
+        assert colours.shape == (3 * 9 * 2,)
+        assert set(colours) <= set(d[f"{name}_von_mises"])
+    reference, _ = simulate_von_mises(cli, scene, tmp_path, "initial")
+    np.testing.assert_allclose(d["initial_von_mises"], reference, rtol=1e-6, atol=1e-9 * reference.max())
+    assert d["optimal_von_mises"].max() > 0 and d["norm"][1] == max(d["initial_von_mises"].max(),
+                                                                    d["optimal_von_mises"].max())

@@ -2,7 +2,7 @@
 // independent of the mesher: positive elements, vertices on opposite sides that match one to
 // one, boundary vertices on the level set, the mesh's area against the solid's area by
 // sampling phi, designs at the family's bounds that mesh, and degenerate designs that are input
-// errors naming what is wrong.
+// errors naming what is wrong (a tiling that falls apart naming the graph file).
 
 #include "shape_opt/microstructure/cell_mesher.hpp"
 
@@ -11,7 +11,12 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <functional>
 #include <set>
+
+#include <unistd.h>
 
 using namespace diffipc;
 
@@ -146,4 +151,40 @@ TEST(CellMesher, DegenerateDesignsAreInputErrors)
     EXPECT_NE(
         error_field([&] { mesh_design(loose, loose.initial(), s); }).find("falls apart into 2"), std::string::npos)
         << error_field([&] { mesh_design(loose, loose.initial(), s); });
+}
+
+TEST(CellMesher, ATilingThatFallsApartIsRefusedNamingTheGraphFile)
+{
+    // One beam from the centre to a corner: glued to itself across the sides it is one piece
+    // (the corner's four quarter disks are one disk on the torus), but its tiling is a set of
+    // separate diagonal strokes. The error names the graph file, read from disk as a family's.
+    const std::filesystem::path dir
+        = std::filesystem::temp_directory_path() / ("diffipc_test_tiling_" + std::to_string(::getpid()));
+    std::filesystem::create_directories(dir);
+    const std::string graph = (dir / "diagonal.obj").string();
+    std::ofstream(graph) << "v 0 0\nv 1 1\nl 1 2\n";
+    std::ofstream(dir / "diagonal.json") << "{\"graph\": \"diagonal.obj\"}\n";
+    const CellFamily f = read_cell_family((dir / "diagonal.json").string());
+    CellMeshSettings s;
+    s.size = 0.03;
+    const std::string error = error_field([&] { mesh_design(f, f.initial(), s); });
+    std::filesystem::remove_all(dir);
+    EXPECT_EQ(error.substr(0, graph.size() + 1), graph + ":") << error;
+    EXPECT_NE(error.find("3 x 3 tiling is not one connected solid"), std::string::npos) << error;
+}
+
+TEST(CellMesher, ABeamEndingOnASideStillTiles)
+{
+    // A cross with a stub from the centre to the right side: the stub's end shows as a loose half
+    // disk on the left side (its copy from the left neighbour), on the torus and in the tiling
+    // joined to that neighbour's stub. The 3 x 3 block's leftmost copies keep such a bit on the
+    // block's border, whose beam lies outside the block: accepted all the same.
+    CellFamily::Settings settings;
+    const CellFamily stub(
+        parse_wire_graph("v -1 0\nv 1 0\nv 0 -1\nv 0 1\nv 0 0\nv 1 0.5\nl 1 2\nl 3 4\nl 5 6\n", "stub.obj"), settings,
+        "f");
+    CellMeshSettings s;
+    s.size = 0.03;
+    const Mesh m = mesh_design(stub, stub.initial(), s);
+    check_cell_mesh(m, CellSDF(stub.graph(), stub.cell_parameters(stub.initial())), 1.0, s);
 }

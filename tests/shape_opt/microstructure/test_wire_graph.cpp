@@ -1,5 +1,6 @@
 // Wire graphs of microstructure cells (shape_opt/microstructure/wire_graph.hpp): OBJ `v` and `l`
-// records, polylines split into edges, relative indices, and errors naming the file and line.
+// records, polylines split into edges, relative indices, `.wire` patterns in [0, 1]^2 rescaled,
+// and errors naming the file and line.
 
 #include "shape_opt/microstructure/wire_graph.hpp"
 
@@ -47,4 +48,51 @@ TEST(WireGraph, BadRecordsAreErrorsNamingTheFileAndLine)
     EXPECT_EQ(message("v 0 0\nv 1 0\nl 1 b\n"), "cell.obj: line 3: expected node indices after \"l\", got \"b\"");
     EXPECT_EQ(message("v 0 0\nv 1 0\n"), "cell.obj: no edge (\"l\" records): a wire graph needs at least one");
     EXPECT_EQ(message("v 0 0\nv 1 0\nl -3 1\n"), "cell.obj: line 3: node index -3 out of range (2 nodes)");
+}
+
+TEST(WireGraph, WireFilesOfPatternLibrariesAreRescaledFromTheUnitCell)
+{
+    // A .wire pattern (PyMesh's wire networks: "v x y [z [w]]", "l i j"), nodes in [0, 1]^2: the
+    // square grid's cross, as square_grid.obj writes it in [-1, 1]^2, one node with a
+    // homogeneous w = 2 and all in the plane z = 0.
+    const WireGraph g
+        = parse_wire_graph("v 0 0.5 0\nv 0.5 0.5 0\nv 1 0.5 0\nv 0.5 0 0\nv 1 2 0 2\nl 1 2\nl 2 3\nl 4 2\nl 2 5\n",
+            "cross.wire", WireGraphFormat::WIRE);
+    const double expected[5][2] = { { -1, 0 }, { 0, 0 }, { 1, 0 }, { 0, -1 }, { 0, 1 } };
+    ASSERT_EQ(g.nodes.rows(), 5);
+    for (int v = 0; v < 5; ++v)
+        for (int k = 0; k < 2; ++k)
+            EXPECT_EQ(g.nodes(v, k), expected[v][k]) << "node " << v;
+    ASSERT_EQ(g.edges.rows(), 4);
+    EXPECT_EQ(g.edges(3, 0), 1);
+    EXPECT_EQ(g.edges(3, 1), 4);
+    EXPECT_EQ(g.file, "cross.wire");
+    // 2D records without z are read too.
+    EXPECT_EQ(parse_wire_graph("v 0 0.5\nv 1 0.5\nl 1 2\n", "p.wire", WireGraphFormat::WIRE).nodes(1, 0), 1.0);
+    EXPECT_EQ(wire_graph_format("lib/pattern0646.wire"), WireGraphFormat::WIRE);
+    EXPECT_EQ(wire_graph_format("cell.obj"), WireGraphFormat::OBJ);
+}
+
+TEST(WireGraph, WireFilesThatCannotBeReadSayHow)
+{
+    auto wire_message = [](const std::string& text) {
+        try {
+            parse_wire_graph(text, "p.wire", WireGraphFormat::WIRE);
+        } catch (const InputError& e) {
+            return std::string(e.what());
+        }
+        return std::string("no error");
+    };
+    // Nodes in [-1, 1]^2 (an OBJ graph named .wire): the message says to name it .obj.
+    const std::string outside = wire_message("v -1 0\nv 1 0\nl 1 2\n");
+    EXPECT_EQ(outside.rfind("p.wire: line 1: node (-1, 0) lies outside the unit cell [0, 1]^2", 0), 0u) << outside;
+    EXPECT_NE(outside.find("give it the extension .obj"), std::string::npos) << outside;
+    // A 3D pattern.
+    const std::string spatial = wire_message("v 0 0 0\nv 1 0 0\nv 1 1 1\nl 1 2\n");
+    EXPECT_NE(spatial.find("p.wire: line 3: z = 1 differs from line 1's z = 0: a 3D pattern"), std::string::npos)
+        << spatial;
+    EXPECT_EQ(wire_message("v 0 0 0 0\nv 1 0\nl 1 2\n"),
+        "p.wire: line 1: expected a finite, non-zero homogeneous coordinate w");
+    // The same text as OBJ keeps OBJ's reading: z ignored, [-1, 1]^2.
+    EXPECT_EQ(parse_wire_graph("v -1 0 0\nv 1 0 1\nl 1 2\n", "p.obj").nodes(0, 0), -1.0);
 }
