@@ -14,6 +14,7 @@
 #include "shape_opt/design_problem.hpp"
 #include "shape_opt/optimization_history.hpp"
 #include "shape_opt/optimizer/optimizer_json.hpp"
+#include "shape_opt/optimizer/taylor_check.hpp"
 #include "shape_opt/reduced_functional.hpp"
 #include "shape_opt/remesh.hpp"
 
@@ -30,6 +31,10 @@ namespace fs = std::filesystem;
 namespace diffipc {
 
 namespace {
+
+    /// The last iterate counts as the best point seen when its f is above the best one's by at
+    /// most this, relatively (round-off and the forward solves' tolerances).
+    constexpr double BEST_POINT_TOLERANCE = 1e-8;
 
     /// The rest design: the bodies' rest mesh at p, with the per-element material as cell data.
     void write_design_vtu(const std::string& path, const ReducedFunctional& rf, const VectorXd& p)
@@ -268,12 +273,18 @@ int optimize(const OptimizeOptions& options)
                     + format_number(settings.max_seconds)
                     + " s: raise it (--max-seconds S, or optimizer.max_seconds in " + problem_path + ") to go on");
         header.problem = stored.problem; // the run's, not the file it is resumed with
-    } else {
+    }
+    // Settings that do not fit the problem (constraints given to L-BFGS-B, bad bounds, an option
+    // the library refuses) are refused before anything is written or printed.
+    DesignProblem design_problem(rf);
+    check_optimizer_settings(design_problem, resume ? resume->state.checkpoint.x : rf.design_initial(), settings);
+    if (!resume) {
         fs::create_directories(dir, ec);
         if (ec || !fs::is_directory(dir))
             throw InputError(out_dir, "cannot create output directory");
         // What an earlier run in the directory left would describe another run.
-        for (const char* stale : { "summary.json", "optimizer_state.h5", "current_problem.json", "remeshes.json" })
+        for (const char* stale :
+            { "summary.json", "optimizer_state.h5", "current_problem.json", "remeshes.json", "best_problem.json" })
             fs::remove(dir / stale, ec);
         for (fs::directory_iterator it(dir, ec), end; !ec && it != end; it.increment(ec)) {
             const std::string name = it->path().filename().string();
@@ -286,7 +297,6 @@ int optimize(const OptimizeOptions& options)
             write_json(copy.string(), self_contained_document(rf));
     }
 
-    DesignProblem design_problem(rf);
     design_problem.set_remesh_directory(out_dir);
     if (resume)
         design_problem.set_objective_scale(resume->state.objective_scale);
@@ -413,6 +423,7 @@ int optimize(const OptimizeOptions& options)
         = minimize_design(design_problem, rf.design_initial(), settings, resume ? &resume->state.checkpoint : nullptr);
     const int stopped_by = release_stop_signals();
     history.close();
+    const std::string rejection = last_rejection(); // before the final check's evaluations
 
     nlohmann::json summary;
     summary["problem"] = header.problem;
@@ -422,21 +433,121 @@ int optimize(const OptimizeOptions& options)
     summary["iterations"] = result.iterations;
     summary["evaluations"] = result.evaluations;
     summary["rejected"] = result.rejected;
-    if (!last_rejection().empty())
-        summary["last_rejection"] = last_rejection();
+    summary["last_rejection"] = rejection.empty() ? nlohmann::json(nullptr) : nlohmann::json(rejection);
     if (resume)
         summary["resumed_at_iteration"] = resume->state.checkpoint.iteration;
     if (std::isfinite(initial_value))
         summary["initial_J"] = initial_value;
+    const double scale = objective_scale();
+    std::vector<std::string> warnings;
+    const auto warn = [&](const std::string& text) {
+        warnings.push_back(text);
+        std::fprintf(stderr, "diffipc: warning: %s\n", text.c_str());
+    };
+    const ReducedFunctional& now = design_problem.functional();
     const bool have_point = result.x.size() == rf.design_size() && result.values.gradient.size() > 0;
     if (have_point) {
-        summary["final_J"] = result.values.f * objective_scale();
+        // The optimizer's own result, the last iterate: the point its stop reason describes.
+        summary["final_J"] = result.values.f * scale;
         summary["max_violation"] = result.max_violation;
         summary["design"] = std::vector<double>(result.x.data(), result.x.data() + result.x.size());
-        const ReducedFunctional& now = design_problem.functional();
         write_json((dir / "optimal_problem.json").string(), optimal_problem(now, result.x));
         write_design_vtu((dir / "design_final.vtu").string(), now, now.parameters_of(result.x));
     }
+    bool best_differs = false;
+    if (result.has_best) {
+        const VectorXd& b = result.best_x;
+        summary["best_point"] = { { "J", result.best_values.f * scale }, { "max_violation", result.best_max_violation },
+            { "evaluation", result.best_evaluation },
+            { "iteration",
+                result.best_iteration >= 0 ? nlohmann::json(result.best_iteration) : nlohmann::json(nullptr) },
+            { "design", std::vector<double>(b.data(), b.data() + b.size()) } };
+        // Round-off apart, the last iterate should be the best feasible point the run saw; when it
+        // is not, J is not what the optimizer's model of it says (a jump), or the optimizer is
+        // non-monotone, and the user must know which of the two points final_J describes.
+        const double f = result.values.f, fb = result.best_values.f;
+        const bool last_infeasible = result.max_violation > settings.constraint_tolerance;
+        best_differs = have_point && b != result.x
+            && (f - fb > BEST_POINT_TOLERANCE * std::max({ std::abs(f), std::abs(fb), 1e-300 }) || last_infeasible);
+        if (best_differs) {
+            write_json((dir / "best_problem.json").string(), optimal_problem(now, b));
+            const std::string where = result.best_iteration >= 0
+                ? "the iterate of iteration " + std::to_string(result.best_iteration)
+                : "a trial point the optimizer did not accept";
+            warn("the last iterate is not the best point seen: final_J " + format_number(f * scale)
+                + (last_infeasible ? " (outside the constraints by " + format_number(result.max_violation) + ")" : "")
+                + " at the last iterate, J " + format_number(fb * scale) + " at evaluation "
+                + std::to_string(result.best_evaluation) + " (" + where
+                + "); final_J and design are the last iterate's, summary.json's best_point and best_problem.json "
+                  "the best point's");
+        }
+    } else
+        summary["best_point"] = nullptr;
+    if (!best_differs)
+        fs::remove(dir / "best_problem.json", ec); // a resumed run's earlier part may have written one
+
+    // Non-smoothness: accepted steps that J's gradients do not explain (no evaluations), and a
+    // short Taylor test at the last iterate (a few).
+    nlohmann::json jumps = nlohmann::json::array();
+    for (const StepJump& j : result.jumps)
+        jumps.push_back({ { "iteration", j.iteration }, { "J_change", j.change * scale },
+            { "predicted_change", j.predicted * scale }, { "first_order_scale", j.first_order * scale },
+            { "step_norm", j.step_norm } });
+    summary["step_check"] = { { "steps_checked", result.steps_checked }, { "jumps", jumps } };
+    if (!result.jumps.empty()) {
+        const StepJump& j = result.jumps.front();
+        warn(std::to_string(result.jumps.size()) + " of " + std::to_string(result.steps_checked)
+            + " accepted steps changed J by far more than its gradients predict (largest: J changed by "
+            + format_number(j.change * scale) + " over the step to iteration " + std::to_string(j.iteration)
+            + ", the gradients at its ends predict " + format_number(j.predicted * scale)
+            + "): J is not smooth along the run (it jumps between designs, e.g. where a contact active set or the "
+              "equilibrium changes); the gradient does not describe it there");
+    }
+    summary["final_taylor_check"] = nullptr;
+    // Not after a signal (the user wants the run to end) nor after a failure (the problem may
+    // not evaluate there any more: a remesh that could not be evaluated).
+    if (have_point && settings.final_taylor_check.enabled && stopped_by == 0 && result.reason != StopReason::FAILED
+        && result.reason != StopReason::INVALID_START) {
+        const TaylorCheck check = final_taylor_check(
+            design_problem, result.x, result.values, settings.lower, settings.upper, settings.final_taylor_check);
+        nlohmann::json rows = nlohmann::json::array();
+        const auto number = [](double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr); };
+        for (size_t k = 0; k < check.steps.size(); ++k)
+            rows.push_back({ { "step", check.steps[k] }, { "J_change", number(check.changes[k] * scale) },
+                { "remainder", number(check.remainders[k] * scale) },
+                { "rate", k == 0 ? nlohmann::json(nullptr) : number(check.rates[k - 1]) } });
+        summary["final_taylor_check"]
+            = { { "verdict", check.verdict }, { "reason", check.reason }, { "slope", check.slope * scale },
+                  { "floor", check.floor * scale }, { "seed", settings.final_taylor_check.seed },
+                  { "evaluations", check.evaluations }, { "rejected", check.rejected }, { "rows", rows } };
+        if (!options.quiet) {
+            const auto rate_text = [](double r) {
+                char text[16] = "-";
+                if (std::isfinite(r))
+                    std::snprintf(text, sizeof text, "%.2f", r);
+                return std::string(text);
+            };
+            std::string rates;
+            for (double r : check.rates)
+                rates += " " + rate_text(r);
+            std::printf("final Taylor check at the last iterate: %s (remainder rates%s; %d evaluations, not counted "
+                        "above)\n",
+                check.verdict.c_str(), rates.c_str(), check.evaluations);
+            // The table where the verdict needs reading, as diffipc gradcheck prints it.
+            if (check.verdict != "smooth") {
+                std::printf("  %-10s %-14s %-6s %-14s %-6s\n", "h", "|J(h)-J(0)|", "rate", "|J(h)-J(0)-h g.d|", "rate");
+                for (size_t k = 0; k < check.steps.size(); ++k)
+                    std::printf("  %-10.3e %-14.6e %-6s %-14.6e %-6s\n", check.steps[k], check.changes[k] * scale,
+                        k == 0 ? "" : rate_text(std::log2(check.changes[k - 1] / check.changes[k])).c_str(),
+                        check.remainders[k] * scale, k == 0 ? "" : rate_text(check.rates[k - 1]).c_str());
+                std::printf("  %s\n", check.reason.c_str());
+            }
+            std::fflush(stdout);
+        }
+        if (check.verdict == "non_smooth")
+            warn("final Taylor check at the last iterate: " + check.reason);
+    }
+    summary["warnings"] = warnings;
     if (rf.remesh_settings().enabled()) {
         summary["remeshes"] = remesh_records();
         if (!design_problem.remesh_failure().empty())
@@ -460,12 +571,12 @@ int optimize(const OptimizeOptions& options)
     if (!options.quiet)
         std::printf("diffipc: %s after %d iterations (%d evaluations, %d rejected): J %.6e -> %.6e; wrote %s\n",
             to_string(result.reason).c_str(), result.iterations, result.evaluations, result.rejected, initial_value,
-            have_point ? result.values.f * objective_scale() : std::nan(""), out_dir.c_str());
+            have_point ? result.values.f * scale : std::nan(""), out_dir.c_str());
     if (stopped_by != 0)
         return interrupted_exit_code(stopped_by);
     if (result.reason == StopReason::INVALID_START || result.reason == StopReason::FAILED) {
         std::fprintf(stderr, "diffipc: %s: %s%s\n", to_string(result.reason).c_str(), result.message.c_str(),
-            last_rejection().empty() ? "" : (" (" + last_rejection() + ")").c_str());
+            rejection.empty() ? "" : (" (" + rejection + ")").c_str());
         return 2;
     }
     return 0;

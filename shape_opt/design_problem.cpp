@@ -294,6 +294,8 @@ OptimizerResult minimize_design(
         c->has_best = feasible;
         c->best_x = feasible ? c->x : VectorXd();
         c->best_values = feasible ? values : OptimizationValues();
+        c->best_evaluation = feasible ? c->evaluations : 0;
+        c->best_iteration = feasible ? c->iteration : -1;
         if (problem.on_restart)
             problem.on_restart(*c);
         result = resume_minimize(problem, *c, settings);

@@ -593,6 +593,9 @@ void write_run_state(const std::string& path, const RunState& state)
                 && write_number_attribute(file, "optimizer_cpu_seconds", c.optimizer_cpu_seconds)
                 && write_number_attribute(file, "elapsed_seconds", c.elapsed_seconds)
                 && write_number_attribute<long long>(file, "has_best", c.has_best ? 1 : 0)
+                && write_number_attribute<long long>(file, "best_evaluation", c.best_evaluation)
+                && write_number_attribute<long long>(file, "best_iteration", c.best_iteration)
+                && write_number_attribute<long long>(file, "steps_checked", c.steps_checked)
                 && write_number_attribute(file, "objective_scale", state.objective_scale)
                 && write_string_attribute(file, "last_rejection", state.last_rejection);
             if (!ok)
@@ -610,6 +613,13 @@ void write_run_state(const std::string& path, const RunState& state)
             }
             write_matrix(errors, file, "lbfgs_s", s);
             write_matrix(errors, file, "lbfgs_y", y);
+            // One row per StepJump: iteration, change, predicted, first_order, step_norm.
+            MatrixXd jumps(Index(c.jumps.size()), 5);
+            for (size_t i = 0; i < c.jumps.size(); ++i) {
+                const StepJump& j = c.jumps[i];
+                jumps.row(Index(i)) << double(j.iteration), j.change, j.predicted, j.first_order, j.step_norm;
+            }
+            write_matrix(errors, file, "jumps", jumps);
             if (H5Fflush(file, H5F_SCOPE_LOCAL) < 0)
                 errors.fail("cannot write (is the disk full?)");
         }
@@ -655,6 +665,18 @@ RunState read_run_state(const std::string& path)
     if (c.has_best) {
         c.best_x = read_vector(r, file, "best_x", Index(n));
         c.best_values = read_values(r, file, "best_values", Index(n));
+    }
+    // States written before the best point's provenance and the step checks were kept lack these.
+    if (r.has_attribute(file, "best_evaluation"))
+        c.best_evaluation = int(r.number_attribute<long long>(file, "best_evaluation"));
+    if (r.has_attribute(file, "best_iteration"))
+        c.best_iteration = int(r.number_attribute<long long>(file, "best_iteration"));
+    if (r.has_attribute(file, "steps_checked"))
+        c.steps_checked = int(r.number_attribute<long long>(file, "steps_checked"));
+    if (H5Lexists(file, "jumps", H5P_DEFAULT) > 0) {
+        const MatrixXd jumps = read_matrix(r, file, "jumps", Index(r.dims(file, "jumps").at(0)), 5);
+        for (Index i = 0; i < jumps.rows(); ++i)
+            c.jumps.push_back({ int(jumps(i, 0)), jumps(i, 1), jumps(i, 2), jumps(i, 3), jumps(i, 4) });
     }
     const hsize_t pairs = r.dims(file, "lbfgs_s").at(0);
     const MatrixXd s = read_matrix(r, file, "lbfgs_s", Index(pairs), Index(n));

@@ -235,7 +235,11 @@ namespace optimizer_detail {
                 m_best_x = resume->best_x;
                 m_best_values = resume->best_values;
                 m_best_f = resume->best_values.f;
+                m_best_evaluation = resume->best_evaluation;
+                m_best_iteration = resume->best_iteration;
             }
+            m_jumps = resume->jumps;
+            m_steps_checked = resume->steps_checked;
         }
     }
 
@@ -285,6 +289,8 @@ namespace optimizer_detail {
             m_best_f = out.f;
             m_best_x = x;
             m_best_values = out;
+            m_best_evaluation = m_evaluations;
+            m_best_iteration = -1; // until the optimizer accepts it
         }
         return true;
     }
@@ -316,6 +322,10 @@ namespace optimizer_detail {
         double step_norm, const std::vector<CorrectionPair>* pairs)
     {
         const double previous_f = m_has_accepted ? m_accepted_values.f : std::nan("");
+        if (m_has_accepted && x != m_accepted_x)
+            check_step(iteration, x, values);
+        if (m_has_best && m_best_iteration < 0 && x == m_best_x)
+            m_best_iteration = iteration;
         m_has_accepted = true;
         m_accepted_x = x;
         m_accepted_values = values;
@@ -353,6 +363,10 @@ namespace optimizer_detail {
         c.has_best = m_has_best;
         c.best_x = m_has_best ? m_best_x : VectorXd();
         c.best_values = m_has_best ? m_best_values : OptimizationValues();
+        c.best_evaluation = m_has_best ? m_best_evaluation : 0;
+        c.best_iteration = m_has_best ? m_best_iteration : -1;
+        c.jumps = m_jumps;
+        c.steps_checked = m_steps_checked;
         if (pairs)
             c.lbfgs_pairs = *pairs;
         else
@@ -363,6 +377,28 @@ namespace optimizer_detail {
         m_callback_seconds += now_seconds() - t0;
         m_callback_cpu_seconds += thread_cpu_seconds() - cpu0;
         return go_on;
+    }
+
+    void Run::check_step(int iteration, const VectorXd& x, const OptimizationValues& values)
+    {
+        // Only between points of one problem: a remeshed run's first iterate carries no previous f.
+        if (!std::isfinite(m_accepted_values.f) || m_accepted_values.gradient.size() != x.size())
+            return;
+        const VectorXd dx = x - m_accepted_x;
+        const double a = m_accepted_values.gradient.dot(dx), b = values.gradient.dot(dx);
+        const double change = values.f - m_accepted_values.f;
+        const double predicted = 0.5 * (a + b);
+        const double first_order = std::abs(a) + std::abs(b);
+        ++m_steps_checked;
+        const double floor = STEP_JUMP_FLOOR * std::max(std::abs(values.f), std::abs(m_accepted_values.f));
+        if (!(std::abs(change - predicted) > STEP_JUMP_FACTOR * first_order + floor))
+            return;
+        m_jumps.push_back({ iteration, change, predicted, first_order, dx.lpNorm<Eigen::Infinity>() });
+        const auto miss = [](const StepJump& j) { return std::abs(j.change - j.predicted); };
+        std::stable_sort(
+            m_jumps.begin(), m_jumps.end(), [&](const StepJump& p, const StepJump& q) { return miss(p) > miss(q); });
+        if (m_jumps.size() > MAX_STEP_JUMPS)
+            m_jumps.resize(MAX_STEP_JUMPS);
     }
 
     bool Run::out_of_time() const { return m_settings.max_seconds > 0 && elapsed() >= m_settings.max_seconds; }
@@ -385,23 +421,40 @@ namespace optimizer_detail {
         OptimizerResult result;
         result.reason = reason;
         result.message = message;
-        if (m_has_best) {
-            result.x = m_best_x;
-            result.values = m_best_values;
-        } else if (m_has_accepted) {
+        // The optimizer's own result is its last iterate: the point its stop reason describes.
+        // The best point seen (possibly a trial point it rejected, or an earlier iterate on
+        // another branch of a non-smooth f) is reported beside it, never in its place.
+        if (m_has_accepted) {
             result.x = m_accepted_x;
             result.values = m_accepted_values;
+            result.max_violation = violation(result.x, result.values);
         } else {
             result.x = m_first_x;
         }
-        if (m_has_best || m_has_accepted)
-            result.max_violation = violation(result.x, result.values);
-        if (!m_has_best && reason != StopReason::INVALID_START) {
+        result.has_best = m_has_best;
+        if (m_has_best) {
+            result.best_x = m_best_x;
+            result.best_values = m_best_values;
+            result.best_max_violation = violation(m_best_x, m_best_values);
+            result.best_evaluation = m_best_evaluation;
+            result.best_iteration = m_best_iteration;
+        }
+        result.jumps = m_jumps;
+        result.steps_checked = m_steps_checked;
+        const bool infeasible_end = m_has_accepted && result.max_violation > m_settings.constraint_tolerance;
+        if ((!m_has_best || infeasible_end) && reason != StopReason::INVALID_START) {
             if (reason == StopReason::GRADIENT_TOLERANCE || reason == StopReason::X_TOLERANCE
                 || reason == StopReason::F_TOLERANCE)
                 result.reason = StopReason::INFEASIBLE;
-            result.message += "; no point within constraint_tolerance " + format_number(m_settings.constraint_tolerance)
-                + " of the constraints was found (largest violation at x: " + format_number(result.max_violation) + ")";
+            if (!m_has_best)
+                result.message += "; no point within constraint_tolerance "
+                    + format_number(m_settings.constraint_tolerance)
+                    + " of the constraints was found (largest violation at x: " + format_number(result.max_violation)
+                    + ")";
+            else
+                result.message += "; the last iterate is " + format_number(result.max_violation)
+                    + " outside the constraints (constraint_tolerance " + format_number(m_settings.constraint_tolerance)
+                    + "), a feasible point was seen at evaluation " + std::to_string(m_best_evaluation);
         }
         result.iterations = iterations;
         result.evaluations = m_evaluations;
@@ -503,6 +556,11 @@ OptimizerResult resume_minimize(
     check_checkpoint(problem, checkpoint);
     optimizer_detail::Run run(problem, settings, &checkpoint);
     return run_driver(run, checkpoint.x, checkpoint.values);
+}
+
+void check_optimizer_settings(const OptimizationProblem& problem, const VectorXd& x0, const OptimizerSettings& settings)
+{
+    optimizer_detail::validate(problem, x0, settings);
 }
 
 OptimizerResult minimize(OptimizationProblem& problem, const VectorXd& x0, const OptimizerSettings& settings)

@@ -96,6 +96,15 @@ std::string to_string(OptimizerAlgorithm algorithm);
 /// @throws InputError naming `field` for an unknown name (listing the known ones)
 OptimizerAlgorithm parse_optimizer_algorithm(const std::string& name, const std::string& field);
 
+/// The Taylor test diffipc optimize makes where a run ended (final_taylor_check(),
+/// shape_opt/optimizer/taylor_check.hpp); minimize() itself does not make it.
+struct TaylorCheckSettings {
+    bool enabled = true;
+    double step = 1e-2; ///< the first step, relative to each variable's scale (bound width, else max(|x_i|, 1))
+    int halvings = 3; ///< steps after the first, each half the one before
+    unsigned seed = 1; ///< of the random direction
+};
+
 struct OptimizerSettings {
     OptimizerAlgorithm algorithm = OptimizerAlgorithm::LBFGSB;
     /// Bounds per variable (empty: none); -inf / +inf for a free side.
@@ -119,6 +128,8 @@ struct OptimizerSettings {
     /// "dual_algorithm", "dual_ftol_rel", "dual_ftol_abs", "dual_maxeval", "verbosity".
     /// L-BFGS: none. Anything else is an InputError naming "optimizer.options.<name>".
     std::map<std::string, std::string> options;
+    /// The problem file's "final_taylor_check" (false: off), for the run's caller.
+    TaylorCheckSettings final_taylor_check;
 };
 
 enum class StopReason {
@@ -137,8 +148,30 @@ enum class StopReason {
 /// "gradient_tolerance", "x_tolerance", ...
 std::string to_string(StopReason reason);
 
+/// @brief An accepted step along which f changed by far more than the gradients at its two ends
+/// predict: f is discontinuous between the iterates (a jump), or the step is far outside the
+/// range of its first-order model. For a smooth f, f_k - f_{k-1} = (g_{k-1} + g_k).dx / 2 +
+/// O(|dx|^3) (the trapezoidal rule); the step is recorded when the miss exceeds
+/// STEP_JUMP_FACTOR (|g_{k-1}.dx| + |g_k.dx|) plus the round-off floor STEP_JUMP_FLOOR
+/// max(|f_{k-1}|, |f_k|). Where f is smooth and convex or concave along the step, its change
+/// lies between g_{k-1}.dx and g_k.dx, so the miss is at most half that sum: the factor 2 leaves
+/// room for an inflection within the step.
+struct StepJump {
+    int iteration = 0; ///< the step from iteration - 1 to iteration
+    double change = 0; ///< f_k - f_{k-1}
+    double predicted = 0; ///< (g_{k-1} + g_k).dx / 2
+    double first_order = 0; ///< |g_{k-1}.dx| + |g_k.dx|
+    double step_norm = 0; ///< inf-norm of dx
+};
+constexpr double STEP_JUMP_FACTOR = 2;
+constexpr double STEP_JUMP_FLOOR = 1e-8;
+/// At most this many StepJump records are kept (the largest misses).
+constexpr size_t MAX_STEP_JUMPS = 20;
+
 struct OptimizerResult {
-    VectorXd x; ///< the best valid, feasible (within constraint_tolerance) point seen, else the last accepted one
+    /// The optimizer's own result: the last iterate it accepted (the start if it accepted none).
+    /// This is the point the stop reason describes; it need not be the best point seen (best_x).
+    VectorXd x;
     OptimizationValues values; ///< at x
     StopReason reason = StopReason::FAILED;
     std::string message; ///< the reason in words, with the library's own status where there is one
@@ -148,6 +181,17 @@ struct OptimizerResult {
     double max_violation = 0; ///< of the constraints and bounds at x (0 without constraints)
     double evaluation_seconds = 0, optimizer_seconds = 0;
     double optimizer_cpu_seconds = 0; ///< as IterationInfo::optimizer_cpu_seconds
+    /// The lowest valid f seen within constraint_tolerance of the constraints (any evaluation,
+    /// accepted or a trial point): reported beside x, never in its place.
+    bool has_best = false;
+    VectorXd best_x;
+    OptimizationValues best_values; ///< at best_x
+    double best_max_violation = 0;
+    int best_evaluation = 0; ///< which evaluation found it (1: the start)
+    int best_iteration = -1; ///< the iteration whose iterate it is; -1: a point the optimizer did not accept
+    /// Accepted steps whose change of f the gradients do not explain (StepJump), largest miss first.
+    std::vector<StepJump> jumps;
+    int steps_checked = 0; ///< accepted steps compared with their first-order model
 };
 
 /// One L-BFGS correction pair: s = x_{k+1} - x_k, y = g_{k+1} - g_k (n values each).
@@ -178,6 +222,10 @@ struct OptimizerCheckpoint {
     bool has_best = false; ///< a feasible valid point was seen: the best one
     VectorXd best_x;
     OptimizationValues best_values;
+    int best_evaluation = 0; ///< as OptimizerResult::best_evaluation
+    int best_iteration = -1; ///< as OptimizerResult::best_iteration
+    std::vector<StepJump> jumps; ///< as OptimizerResult::jumps, so far
+    int steps_checked = 0;
     std::vector<CorrectionPair> lbfgs_pairs; ///< L-BFGS(-B): its memory, oldest first; else empty
 };
 
@@ -187,6 +235,12 @@ struct OptimizerCheckpoint {
 ///         x0 outside its bounds, constraints given to L-BFGS, equalities given to MMA/CCSAQ, an
 ///         option the library rejects); an exception thrown by the problem passes through.
 OptimizerResult minimize(OptimizationProblem& problem, const VectorXd& x0, const OptimizerSettings& settings);
+
+/// @brief The checks minimize() makes on the settings before its first evaluation, for a caller
+/// that refuses bad settings before it writes anything (diffipc optimize).
+/// @throws InputError as minimize()
+void check_optimizer_settings(
+    const OptimizationProblem& problem, const VectorXd& x0, const OptimizerSettings& settings);
 
 /// @brief Continues the run that wrote `checkpoint` (IterationInfo::checkpoint) with the same
 /// problem: from its x and values, its iteration numbers and counts going on, the budgets
@@ -251,6 +305,9 @@ namespace optimizer_detail {
         /// @return false when the callback asks to stop
         bool iteration(int iteration, const VectorXd& x, const OptimizationValues& values, double gradient_norm,
             double step_norm, const std::vector<CorrectionPair>* pairs = nullptr);
+        /// @brief Compares f's change over the step to x with the first-order model from the
+        /// gradients at its two ends (StepJump); called by iteration().
+        void check_step(int iteration, const VectorXd& x, const OptimizationValues& values);
         /// True once settings.max_seconds (when > 0) of wall time have passed.
         bool out_of_time() const;
         /// Wall time since the run began (with a resumed run's earlier part), s.
@@ -273,8 +330,9 @@ namespace optimizer_detail {
         /// The best feasible valid f so far (+inf before the first).
         double best_f() const { return m_best_f; }
 
-        /// @brief The result: the best valid feasible point seen, else the last accepted one, else
-        /// x0. A tolerance reason (gradient, x, f) without a feasible point becomes INFEASIBLE.
+        /// @brief The result: the last accepted point (else x0), with the best valid feasible
+        /// point seen beside it. A tolerance reason (gradient, x, f) at a point outside
+        /// constraint_tolerance becomes INFEASIBLE.
         OptimizerResult finish(StopReason reason, const std::string& message, int iterations);
 
     private:
@@ -294,6 +352,9 @@ namespace optimizer_detail {
         VectorXd m_best_x, m_accepted_x, m_first_x;
         OptimizationValues m_best_values, m_accepted_values;
         double m_step_norm = 0; ///< of the last accepted iterate
+        int m_best_evaluation = 0, m_best_iteration = -1;
+        std::vector<StepJump> m_jumps;
+        int m_steps_checked = 0;
         OptimizerCheckpoint m_checkpoint; ///< the one passed to the callback
     };
 

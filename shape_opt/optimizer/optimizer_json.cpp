@@ -11,9 +11,9 @@ OptimizerSettings parse_optimizer_settings(const JsonField& spec)
     OptimizerSettings s;
     if (spec.json().is_null())
         return s;
-    spec.require_object(
-        { "algorithm", "max_iterations", "max_seconds", "gradient_tolerance", "relative_gradient_tolerance",
-            "x_tolerance", "f_tolerance", "constraint_tolerance", "lbfgs_memory", "options", "objective_target" });
+    spec.require_object({ "algorithm", "max_iterations", "max_seconds", "gradient_tolerance",
+        "relative_gradient_tolerance", "x_tolerance", "f_tolerance", "constraint_tolerance", "lbfgs_memory", "options",
+        "objective_target", "final_taylor_check" });
     if (spec.has("algorithm"))
         s.algorithm = parse_optimizer_algorithm(spec["algorithm"].string(), spec["algorithm"].path());
     if (spec.has("max_iterations"))
@@ -35,6 +35,23 @@ OptimizerSettings parse_optimizer_settings(const JsonField& spec)
     nonnegative("constraint_tolerance", s.constraint_tolerance);
     if (spec.has("objective_target"))
         s.objective_target = spec["objective_target"].number();
+    if (spec.has("final_taylor_check")) {
+        const JsonField check = spec["final_taylor_check"];
+        if (check.json().is_boolean())
+            s.final_taylor_check.enabled = check.boolean();
+        else if (check.is_object()) {
+            check.require_object({ "enabled", "step", "halvings", "seed" });
+            if (check.has("enabled"))
+                s.final_taylor_check.enabled = check["enabled"].boolean();
+            if (check.has("step"))
+                s.final_taylor_check.step = check["step"].positive();
+            if (check.has("halvings"))
+                s.final_taylor_check.halvings = check["halvings"].integer(1);
+            if (check.has("seed"))
+                s.final_taylor_check.seed = unsigned(check["seed"].integer(0));
+        } else
+            check.fail("expected true, false or an object {\"step\", \"halvings\", \"seed\", \"enabled\"}");
+    }
     if (spec.has("options")) {
         const JsonField options = spec["options"];
         if (!options.is_object())

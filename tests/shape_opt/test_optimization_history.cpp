@@ -233,6 +233,10 @@ TEST(OptimizationHistory, RunStateRoundTrip)
         if (constrained) {
             c.best_x = vec(n);
             c.best_values = values(2, 1);
+            c.best_evaluation = 7;
+            c.best_iteration = -1; // a trial point
+            c.jumps.push_back({ 4, -0.3, 1e-3, 2e-3, 0.05 });
+            c.steps_checked = 11;
         } else {
             for (int i = 0; i < 3; ++i)
                 c.lbfgs_pairs.push_back({ vec(n), vec(n) });
@@ -274,6 +278,17 @@ TEST(OptimizationHistory, RunStateRoundTrip)
         if (constrained) {
             EXPECT_TRUE(d.best_x == c.best_x);
             same(d.best_values, c.best_values);
+        }
+        EXPECT_EQ(d.best_evaluation, c.best_evaluation);
+        EXPECT_EQ(d.best_iteration, c.best_iteration);
+        EXPECT_EQ(d.steps_checked, c.steps_checked);
+        ASSERT_EQ(d.jumps.size(), c.jumps.size());
+        for (size_t i = 0; i < c.jumps.size(); ++i) {
+            EXPECT_EQ(d.jumps[i].iteration, c.jumps[i].iteration);
+            EXPECT_EQ(d.jumps[i].change, c.jumps[i].change);
+            EXPECT_EQ(d.jumps[i].predicted, c.jumps[i].predicted);
+            EXPECT_EQ(d.jumps[i].first_order, c.jumps[i].first_order);
+            EXPECT_EQ(d.jumps[i].step_norm, c.jumps[i].step_norm);
         }
         ASSERT_EQ(d.lbfgs_pairs.size(), c.lbfgs_pairs.size());
         for (size_t i = 0; i < c.lbfgs_pairs.size(); ++i) {

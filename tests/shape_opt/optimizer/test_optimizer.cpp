@@ -670,3 +670,152 @@ TEST_P(EveryOptimizer, ExceptionsFromTheProblemPassThrough)
         },
         std::runtime_error);
 }
+
+// ---------------------------------------------------------------------------------------------
+// The result is the optimizer's last iterate; the best point seen is reported beside it
+// (issue 46: a run reported the best point of another branch of a discontinuous J as its result)
+
+namespace {
+
+/// f = x^2 (1 variable), or x^2 subject to x >= 0.5 (c = 0.5 - x <= 0).
+class Parabola : public RecordingProblem {
+public:
+    explicit Parabola(bool constrained = false)
+        : m_constrained(constrained)
+    {
+    }
+    Index size() const override { return 1; }
+    int inequalities() const override { return m_constrained ? 1 : 0; }
+
+protected:
+    void values(const VectorXd& x, OptimizationValues& out) const override
+    {
+        out.f = x[0] * x[0];
+        out.gradient = VectorXd::Constant(1, 2 * x[0]);
+        out.inequality = VectorXd::Constant(m_constrained ? 1 : 0, 0.5 - x[0]);
+        out.inequality_jacobian = MatrixXd::Constant(m_constrained ? 1 : 0, 1, -1.0);
+    }
+
+private:
+    bool m_constrained;
+};
+
+/// f = 0.005 (x - 2)^2, less 1 for x > 1: a jump the gradient does not see.
+class JumpingParabola : public RecordingProblem {
+public:
+    Index size() const override { return 1; }
+
+protected:
+    void values(const VectorXd& x, OptimizationValues& out) const override
+    {
+        out.f = 0.005 * (x[0] - 2) * (x[0] - 2) - (x[0] > 1 ? 1.0 : 0.0);
+        out.gradient = VectorXd::Constant(1, 0.01 * (x[0] - 2));
+    }
+};
+
+} // namespace
+
+TEST(OptimizerResult, IsTheLastIterateWithTheBestPointSeenBesideIt)
+{
+    Parabola p;
+    OptimizerSettings s;
+    optimizer_detail::Run run(p, s);
+    const VectorXd x0 = VectorXd::Constant(1, 1.0), trial = VectorXd::Constant(1, 0.0), x1 = VectorXd::Constant(1, 0.5);
+    OptimizationValues v0, vt, v1;
+    ASSERT_TRUE(run.evaluate(x0, v0));
+    run.iteration(0, x0, v0, 2, 0);
+    ASSERT_TRUE(run.evaluate(trial, vt)); // the lowest f seen, never accepted
+    ASSERT_TRUE(run.evaluate(x1, v1));
+    run.iteration(1, x1, v1, 1, 0.5);
+    const OptimizerResult r = run.finish(StopReason::GRADIENT_TOLERANCE, "converged", 1);
+    EXPECT_EQ(r.reason, StopReason::GRADIENT_TOLERANCE);
+    EXPECT_EQ(r.x, x1);
+    EXPECT_EQ(r.values.f, 0.25);
+    ASSERT_TRUE(r.has_best);
+    EXPECT_EQ(r.best_x, trial);
+    EXPECT_EQ(r.best_values.f, 0);
+    EXPECT_EQ(r.best_evaluation, 2);
+    EXPECT_EQ(r.best_iteration, -1);
+}
+
+TEST(OptimizerResult, BestPointThatWasAcceptedKnowsItsIteration)
+{
+    Parabola p;
+    OptimizerSettings s;
+    optimizer_detail::Run run(p, s);
+    const VectorXd x0 = VectorXd::Constant(1, 0.1), x1 = VectorXd::Constant(1, 0.3);
+    OptimizationValues v0, v1;
+    ASSERT_TRUE(run.evaluate(x0, v0));
+    run.iteration(0, x0, v0, 0.2, 0);
+    ASSERT_TRUE(run.evaluate(x1, v1));
+    run.iteration(1, x1, v1, 0.6, 0.2); // a non-monotone optimizer's step up
+    const OptimizerResult r = run.finish(StopReason::ITERATION_BUDGET, "budget", 1);
+    EXPECT_EQ(r.x, x1);
+    EXPECT_EQ(r.best_x, x0);
+    EXPECT_EQ(r.best_iteration, 0);
+    EXPECT_EQ(r.best_evaluation, 1);
+}
+
+// A tolerance stop at a last iterate outside the constraints is not convergence, even when a
+// feasible point was seen earlier (that point is the best point, not the result).
+TEST(OptimizerResult, ToleranceStopAtAnInfeasibleLastIterateIsInfeasible)
+{
+    Parabola p(true);
+    OptimizerSettings s;
+    s.algorithm = OptimizerAlgorithm::IPOPT;
+    optimizer_detail::Run run(p, s);
+    const VectorXd x0 = VectorXd::Constant(1, 1.0), x1 = VectorXd::Constant(1, 0.2);
+    OptimizationValues v0, v1;
+    ASSERT_TRUE(run.evaluate(x0, v0));
+    run.iteration(0, x0, v0, 2, 0);
+    ASSERT_TRUE(run.evaluate(x1, v1));
+    run.iteration(1, x1, v1, 0.4, 0.8);
+    const OptimizerResult r = run.finish(StopReason::X_TOLERANCE, "small step", 1);
+    EXPECT_EQ(r.reason, StopReason::INFEASIBLE) << r.message;
+    EXPECT_EQ(r.x, x1);
+    EXPECT_NEAR(r.max_violation, 0.3, 1e-15);
+    EXPECT_EQ(r.best_x, x0);
+    EXPECT_EQ(r.best_max_violation, 0);
+}
+
+// Every driver crosses the jump at x = 1 on its way to x = 2 and records the step: J fell by
+// about 1 where the gradients at the step's ends predict a change of order 0.01.
+TEST_P(BoundedOptimizer, JumpOfTheObjectiveIsRecorded)
+{
+    JumpingParabola p;
+    OptimizerSettings s = tight(GetParam());
+    s.lower = VectorXd::Constant(1, -5);
+    s.upper = VectorXd::Constant(1, 5);
+    s.x_tolerance = 1e-10; // NLopt's stop
+    const OptimizerResult r = minimize(p, VectorXd::Constant(1, 0.3), s);
+    EXPECT_NEAR(r.x[0], 2, 1e-4) << r.message;
+    ASSERT_FALSE(r.jumps.empty()) << r.message;
+    const StepJump& j = r.jumps.front();
+    EXPECT_LT(j.change, -0.9);
+    EXPECT_LT(std::abs(j.predicted), 0.05);
+    EXPECT_GE(r.steps_checked, 1);
+    // The first iterate past x = 1 is the step's end.
+    int crossing = -1;
+    for (size_t k = 0; k < p.iterates.size() && crossing < 0; ++k)
+        if (p.iterates[k][0] > 1)
+            crossing = p.infos[k].iteration;
+    EXPECT_EQ(j.iteration, crossing);
+}
+
+// No step of a smooth problem is taken for a jump, however curved (Rosenbrock's valley, a
+// constrained quadratic): the check must not cry wolf.
+TEST_P(EveryOptimizer, SmoothProblemsHaveNoJumps)
+{
+    for (Index n : { 2, 10 }) {
+        Rosenbrock p(n);
+        const OptimizerResult r = minimize(p, rosenbrock_start(n), tight(GetParam()));
+        EXPECT_GT(r.steps_checked, 5) << n;
+        EXPECT_TRUE(r.jumps.empty()) << "n = " << n << ": step to iteration " << r.jumps.front().iteration
+                                     << " changed f by " << r.jumps.front().change << ", predicted "
+                                     << r.jumps.front().predicted << " (first-order scale "
+                                     << r.jumps.front().first_order << ")";
+        // Smooth and monotone or converged: the last iterate is the best point to round-off.
+        ASSERT_TRUE(r.has_best);
+        EXPECT_LE(r.values.f - r.best_values.f, 1e-12) << r.message;
+    }
+}
