@@ -247,4 +247,22 @@ void bind_minimize(py::module_& m)
         py::arg("fun"), py::arg("x0"), py::arg("method"), py::arg("lower"), py::arg("upper"), py::arg("n_ineq"),
         py::arg("n_eq"), py::arg("options"), py::arg("callback"), py::arg("valid_step"),
         "Low-level minimize(): fun(x) -> (f, grad, c, dc, h, dh) or None; c <= 0, h == 0. Use diffipc.minimize.");
+    m.def(
+        "registered_optimizer_algorithms",
+        [] {
+            py::list algorithms;
+            for (const OptimizerAlgorithmInfo& info : registered_optimizer_algorithms()) {
+                py::dict d;
+                d["name"] = info.name;
+                d["bounds"] = info.bounds;
+                d["inequalities"] = info.inequalities;
+                d["equalities"] = info.equalities;
+                d["library_options"] = info.library_options;
+                d["library"] = info.library;
+                algorithms.append(d);
+            }
+            return algorithms;
+        },
+        "The optimizers, from the one table that problem files, diffipc.minimize and the docs follow: "
+        "[{name, bounds, inequalities, equalities, library_options, library}].");
 }

@@ -19,7 +19,7 @@ import inspect
 
 import numpy as np
 
-from ._diffipc import _minimize
+from ._diffipc import _minimize, registered_optimizer_algorithms
 
 __all__ = ["minimize", "OptimizeResult"]
 
@@ -54,14 +54,8 @@ _ALIASES = {
     "ctol": "constraint_tolerance",
 }
 
-_METHODS = {
-    "lbfgsb": "lbfgsb",
-    "lbfgs": "lbfgs",
-    "ipopt": "ipopt",
-    "mma": "mma",
-    "ccsaq": "ccsaq",
-    "slsqp": "slsqp",
-}
+# The C++ table of algorithms (shape_opt/optimizer/optimizer.cpp), not a list of our own.
+_METHODS = {a["name"]: a["name"] for a in registered_optimizer_algorithms()}
 
 _SUCCESS = ("gradient_tolerance", "x_tolerance", "f_tolerance")
 

@@ -32,14 +32,18 @@ namespace {
         return double(t.tv_sec) + 1e-9 * double(t.tv_nsec);
     }
 
-    const std::pair<OptimizerAlgorithm, const char*> ALGORITHM_NAMES[] = {
-        { OptimizerAlgorithm::LBFGS, "lbfgs" },
-        { OptimizerAlgorithm::LBFGSB, "lbfgsb" },
-        { OptimizerAlgorithm::IPOPT, "ipopt" },
-        { OptimizerAlgorithm::MMA, "mma" },
-        { OptimizerAlgorithm::CCSAQ, "ccsaq" },
-        { OptimizerAlgorithm::SLSQP, "slsqp" },
-    };
+    /// The names of the algorithms that have `takes`, as a message lists them: "ipopt, mma or slsqp".
+    std::string algorithms_that(bool OptimizerAlgorithmInfo::*takes)
+    {
+        std::vector<std::string> names;
+        for (const OptimizerAlgorithmInfo& info : registered_optimizer_algorithms())
+            if (info.*takes)
+                names.push_back(info.name);
+        std::string list;
+        for (size_t i = 0; i < names.size(); ++i)
+            list += (i == 0 ? "" : i + 1 == names.size() ? " or " : ", ") + names[i];
+        return list;
+    }
 
     /// x[i] for a message: "x0[3] = 2.5".
     std::string entry(const std::string& name, Index i, double value)
@@ -66,23 +70,40 @@ namespace {
 
 } // namespace
 
-std::string to_string(OptimizerAlgorithm algorithm)
+const std::vector<OptimizerAlgorithmInfo>& registered_optimizer_algorithms()
 {
-    for (const auto& [a, name] : ALGORITHM_NAMES)
-        if (a == algorithm)
-            return name;
-    return "unknown";
+    using A = OptimizerAlgorithm;
+    //                                              bounds inequalities equalities options library
+    static const std::vector<OptimizerAlgorithmInfo> algorithms {
+        { A::LBFGS, "lbfgs", false, false, false, false, "ours" },
+        { A::LBFGSB, "lbfgsb", true, false, false, false, "ours" },
+        { A::IPOPT, "ipopt", true, true, true, true, "Ipopt 3.11" },
+        { A::MMA, "mma", true, true, false, true, "NLopt 2.7" },
+        { A::CCSAQ, "ccsaq", true, true, false, true, "NLopt 2.7" },
+        { A::SLSQP, "slsqp", true, true, true, true, "NLopt 2.7" },
+    };
+    return algorithms;
 }
+
+const OptimizerAlgorithmInfo& optimizer_algorithm_info(OptimizerAlgorithm algorithm)
+{
+    for (const OptimizerAlgorithmInfo& info : registered_optimizer_algorithms())
+        if (info.algorithm == algorithm)
+            return info;
+    throw std::logic_error("optimizer_algorithm_info: an algorithm missing from the table");
+}
+
+std::string to_string(OptimizerAlgorithm algorithm) { return optimizer_algorithm_info(algorithm).name; }
 
 OptimizerAlgorithm parse_optimizer_algorithm(const std::string& name, const std::string& field)
 {
     std::string lower = name;
     std::transform(lower.begin(), lower.end(), lower.begin(), [](unsigned char c) { return char(std::tolower(c)); });
     std::string known;
-    for (const auto& [a, known_name] : ALGORITHM_NAMES) {
-        if (lower == known_name)
-            return a;
-        known += std::string(known.empty() ? "" : ", ") + "\"" + known_name + "\"";
+    for (const OptimizerAlgorithmInfo& info : registered_optimizer_algorithms()) {
+        if (lower == info.name)
+            return info.algorithm;
+        known += std::string(known.empty() ? "" : ", ") + "\"" + info.name + "\"";
     }
     throw InputError(field, "unknown optimizer \"" + name + "\" (known: " + known + ")");
 }
@@ -158,25 +179,27 @@ namespace optimizer_detail {
             throw InputError("optimizer.problem", "negative number of constraints");
 
         const OptimizerAlgorithm a = settings.algorithm;
-        const bool constrained = problem.inequalities() > 0 || problem.equalities() > 0;
-        if ((a == OptimizerAlgorithm::LBFGS || a == OptimizerAlgorithm::LBFGSB) && constrained)
+        const OptimizerAlgorithmInfo& takes = optimizer_algorithm_info(a);
+        if (!takes.inequalities && (problem.inequalities() > 0 || problem.equalities() > 0))
             throw InputError("optimizer.algorithm",
                 "\"" + to_string(a) + "\" takes no constraints (the problem has "
                     + std::to_string(problem.inequalities()) + " inequalities and "
-                    + std::to_string(problem.equalities())
-                    + " equalities): use ipopt, mma, ccsaq or slsqp, or a penalty in the objective");
-        if (a == OptimizerAlgorithm::LBFGS)
+                    + std::to_string(problem.equalities()) + " equalities): use "
+                    + algorithms_that(&OptimizerAlgorithmInfo::inequalities) + ", or a penalty in the objective");
+        if (!takes.bounds)
             for (Index i = 0; i < n; ++i)
                 if ((settings.lower.size() && std::isfinite(settings.lower[i]))
                     || (settings.upper.size() && std::isfinite(settings.upper[i])))
                     throw InputError("optimizer.algorithm",
-                        "\"lbfgs\" takes no bounds (variable " + std::to_string(i) + " has a finite one): use lbfgsb");
-        if ((a == OptimizerAlgorithm::MMA || a == OptimizerAlgorithm::CCSAQ) && problem.equalities() > 0)
+                        "\"" + to_string(a) + "\" takes no bounds (variable " + std::to_string(i)
+                            + " has a finite one): use " + algorithms_that(&OptimizerAlgorithmInfo::bounds));
+        if (!takes.equalities && problem.equalities() > 0)
             throw InputError("optimizer.algorithm",
                 "\"" + to_string(a) + "\" takes no equality constraints (the problem has "
-                    + std::to_string(problem.equalities())
-                    + "): use ipopt or slsqp, or write h(x) = 0 as two inequalities");
-        if ((a == OptimizerAlgorithm::LBFGS || a == OptimizerAlgorithm::LBFGSB) && !settings.options.empty())
+                    + std::to_string(problem.equalities()) + "): use "
+                    + algorithms_that(&OptimizerAlgorithmInfo::equalities)
+                    + ", or write h(x) = 0 as two inequalities");
+        if (!takes.library_options && !settings.options.empty())
             throw InputError("optimizer.options." + settings.options.begin()->first,
                 "\"" + to_string(a) + "\" takes no library options (its settings are the optimizer's own fields)");
         if (a == OptimizerAlgorithm::IPOPT)

@@ -91,7 +91,22 @@ public:
 
 enum class OptimizerAlgorithm { LBFGS, LBFGSB, IPOPT, MMA, CCSAQ, SLSQP };
 
-/// "lbfgs", "lbfgsb", "ipopt", "mma", "ccsaq", "slsqp"
+/// What an algorithm takes, in the one table of algorithms (optimizer.cpp): minimize()'s checks,
+/// their messages, the JSON and Python names and docs/optimization.md's table all follow it.
+struct OptimizerAlgorithmInfo {
+    OptimizerAlgorithm algorithm;
+    const char* name; ///< as problem files and Python name it
+    bool bounds; ///< lower <= x <= upper
+    bool inequalities; ///< c(x) <= 0
+    bool equalities; ///< h(x) = 0
+    bool library_options; ///< takes `optimizer.options` (a library's own settings)
+    const char* library; ///< "ours", "Ipopt 3.11", "NLopt 2.7"
+};
+/// Every algorithm, in the order the docs list them.
+const std::vector<OptimizerAlgorithmInfo>& registered_optimizer_algorithms();
+const OptimizerAlgorithmInfo& optimizer_algorithm_info(OptimizerAlgorithm algorithm);
+
+/// The algorithm's name: "lbfgs", "lbfgsb", "ipopt", "mma", "ccsaq", "slsqp"
 std::string to_string(OptimizerAlgorithm algorithm);
 /// @throws InputError naming `field` for an unknown name (listing the known ones)
 OptimizerAlgorithm parse_optimizer_algorithm(const std::string& name, const std::string& field);
