@@ -197,8 +197,7 @@ namespace optimizer_detail {
             throw InputError("optimizer.algorithm",
                 "\"" + to_string(a) + "\" takes no equality constraints (the problem has "
                     + std::to_string(problem.equalities()) + "): use "
-                    + algorithms_that(&OptimizerAlgorithmInfo::equalities)
-                    + ", or write h(x) = 0 as two inequalities");
+                    + algorithms_that(&OptimizerAlgorithmInfo::equalities) + ", or write h(x) = 0 as two inequalities");
         if (!takes.library_options && !settings.options.empty())
             throw InputError("optimizer.options." + settings.options.begin()->first,
                 "\"" + to_string(a) + "\" takes no library options (its settings are the optimizer's own fields)");
