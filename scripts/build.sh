@@ -27,6 +27,10 @@ if [ "$mode" = all ]; then
   fi
 elif [ -n "${DIFFIPC_CUDA:-}" ]; then
   options+=(-DDIFFIPC_CUDA="$DIFFIPC_CUDA")
+else
+  # Decide again (CMakeLists.txt: a usable GPU), whatever a full build cached: turning the kernels off
+  # recompiles one file (forward/simulation/device_solver.cpp) and relinks.
+  options+=(-UDIFFIPC_CUDA)
 fi
 cmake -S . -B build "${options[@]}" > build.log 2>&1 || { cat build.log; exit 1; }
 grep -E "^-- DIFFIPC_(CUDA|MPI)" build.log || true
