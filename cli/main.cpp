@@ -16,9 +16,13 @@
 #include "forward/common/error.hpp"
 #include "forward/common/threads.hpp"
 #include "forward/io/output.hpp"
+#include "forward/scene/json_field.hpp"
+#include "forward/scene/json_input.hpp"
 #include "forward/scene/scene.hpp"
 #include "forward/simulation/device_solver.hpp"
 #include "forward/simulation/simulator.hpp"
+#include "shape_opt/optimizer/optimizer_json.hpp"
+#include "shape_opt/reduced_functional.hpp"
 
 #include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
@@ -32,19 +36,85 @@ using namespace diffipc;
 
 namespace {
 
-int validate(const std::string& scene_path)
+/// The one-line description of a valid scene (validate's output).
+std::string scene_line(const Scene& scene)
 {
-    const Scene scene = load_scene(scene_path);
-    {
-        // Every check simulate makes before its first step: the simulator's own (contact
-        // settings against the geometry, masses, materials) and the initial state.
-        const std::string problem = open_simulator(scene, scene_path)->state_problem();
-        if (!problem.empty())
-            throw InputError(scene_path, "the initial state is invalid: " + problem);
+    char text[256];
+    std::snprintf(text, sizeof text, "valid %dD scene, %zu bodies, %ld vertices, %ld elements, %s, %d steps of %g s",
+        scene.dim, scene.bodies.size(), long(scene.mesh.num_vertices()), long(scene.mesh.num_elements()),
+        to_string(scene.time.integrator).c_str(), scene.time.steps, scene.time.dt);
+    return text;
+}
+
+/// Every check simulate makes before its first step: the simulator's own (contact settings
+/// against the geometry, masses, materials) and the initial state.
+void check_initial_state(const Scene& scene, const std::string& name)
+{
+    const std::string problem = open_simulator(scene, name)->state_problem();
+    if (!problem.empty())
+        throw InputError(name, "the initial state is invalid: " + problem);
+}
+
+/// A problem file (docs/problem_format.md) rather than a scene: it names its scene(s), or has a
+/// problem's keys and none of a scene's. Before, validate read a problem as a scene and refused
+/// its first problem key ("gradcheck: unknown field").
+bool is_problem_document(const nlohmann::json& document)
+{
+    if (!document.is_object())
+        return false;
+    if (document.contains("scene") || document.contains("scenes"))
+        return true;
+    bool problem_key = false, scene_key = false;
+    for (const char* k : { "objective", "weight", "parameters", "gradcheck", "checkpointing", "threads", "constraints",
+             "optimizer", "remesh" })
+        problem_key = problem_key || document.contains(k);
+    for (const char* k : { "dimension", "bodies", "gravity", "dirichlet", "neumann", "time", "mass", "solver",
+             "contact", "obstacles", "friction", "periodic", "device" })
+        scene_key = scene_key || document.contains(k);
+    return problem_key && !scene_key;
+}
+
+/// validate for a problem file: what gradcheck and optimize read before their first evaluation
+/// (every load case's scene, objective and initial state, the parameters and their maps, the
+/// constraints, the gradcheck, checkpointing and remesh settings, the optimizer's settings).
+int validate_problem(const nlohmann::json& document, const std::string& path)
+{
+    const ReducedFunctional rf(document, fs::path(path).parent_path().string(), path);
+    const std::string optimizer = document.contains("optimizer")
+        ? "optimizer " + to_string(parse_optimizer_settings(JsonField(rf.optimizer_spec(), "optimizer")).algorithm)
+        : std::string("no optimizer (gradcheck only)");
+    const nlohmann::json& doc = rf.document();
+    for (size_t c = 0; c < rf.load_cases(); ++c) {
+        const std::string field = doc.contains("scenes") ? "scenes[" + std::to_string(c) + "].scene" : "scene";
+        const Scene& scene = rf.scene(c);
+        check_initial_state(scene, scene.source.empty() ? field : scene.source);
     }
-    std::printf("%s: valid %dD scene, %zu bodies, %ld vertices, %ld elements, %s, %d steps of %g s\n",
-        scene_path.c_str(), scene.dim, scene.bodies.size(), long(scene.mesh.num_vertices()),
-        long(scene.mesh.num_elements()), to_string(scene.time.integrator).c_str(), scene.time.steps, scene.time.dt);
+    std::string layout;
+    for (const auto& [name, size] : rf.layout())
+        layout += (layout.empty() ? "" : ", ") + name + " x " + std::to_string(size);
+    std::printf("%s: valid problem, %zu load case%s, %ld parameters (%s), %ld design variables, %zu constraint%s, %s\n",
+        path.c_str(), rf.load_cases(), rf.load_cases() == 1 ? "" : "s", long(rf.size()), layout.c_str(),
+        long(rf.design_size()), rf.constraints().size(), rf.constraints().size() == 1 ? "" : "s", optimizer.c_str());
+    for (size_t c = 0; c < rf.load_cases(); ++c) {
+        const nlohmann::json& jc = doc.contains("scenes") ? doc["scenes"][c] : doc;
+        const Scene& scene = rf.scene(c);
+        const std::string objective = jc["objective"].is_object() && jc["objective"].contains("type")
+            ? jc["objective"]["type"].dump()
+            : std::string("?");
+        std::printf("  load case %zu: %s: %s; objective %s\n", c,
+            scene.source.empty() ? "inline scene" : scene.source.c_str(), scene_line(scene).c_str(), objective.c_str());
+    }
+    return 0;
+}
+
+int validate(const std::string& path)
+{
+    const nlohmann::json document = parse_json_text(read_input_file(path, "scene or problem file"), path);
+    if (is_problem_document(document))
+        return validate_problem(document, path);
+    const Scene scene = load_scene(document, path);
+    check_initial_state(scene, path);
+    std::printf("%s: %s\n", path.c_str(), scene_line(scene).c_str());
     return 0;
 }
 
@@ -131,8 +201,9 @@ int main(int argc, char** argv)
     study_cmd->add_flag("--list", study_options.list, "list the studies that can be run");
 
     std::string validate_path;
-    auto* val_cmd = app.add_subcommand("validate", "Check a scene file and report what it contains");
-    val_cmd->add_option("scene", validate_path, "scene file (JSON)")->required();
+    auto* val_cmd = app.add_subcommand("validate",
+        "Check a scene or problem file (with its scenes, objectives and parameters) and report what it contains");
+    val_cmd->add_option("file", validate_path, "scene or problem file (JSON)")->required();
 
     std::string check_dir, check_scene;
     bool check_quiet = false;

@@ -19,6 +19,7 @@
 #include <csignal>
 #include <cstdio>
 #include <filesystem>
+#include <functional>
 #include <memory>
 
 namespace fs = std::filesystem;
@@ -156,10 +157,32 @@ int simulate(SimulateOptions options)
         for (PvdEntry& e : write_vtu_frame(out_dir, index, t, sim, sc.output.vtu_encoding))
             vtu_files.push_back(std::move(e));
     };
+    // A write that fails (a full disk, a file linked to /dev/full) ends the run, exit 1 naming the
+    // file: trajectory.h5 is closed with every committed step, and summary.json, where it can still
+    // be written, says OUTPUT_FAILED and why. Before, a run that lost its output could exit 0.
+    const auto output = [&](const std::function<void()>& write) {
+        try {
+            write();
+        } catch (const InputError& e) {
+            try {
+                if (h5)
+                    h5->close();
+            } catch (const InputError&) {
+            }
+            nlohmann::json summary = summary_json(sim);
+            summary["status"] = "OUTPUT_FAILED";
+            summary["failure"] = e.what();
+            try {
+                write_json(summary_path, summary);
+            } catch (const InputError&) {
+            }
+            throw;
+        }
+    };
     // An initial state that cannot start a step (an inverted element, intersecting bodies) has
     // no finite stresses to show: no frame 0; step 1 fails with INVALID_INITIAL_STATE and why.
     if (sc.output.vtu_every > 0 && sim.steps_done() == 0 && sim.state_problem().empty())
-        write_frame(0, 0.0);
+        output([&] { write_frame(0, 0.0); });
 
     // Outputs are brought up to date output.flush_interval (1 s) apart: trajectory.h5 flushed,
     // summary.json (status RUNNING) and the .pvd replaced. A step's record is dropped once
@@ -181,7 +204,7 @@ int simulate(SimulateOptions options)
     // A stop signal ends the run after the current step (a second one at once: the
     // trajectory keeps every step up to its last flush).
     catch_stop_signals();
-    bring_up_to_date("RUNNING");
+    output([&] { bring_up_to_date("RUNNING"); });
 
     Timer since_print, since_flush;
     const int total = sc.time.steps;
@@ -191,10 +214,12 @@ int simulate(SimulateOptions options)
         const StepRecord& r = sim.trajectory().steps.back();
         {
             const Timer timer;
-            if (h5)
-                h5->append(r);
-            if (sc.output.vtu_every > 0 && r.index % sc.output.vtu_every == 0)
-                write_frame(r.index, r.time);
+            output([&] {
+                if (h5)
+                    h5->append(r);
+                if (sc.output.vtu_every > 0 && r.index % sc.output.vtu_every == 0)
+                    write_frame(r.index, r.time);
+            });
             timer.add_to(output_seconds);
         }
         if (!quiet && (total <= 50 || since_print.seconds() > 1.0 || r.index == total)) {
@@ -212,7 +237,7 @@ int simulate(SimulateOptions options)
         }
         sim.forget_records();
         if (since_flush.seconds() >= sc.output.flush_interval) {
-            bring_up_to_date("RUNNING");
+            output([&] { bring_up_to_date("RUNNING"); });
             since_flush = Timer();
         }
     }
@@ -220,12 +245,14 @@ int simulate(SimulateOptions options)
 
     const Trajectory& tr = sim.trajectory();
     const bool interrupted = stopped_by != 0 && tr.final_status == StepStatus::CONVERGED && sim.steps_done() < total;
-    if (h5) {
-        const Timer timer;
-        h5->close();
-        timer.add_to(output_seconds);
-    }
-    bring_up_to_date(interrupted ? "INTERRUPTED" : nullptr);
+    output([&] {
+        if (h5) {
+            const Timer timer;
+            h5->close();
+            timer.add_to(output_seconds);
+        }
+        bring_up_to_date(interrupted ? "INTERRUPTED" : nullptr);
+    });
 
     if (interrupted) {
         std::fprintf(stderr, "diffipc: interrupted by %s after %d of %d steps; wrote %s\n",

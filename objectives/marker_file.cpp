@@ -164,10 +164,13 @@ MarkerData read_marker_file(const std::string& path, const Mesh& mesh, const Pos
         }
         // Inside, up to round-off relative to the element (a marker on a face or an edge).
         if (best < 0 || best_min < -1e-9) {
-            double distance = nearest_distance;
+            // Measured points on the surface, rounded (scan data to 10 um), fall just outside:
+            // the error names the key that attaches them.
             throw InputError(where,
                 "the marker at " + point_text(X) + " lies outside the mesh (in no element; the nearest vertex is "
-                    + format_number(distance) + " m away)");
+                    + format_number(nearest_distance) + " m away): the objective's \"vertex_tolerance\" (now "
+                    + format_number(tolerance) + " m" + (vertex_tolerance > 0 ? "" : ", the default")
+                    + ") above that distance attaches it to that vertex");
         }
         best_weights = best_weights.cwiseMax(0.0);
         best_weights /= best_weights.sum();

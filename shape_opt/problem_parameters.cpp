@@ -216,6 +216,13 @@ namespace {
         case Selection::COMPONENTS: {
             std::vector<int> components;
             if (spec.contains("components")) {
+                // An object iterates as its values: {} selected nothing, silently.
+                const json& list = spec["components"];
+                if (!list.is_array() || list.empty())
+                    throw InputError(field + ".components",
+                        "expected a non-empty list of component indices below the dimension, got "
+                            + (list.is_array() ? std::string("an empty list")
+                                               : "a JSON " + std::string(list.type_name())));
                 for (const auto& c : spec["components"]) {
                     if (!c.is_number_integer() || c.get<int>() < 0 || c.get<int>() >= d)
                         throw InputError(field + ".components", "expected component indices below the dimension");

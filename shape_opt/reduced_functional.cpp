@@ -205,7 +205,11 @@ ReducedFunctional::ReducedFunctional(
             throw in_case(InputError("friction.iterations",
                 "must be 1 in a problem: the adjoint differentiates friction lagged once at the start of each step"));
         parse_objective(lc->objective, lc->field, sim); // validates against the scene
-        lc->base = sim.parameters();
+        try {
+            lc->base = sim.parameters(); // every step's prescribed values: time.steps may not fit
+        } catch (const InputError& e) {
+            throw in_case(e);
+        }
         lc->base.kappa = nominal.kappa > 0 ? nominal.kappa : lc->base.kappa;
         if (c > 0
             && (lc->base.rest_positions.size() != m_cases[0]->base.rest_positions.size()

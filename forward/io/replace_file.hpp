@@ -11,10 +11,12 @@
 namespace diffipc {
 
 /// @brief Writes `path` through `path + ".tmp"` (binary mode), renamed over `path` once
-/// `write` returned and every byte reached the file system.
+/// `write` returned and every byte reached the file system. A symbolic link is followed (the
+/// file it names is replaced, the link kept); a path that is no regular file (a device such as
+/// /dev/full, a pipe) is written in place.
 /// @param write fills the stream; exceptions it throws propagate (the temporary is removed)
 /// @throws InputError naming `path` if the file cannot be created, written (a full disk)
-///         or renamed; the temporary is removed and an existing `path` is left as it was
+///         or renamed, or `path` is a directory; the temporary is removed and an existing `path` is left as it was
 void write_replacing(const std::string& path, const std::function<void(std::ostream&)>& write);
 
 } // namespace diffipc

@@ -1,8 +1,11 @@
 #include "forward/io/vtu_writer.hpp"
 
+#include "forward/common/error.hpp"
 #include "forward/io/replace_file.hpp"
 
+#include <algorithm>
 #include <charconv>
+#include <cmath>
 #include <cstring>
 #include <iomanip>
 #include <ostream>
@@ -146,6 +149,19 @@ namespace {
         return first == 1;
     }
 
+    /// A frame is a result: a NaN or an infinity in it (a stress overflowed at a huge
+    /// deformation) is refused, naming the file, the array and the tuple, instead of written.
+    void check_finite(const std::string& path, const std::string& what, const std::vector<double>& values,
+        int components, const char* tuple)
+    {
+        for (size_t i = 0; i < values.size(); ++i)
+            if (!std::isfinite(values[i]))
+                throw InputError(path,
+                    "not written: " + what + " is " + format_number(values[i]) + " at " + tuple + " "
+                        + std::to_string(i / size_t(std::max(1, components)))
+                        + " (the state, or a stress or force derived from it, overflowed)");
+    }
+
 } // namespace
 
 void write_vtu(const std::string& path, const VtuGrid& grid, VtuEncoding encoding)
@@ -157,6 +173,13 @@ void write_vtu(const std::string& path, const VtuGrid& grid, VtuEncoding encodin
         check_size(view(a), np, "point");
     for (const VtuArray& a : grid.cell_data)
         check_size(view(a), nc, "cell");
+    check_finite(path, "a point's position", grid.points, 3, "point");
+    for (const VtuArray& a : grid.point_data)
+        if (const auto* v = std::get_if<std::vector<double>>(&a.values))
+            check_finite(path, "point data '" + a.name + "'", *v, a.components, "point");
+    for (const VtuArray& a : grid.cell_data)
+        if (const auto* v = std::get_if<std::vector<double>>(&a.values))
+            check_finite(path, "cell data '" + a.name + "'", *v, a.components, "cell");
     std::vector<std::uint8_t> types(grid.types.size());
     for (size_t c = 0; c < types.size(); ++c)
         types[c] = std::uint8_t(grid.types[c]);

@@ -49,7 +49,8 @@ struct VtuGrid {
 /// (the file's byte_order attribute). Points are Float64, connectivity and offsets
 /// Int64, types UInt8.
 /// @throws std::logic_error if an array's size does not match the grid (#P or #C
-///         tuples of `components` values); InputError naming `path` if it cannot be written
+///         tuples of `components` values); InputError naming `path` if it cannot be written,
+///         or (nothing written) if a point or a value of a Float64 array is not finite
 void write_vtu(const std::string& path, const VtuGrid& grid, VtuEncoding encoding);
 
 /// One data set of a collection: a file at a time, as part `part` of a multi-block.

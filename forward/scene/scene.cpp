@@ -20,6 +20,14 @@
 
 namespace diffipc {
 
+double usable_memory_bytes()
+{
+    double bytes = double(sysconf(_SC_PHYS_PAGES)) * double(sysconf(_SC_PAGE_SIZE));
+    if (struct rlimit limit; getrlimit(RLIMIT_AS, &limit) == 0 && limit.rlim_cur != RLIM_INFINITY)
+        bytes = std::min(bytes, double(limit.rlim_cur));
+    return bytes;
+}
+
 std::string to_string(IntegratorType type)
 {
     switch (type) {
@@ -57,16 +65,6 @@ namespace {
     /// triangle and 1,200 per tetrahedron (docs/scene_format.md "Limits"). Slightly below the
     /// measurements, so that no scene that fits is refused; the first factorization needs more.
     double setup_bytes_per_element(int dim) { return dim == 2 ? 600.0 : 1000.0; }
-
-    /// Memory this process may use: the machine's physical memory, or less under a limit on
-    /// its address space (ulimit -v).
-    double usable_memory_bytes()
-    {
-        double bytes = double(sysconf(_SC_PHYS_PAGES)) * double(sysconf(_SC_PAGE_SIZE));
-        if (struct rlimit limit; getrlimit(RLIMIT_AS, &limit) == 0 && limit.rlim_cur != RLIM_INFINITY)
-            bytes = std::min(bytes, double(limit.rlim_cur));
-        return bytes;
-    }
 
     /// Refuses, naming `field`, a mesh whose elements (with those of the bodies before it)
     /// cannot be set up in this process's memory: before, a 7000 x 7000 box was allocated
@@ -859,8 +857,11 @@ Scene parse_scene(const nlohmann::json& document, const std::string& base_direct
     if (root.has("output")) {
         const JsonField o = root["output"];
         o.require_object({ "directory", "vtu_every", "vtu_encoding", "hdf5", "flush_interval" });
-        if (o.has("directory"))
+        if (o.has("directory")) {
             scene.output.directory = o["directory"].string();
+            if (scene.output.directory.empty())
+                o["directory"].fail("an empty path (give a directory, e.g. \"output\", or leave the key out)");
+        }
         if (o.has("vtu_every"))
             scene.output.vtu_every = o["vtu_every"].integer(0);
         if (o.has("hdf5"))
@@ -892,10 +893,14 @@ Scene parse_scene_text(const std::string& text, const std::string& base_director
 
 Scene load_scene(const std::string& path)
 {
-    const std::string text = read_input_file(path, "scene file");
+    return load_scene(parse_json_text(read_input_file(path, "scene file"), path), path);
+}
+
+Scene load_scene(const nlohmann::json& document, const std::string& path)
+{
     const std::string base = fs::path(path).parent_path().string();
     try {
-        return parse_scene_text(text, base.empty() ? "." : base, path);
+        return parse_scene(document, base.empty() ? "." : base, path);
     } catch (const InputError& e) {
         if (e.field() == path)
             throw;

@@ -197,10 +197,17 @@ struct Scene {
 /// @throws InputError naming `field` for another name or a scene the GPU path cannot run
 void select_device(Scene& scene, const std::string& name, const std::string& field);
 
+/// Memory this process may use (bytes): the machine's physical memory, or less under a limit
+/// on its address space (ulimit -v). The scene's memory estimates compare with it.
+double usable_memory_bytes();
+
 /// @brief Reads and validates a scene file; relative mesh paths are resolved
 /// against the scene file's directory.
 /// @throws InputError naming the file or field.
 Scene load_scene(const std::string& path);
+/// @brief load_scene() of a file already read and parsed (`document`, from `path`): a pipe
+/// such as /dev/stdin cannot be read twice.
+Scene load_scene(const nlohmann::json& document, const std::string& path);
 
 /// @brief Validates a scene given as JSON text or a parsed document.
 /// @param base_directory where relative mesh paths are resolved

@@ -1060,9 +1060,18 @@ SimulationParameters Simulator::parameters() const
     p.initial_displacement = m_trajectory.initial_positions - p.rest_positions;
     p.initial_velocity = m_trajectory.initial_velocities;
     const int T = m_scene.time.steps;
+    // Every step's prescribed values (and a periodic cell's G): refused, naming the field, when
+    // they cannot fit, where time.steps = 2e9 ended in std::bad_alloc (exit 3).
+    const double values = double(T) * double(m_dirichlet.size() + (m_periodic ? size_t(d * d) : 0));
+    if (const double have = usable_memory_bytes(); values * sizeof(double) > have)
+        throw InputError("time.steps",
+            std::to_string(T) + " steps of " + format_number(values / T)
+                + " prescribed values each (the parameters of a differentiated run) need about "
+                + format_number(values * sizeof(double) * 1e-9) + " GB, more than the " + format_number(have * 1e-9)
+                + " GB this process may use");
     p.prescribed.resize(T, Index(m_dirichlet.size()));
     VectorXd x = p.rest_positions;
-    for (int k = 1; k <= T; ++k) {
+    for (int k = 1; k <= T && !m_dirichlet.empty(); ++k) {
         prescribed_targets(k, x);
         for (size_t j = 0; j < m_dirichlet.size(); ++j)
             p.prescribed(k - 1, Index(j)) = x[m_dirichlet[j].dof] - m_dirichlet[j].rest[m_dirichlet[j].dof % d];

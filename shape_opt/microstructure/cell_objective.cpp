@@ -1,11 +1,11 @@
 #include "shape_opt/microstructure/cell_objective.hpp"
 
 #include "forward/common/error.hpp"
+#include "forward/io/output.hpp"
 #include "forward/mesh/gmsh_writer.hpp"
 #include "shape_opt/microstructure/cell_shape_map.hpp"
 
 #include <filesystem>
-#include <fstream>
 
 namespace diffipc {
 
@@ -31,10 +31,7 @@ std::string write_mesh_and_scene(
     const std::filesystem::path folder(directory);
     write_gmsh((folder / mesh_name).string(), mesh);
     const std::string path = (folder / "scene.json").string();
-    std::ofstream out(path);
-    out << scene.dump(2) << "\n";
-    if (!out)
-        throw InputError(path, "cannot write the scene file");
+    write_json(path, scene); // checked to the last byte: an unflushed ofstream hid a full disk
     return path;
 }
 

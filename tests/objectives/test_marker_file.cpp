@@ -145,3 +145,22 @@ TEST(MarkerFile, ThreeDimensionalMarkersOnAFaceOfABox)
     EXPECT_LT((position(box, data.markers[1]) - Eigen::Vector3d(1, 0.3, 0.6)).norm(), 1e-14);
     std::remove(path.c_str());
 }
+
+TEST(MarkerFile, AMarkerJustOutsideTheMeshNamesTheToleranceThatAttachesIt)
+{
+    // Scan data rounded to 10 um: a marker 6 um outside the edge x = 1, beside the vertex (1, 0.25).
+    // Before, the error did not say which key fixes it.
+    const Mesh mesh = square();
+    const std::string path = write_file("rounded.txt", "1.000006 0.25  1.01 0.25\n");
+    const std::string error = error_of(path, mesh);
+    EXPECT_NE(error.find("rounded.txt:1"), std::string::npos) << error;
+    EXPECT_NE(error.find("outside the mesh"), std::string::npos) << error;
+    EXPECT_NE(error.find("\"vertex_tolerance\""), std::string::npos) << error;
+    EXPECT_NE(error.find("6e-06 m away"), std::string::npos) << error;
+    // The key, at the distance the message gives, attaches the marker to that vertex.
+    const MarkerData data = read_marker_file(path, mesh, mesh.rest_positions, mesh.num_vertices(), 0.1, 10, 6.1e-6);
+    ASSERT_EQ(data.markers.size(), 1u);
+    EXPECT_EQ(data.at_vertices, 1);
+    EXPECT_LT((position(mesh, data.markers[0]) - Eigen::Vector2d(1, 0.25)).norm(), 1e-15);
+    std::remove(path.c_str());
+}

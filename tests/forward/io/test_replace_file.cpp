@@ -107,3 +107,62 @@ TEST(ReplaceFile, AMissingDirectoryNamesTheFile)
         EXPECT_EQ(e.field(), path);
     }
 }
+
+TEST(ReplaceFile, ALinkToAFullDeviceIsAFailedWriteNamingTheLink)
+{
+    // Before: the link was renamed over, the run went on (exit 0) and the link's target never
+    // saw the data.
+    if (!fs::exists("/dev/full"))
+        GTEST_SKIP() << "no /dev/full";
+    const fs::path path = scratch("full_link.json");
+    fs::remove(path);
+    fs::create_symlink("/dev/full", path);
+    try {
+        write_replacing(path.string(), [](std::ostream& out) { out << std::string(1 << 16, 'x'); });
+        FAIL() << "a write to /dev/full was not reported";
+    } catch (const InputError& e) {
+        EXPECT_EQ(e.field(), path.string());
+        EXPECT_NE(std::string(e.what()).find("No space left on device"), std::string::npos) << e.what();
+    }
+    EXPECT_TRUE(fs::is_symlink(path));
+    EXPECT_FALSE(fs::exists("/dev/full.tmp"));
+}
+
+TEST(ReplaceFile, ALinkedFileIsReplacedAndTheLinkKept)
+{
+    const fs::path target = scratch("linked_target.txt"), link = scratch("link.txt");
+    fs::remove(link);
+    std::ofstream(target) << "old";
+    fs::create_symlink(target, link);
+    write_replacing(link.string(), [](std::ostream& out) { out << "new"; });
+    EXPECT_TRUE(fs::is_symlink(link));
+    EXPECT_EQ(read(target), "new");
+    EXPECT_FALSE(fs::exists(target.string() + ".tmp"));
+    EXPECT_FALSE(fs::exists(link.string() + ".tmp"));
+}
+
+TEST(ReplaceFile, ADirectoryIsRefusedNamingIt)
+{
+    const fs::path path = scratch("a_directory.vtu");
+    fs::create_directories(path);
+    try {
+        write_replacing(path.string(), [](std::ostream& out) { out << "x"; });
+        FAIL();
+    } catch (const InputError& e) {
+        EXPECT_EQ(e.field(), path.string());
+    }
+    EXPECT_TRUE(fs::is_directory(path));
+}
+
+TEST(ReplaceFile, ADanglingLinkCreatesTheFileItNames)
+{
+    const fs::path dir = scratch("links");
+    fs::create_directories(dir);
+    const fs::path link = dir / "summary.json";
+    fs::remove(link);
+    fs::remove(dir / "run.json");
+    fs::create_symlink("run.json", link); // relative to the link's folder
+    write_replacing(link.string(), [](std::ostream& out) { out << "data"; });
+    EXPECT_TRUE(fs::is_symlink(link));
+    EXPECT_EQ(read(dir / "run.json"), "data");
+}

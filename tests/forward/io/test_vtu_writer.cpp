@@ -2,14 +2,17 @@
 // binary ones from the appended block at their offsets (a UInt64 byte count, then the
 // values). tests/python/test_vtu.py reads the same files with meshio, an independent reader.
 
+#include "forward/common/error.hpp"
 #include "forward/io/vtu_writer.hpp"
 #include "tests/forward/test_utils.hpp"
 
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <regex>
 #include <stdexcept>
 
@@ -132,4 +135,28 @@ TEST(VtuWriter, CollectionListsTimesAndParts)
         "<DataSet timestep=\"0\" part=\"0\" file=\"frame_0.vtu\"/>\n"
         "<DataSet timestep=\"0\" part=\"1\" file=\"obstacles_0.vtu\"/>\n"
         "<DataSet timestep=\"0.25\" part=\"0\" file=\"frame_5.vtu\"/>\n</Collection>\n</VTKFile>\n");
+}
+
+TEST(VtuWriter, ANonFiniteValueIsRefusedNamingTheFileAndArray)
+{
+    // Before: written as "nan" (ASCII) or a NaN's bytes (binary), and the run exited 0.
+    for (const double bad : { std::nan(""), std::numeric_limits<double>::infinity() }) {
+        VtuGrid g = small_grid();
+        std::get<std::vector<double>>(g.cell_data[1].values)[3] = bad; // tensor, cell 1
+        const fs::path path = scratch("nan.vtu");
+        fs::remove(path);
+        try {
+            write_vtu(path.string(), g, VtuEncoding::BINARY);
+            FAIL() << "a non-finite value was written";
+        } catch (const InputError& e) {
+            EXPECT_EQ(e.field(), path.string());
+            EXPECT_NE(std::string(e.what()).find("cell data 'tensor'"), std::string::npos) << e.what();
+            EXPECT_NE(std::string(e.what()).find("at cell 1"), std::string::npos) << e.what();
+        }
+        EXPECT_FALSE(fs::exists(path));
+        g = small_grid();
+        g.points[4] = bad; // point 1's y
+        EXPECT_THROW(write_vtu(path.string(), g, VtuEncoding::ASCII), InputError);
+        EXPECT_FALSE(fs::exists(path));
+    }
 }

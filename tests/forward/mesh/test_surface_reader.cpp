@@ -56,6 +56,21 @@ TEST(SurfaceReader, ObjPolylineIn2D)
     EXPECT_DOUBLE_EQ(m.rest_positions(1, 1), -0.1);
 }
 
+TEST(SurfaceReader, VerticesOnNoFacetAreDropped)
+{
+    // Before: kept as obstacle vertices (prescribed dofs in every state, frame and record), so a
+    // 50 MB file of vertices with one face ran out of memory (std::bad_alloc, exit 3).
+    const std::string path = write_file("stray.obj", "v 9 9 9\nv 0 0 0\nv 8 8 8\nv 1 0 0\nv 0 1 0\nv 7 7 7\nf 2 4 5\n");
+    const Mesh m = read_surface_mesh(path, 3);
+    ASSERT_EQ(m.num_vertices(), 3);
+    ASSERT_EQ(m.boundary_facets.rows(), 1);
+    EXPECT_EQ(m.vertex_body.size(), 3);
+    for (int a = 0; a < 3; ++a)
+        EXPECT_EQ(m.boundary_facets(0, a), a);
+    EXPECT_EQ(m.rest_positions.row(1), Eigen::RowVector3d(1, 0, 0));
+    EXPECT_EQ(m.rest_positions.row(2), Eigen::RowVector3d(0, 1, 0));
+}
+
 TEST(SurfaceReader, GmshTrianglesAndLines)
 {
     const std::string path = write_file("surface.msh",
@@ -67,6 +82,7 @@ TEST(SurfaceReader, GmshTrianglesAndLines)
     const Mesh m2 = read_surface_mesh(path, 2);
     EXPECT_EQ(m2.boundary_facets.rows(), 2);
     EXPECT_EQ(m2.boundary_facets.cols(), 2);
+    EXPECT_EQ(m2.num_vertices(), 3); // node 4 is on no line
 }
 
 TEST(SurfaceReader, ErrorsNameTheFileAndLine)
