@@ -191,6 +191,65 @@ namespace {
         return true;
     }
 
+    /// @brief The final Taylor check's direction scale per design variable: diffipc gradcheck's
+    /// (ReducedFunctional::scales()) where x is p; through maps, one factor on all variables
+    /// that puts the maps' response to a unit change of every variable at those scales.
+    VectorXd design_scales(const ReducedFunctional& rf, const VectorXd& x)
+    {
+        const VectorXd p = rf.parameters_of(x);
+        if (x.size() == rf.size() && p == x)
+            return rf.scales();
+        const double eta = 1e-6;
+        const VectorXd dp = (rf.parameters_of(x + VectorXd::Constant(x.size(), eta)) - p) / eta;
+        const double largest = (dp.array().abs() / rf.scales().array()).maxCoeff();
+        return VectorXd::Constant(x.size(), std::isfinite(largest) && largest > 0 ? 1 / largest : 1.0);
+    }
+
+    /// The final Taylor check into summary.json and, unless quiet, onto stdout.
+    void record_taylor_check(const TaylorCheck& check, const TaylorCheckSettings& settings, double scale,
+        nlohmann::json& summary, bool quiet)
+    {
+        nlohmann::json rows = nlohmann::json::array();
+        const auto number = [](double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr); };
+        for (size_t k = 0; k < check.steps.size(); ++k)
+            rows.push_back({ { "step", check.steps[k] }, { "J_change", number(check.changes[k] * scale) },
+                { "remainder", number(check.remainders[k] * scale) },
+                { "rate", k == 0 ? nlohmann::json(nullptr) : number(check.rates[k - 1]) },
+                { "settle_rate", k < 2 ? nlohmann::json(nullptr) : number(check.settle_rates[k - 2]) } });
+        summary["final_taylor_check"] = { { "verdict", check.verdict }, { "reason", check.reason },
+            { "slope", check.slope * scale }, { "floor", check.floor * scale }, { "seed", settings.seed },
+            { "evaluations", check.evaluations }, { "rejected", check.rejected }, { "rows", rows } };
+        if (quiet)
+            return;
+        const auto rate_text = [](double r) {
+            char text[16] = "-";
+            if (std::isfinite(r))
+                std::snprintf(text, sizeof text, "%.2f", r);
+            return std::string(text);
+        };
+        std::string rates;
+        for (double r : check.rates)
+            rates += " " + rate_text(r);
+        std::printf(
+            "final Taylor check at the last iterate: %s (remainder rates%s; %d evaluations, not counted above)\n",
+            check.verdict.c_str(), rates.c_str(), check.evaluations);
+        // The table where the verdict needs reading, as diffipc gradcheck prints it, with the
+        // signed remainder over h^2 (it settles where J is smooth) and the rate the verdict reads.
+        if (check.verdict != "smooth") {
+            std::printf("  %-10s %-14s %-6s %-14s %-6s %-14s %-6s\n", "h", "|J(h)-J(0)|", "rate", "|J(h)-J(0)-h g.d|",
+                "rate", "R/h^2", "rate");
+            for (size_t k = 0; k < check.steps.size(); ++k) {
+                const double h = check.steps[k], R = check.remainders[k] * scale;
+                std::printf("  %-10.3e %-14.6e %-6s %-14.6e %-6s %-14.6e %-6s\n", h, check.changes[k] * scale,
+                    k == 0 ? "" : rate_text(std::log2(check.changes[k - 1] / check.changes[k])).c_str(), std::abs(R),
+                    k == 0 ? "" : rate_text(check.rates[k - 1]).c_str(), R / (h * h),
+                    k < 2 ? "" : rate_text(check.settle_rates[k - 2]).c_str());
+            }
+            std::printf("  %s\n", check.reason.c_str());
+        }
+        std::fflush(stdout);
+    }
+
 } // namespace
 
 int optimize(const OptimizeOptions& options)
@@ -421,7 +480,7 @@ int optimize(const OptimizeOptions& options)
     catch_stop_signals(); // the run stops after the current iteration
     const OptimizerResult result
         = minimize_design(design_problem, rf.design_initial(), settings, resume ? &resume->state.checkpoint : nullptr);
-    const int stopped_by = release_stop_signals();
+    int stopped_by = release_stop_signals();
     history.close();
     const std::string rejection = last_rejection(); // before the final check's evaluations
 
@@ -493,80 +552,66 @@ int optimize(const OptimizeOptions& options)
         jumps.push_back({ { "iteration", j.iteration }, { "J_change", j.change * scale },
             { "predicted_change", j.predicted * scale }, { "first_order_scale", j.first_order * scale },
             { "step_norm", j.step_norm } });
-    summary["step_check"] = { { "steps_checked", result.steps_checked }, { "jumps", jumps } };
+    summary["step_check"]
+        = { { "steps_checked", result.steps_checked }, { "jumps_found", result.jumps_found }, { "jumps", jumps } };
     if (!result.jumps.empty()) {
         const StepJump& j = result.jumps.front();
-        warn(std::to_string(result.jumps.size()) + " of " + std::to_string(result.steps_checked)
+        warn(std::to_string(result.jumps_found) + " of " + std::to_string(result.steps_checked)
             + " accepted steps changed J by far more than its gradients predict (largest: J changed by "
             + format_number(j.change * scale) + " over the step to iteration " + std::to_string(j.iteration)
             + ", the gradients at its ends predict " + format_number(j.predicted * scale)
-            + "): J is not smooth along the run (it jumps between designs, e.g. where a contact active set or the "
-              "equilibrium changes); the gradient does not describe it there");
+            + "): either J is not smooth along the run (it jumps between designs, e.g. where a contact active set "
+              "or the equilibrium changes) or a step went far beyond the range of its first-order model; the "
+              "gradient does not describe J over those steps");
     }
+    // The keys that come last, and the file (written before the final check's evaluations too).
+    const auto write_summary = [&]() {
+        summary["warnings"] = warnings;
+        if (rf.remesh_settings().enabled()) {
+            summary["remeshes"] = remesh_records();
+            if (!design_problem.remesh_failure().empty())
+                summary["remesh_failure"] = design_problem.remesh_failure();
+        }
+        const double total_seconds = wall_before + wall.seconds();
+        summary["wall_time"] = { { "total", total_seconds }, { "evaluation", result.evaluation_seconds },
+            { "optimizer", result.optimizer_seconds } };
+        // The optimizer's own CPU time (its thread's, less evaluations and callbacks): unlike the
+        // wall time it does not grow while the thread waits for a core on a loaded machine.
+        summary["optimizer_cpu_seconds"] = result.optimizer_cpu_seconds;
+        // Parts of "evaluation", measured in this process (a resumed run's: since the resume).
+        summary["wall_time"]["parametrization"] = design_problem.times().parametrization;
+        summary["wall_time"]["validity"] = design_problem.times().validity;
+        if (rf.remesh_settings().enabled())
+            summary["wall_time"]["remeshing"] = design_problem.remesh_seconds(); // every attempt, used or not
+        if (options.distribution)
+            summary["processes"] = distribution_summary(*options.distribution);
+        write_json((dir / "summary.json").string(), summary);
+    };
     summary["final_taylor_check"] = nullptr;
     // Not after a signal (the user wants the run to end) nor after a failure (the problem may
     // not evaluate there any more: a remesh that could not be evaluated).
     if (have_point && settings.final_taylor_check.enabled && stopped_by == 0 && result.reason != StopReason::FAILED
         && result.reason != StopReason::INVALID_START) {
-        const TaylorCheck check = final_taylor_check(
-            design_problem, result.x, result.values, settings.lower, settings.upper, settings.final_taylor_check);
-        nlohmann::json rows = nlohmann::json::array();
-        const auto number = [](double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr); };
-        for (size_t k = 0; k < check.steps.size(); ++k)
-            rows.push_back({ { "step", check.steps[k] }, { "J_change", number(check.changes[k] * scale) },
-                { "remainder", number(check.remainders[k] * scale) },
-                { "rate", k == 0 ? nlohmann::json(nullptr) : number(check.rates[k - 1]) } });
-        summary["final_taylor_check"]
-            = { { "verdict", check.verdict }, { "reason", check.reason }, { "slope", check.slope * scale },
-                  { "floor", check.floor * scale }, { "seed", settings.final_taylor_check.seed },
-                  { "evaluations", check.evaluations }, { "rejected", check.rejected }, { "rows", rows } };
-        if (!options.quiet) {
-            const auto rate_text = [](double r) {
-                char text[16] = "-";
-                if (std::isfinite(r))
-                    std::snprintf(text, sizeof text, "%.2f", r);
-                return std::string(text);
-            };
-            std::string rates;
-            for (double r : check.rates)
-                rates += " " + rate_text(r);
-            std::printf("final Taylor check at the last iterate: %s (remainder rates%s; %d evaluations, not counted "
-                        "above)\n",
-                check.verdict.c_str(), rates.c_str(), check.evaluations);
-            // The table where the verdict needs reading, as diffipc gradcheck prints it.
-            if (check.verdict != "smooth") {
-                std::printf("  %-10s %-14s %-6s %-14s %-6s\n", "h", "|J(h)-J(0)|", "rate", "|J(h)-J(0)-h g.d|", "rate");
-                for (size_t k = 0; k < check.steps.size(); ++k)
-                    std::printf("  %-10.3e %-14.6e %-6s %-14.6e %-6s\n", check.steps[k], check.changes[k] * scale,
-                        k == 0 ? "" : rate_text(std::log2(check.changes[k - 1] / check.changes[k])).c_str(),
-                        check.remainders[k] * scale, k == 0 ? "" : rate_text(check.rates[k - 1]).c_str());
-                std::printf("  %s\n", check.reason.c_str());
-            }
-            std::fflush(stdout);
+        // The run is over: its summary is on disk before the check's evaluations, whatever ends them.
+        write_summary();
+        catch_stop_signals(); // a signal now ends the check, not the summary
+        try {
+            const TaylorCheck check
+                = final_taylor_check(design_problem, result.x, result.values, settings.lower, settings.upper,
+                    design_scales(now, result.x), settings.final_taylor_check, [] { return stop_signal() != 0; });
+            record_taylor_check(check, settings.final_taylor_check, scale, summary, options.quiet);
+            if (check.verdict == "non_smooth")
+                warn("final Taylor check at the last iterate: " + check.reason);
+        } catch (const std::exception& e) {
+            // The run's result stands; only the check is lost.
+            summary["final_taylor_check"]
+                = { { "verdict", "inconclusive" }, { "reason", std::string("the check failed: ") + e.what() },
+                      { "seed", settings.final_taylor_check.seed } };
+            warn(std::string("final Taylor check at the last iterate failed: ") + e.what());
         }
-        if (check.verdict == "non_smooth")
-            warn("final Taylor check at the last iterate: " + check.reason);
+        stopped_by = release_stop_signals();
     }
-    summary["warnings"] = warnings;
-    if (rf.remesh_settings().enabled()) {
-        summary["remeshes"] = remesh_records();
-        if (!design_problem.remesh_failure().empty())
-            summary["remesh_failure"] = design_problem.remesh_failure();
-    }
-    const double total_seconds = wall_before + wall.seconds();
-    summary["wall_time"] = { { "total", total_seconds }, { "evaluation", result.evaluation_seconds },
-        { "optimizer", result.optimizer_seconds } };
-    // The optimizer's own CPU time (its thread's, less evaluations and callbacks): unlike the
-    // wall time it does not grow while the thread waits for a core on a loaded machine.
-    summary["optimizer_cpu_seconds"] = result.optimizer_cpu_seconds;
-    // Parts of "evaluation", measured in this process (a resumed run's: since the resume).
-    summary["wall_time"]["parametrization"] = design_problem.times().parametrization;
-    summary["wall_time"]["validity"] = design_problem.times().validity;
-    if (rf.remesh_settings().enabled())
-        summary["wall_time"]["remeshing"] = design_problem.remesh_seconds(); // every attempt, used or not
-    if (options.distribution)
-        summary["processes"] = distribution_summary(*options.distribution);
-    write_json((dir / "summary.json").string(), summary);
+    write_summary();
 
     if (!options.quiet)
         std::printf("diffipc: %s after %d iterations (%d evaluations, %d rejected): J %.6e -> %.6e; wrote %s\n",

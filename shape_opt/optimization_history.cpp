@@ -596,6 +596,7 @@ void write_run_state(const std::string& path, const RunState& state)
                 && write_number_attribute<long long>(file, "best_evaluation", c.best_evaluation)
                 && write_number_attribute<long long>(file, "best_iteration", c.best_iteration)
                 && write_number_attribute<long long>(file, "steps_checked", c.steps_checked)
+                && write_number_attribute<long long>(file, "jumps_found", c.jumps_found)
                 && write_number_attribute(file, "objective_scale", state.objective_scale)
                 && write_string_attribute(file, "last_rejection", state.last_rejection);
             if (!ok)
@@ -673,6 +674,8 @@ RunState read_run_state(const std::string& path)
         c.best_iteration = int(r.number_attribute<long long>(file, "best_iteration"));
     if (r.has_attribute(file, "steps_checked"))
         c.steps_checked = int(r.number_attribute<long long>(file, "steps_checked"));
+    if (r.has_attribute(file, "jumps_found"))
+        c.jumps_found = int(r.number_attribute<long long>(file, "jumps_found"));
     if (H5Lexists(file, "jumps", H5P_DEFAULT) > 0) {
         const MatrixXd jumps = read_matrix(r, file, "jumps", Index(r.dims(file, "jumps").at(0)), 5);
         for (Index i = 0; i < jumps.rows(); ++i)

@@ -261,6 +261,8 @@ namespace optimizer_detail {
                 m_best_iteration = resume->best_iteration;
             }
             m_jumps = resume->jumps;
+            // A state written before the count was kept: its list is all it knows.
+            m_jumps_found = std::max(resume->jumps_found, int(resume->jumps.size()));
             m_steps_checked = resume->steps_checked;
         }
     }
@@ -388,6 +390,7 @@ namespace optimizer_detail {
         c.best_evaluation = m_has_best ? m_best_evaluation : 0;
         c.best_iteration = m_has_best ? m_best_iteration : -1;
         c.jumps = m_jumps;
+        c.jumps_found = m_jumps_found;
         c.steps_checked = m_steps_checked;
         if (pairs)
             c.lbfgs_pairs = *pairs;
@@ -415,6 +418,7 @@ namespace optimizer_detail {
         const double floor = STEP_JUMP_FLOOR * std::max(std::abs(values.f), std::abs(m_accepted_values.f));
         if (!(std::abs(change - predicted) > STEP_JUMP_FACTOR * first_order + floor))
             return;
+        ++m_jumps_found;
         m_jumps.push_back({ iteration, change, predicted, first_order, dx.lpNorm<Eigen::Infinity>() });
         const auto miss = [](const StepJump& j) { return std::abs(j.change - j.predicted); };
         std::stable_sort(
@@ -462,6 +466,7 @@ namespace optimizer_detail {
             result.best_iteration = m_best_iteration;
         }
         result.jumps = m_jumps;
+        result.jumps_found = m_jumps_found;
         result.steps_checked = m_steps_checked;
         const bool infeasible_end = m_has_accepted && result.max_violation > m_settings.constraint_tolerance;
         if ((!m_has_best || infeasible_end) && reason != StopReason::INVALID_START) {

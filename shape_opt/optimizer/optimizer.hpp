@@ -115,8 +115,8 @@ OptimizerAlgorithm parse_optimizer_algorithm(const std::string& name, const std:
 /// shape_opt/optimizer/taylor_check.hpp); minimize() itself does not make it.
 struct TaylorCheckSettings {
     bool enabled = true;
-    double step = 1e-2; ///< the first step, relative to each variable's scale (bound width, else max(|x_i|, 1))
-    int halvings = 3; ///< steps after the first, each half the one before
+    double step = 0.1; ///< the first step, relative to each variable's scale (as diffipc gradcheck's)
+    int halvings = 3; ///< steps after the first, each half the one before (at least 2)
     unsigned seed = 1; ///< of the random direction
 };
 
@@ -206,6 +206,7 @@ struct OptimizerResult {
     int best_iteration = -1; ///< the iteration whose iterate it is; -1: a point the optimizer did not accept
     /// Accepted steps whose change of f the gradients do not explain (StepJump), largest miss first.
     std::vector<StepJump> jumps;
+    int jumps_found = 0; ///< all flagged steps (jumps keeps at most MAX_STEP_JUMPS of them)
     int steps_checked = 0; ///< accepted steps compared with their first-order model
 };
 
@@ -240,6 +241,7 @@ struct OptimizerCheckpoint {
     int best_evaluation = 0; ///< as OptimizerResult::best_evaluation
     int best_iteration = -1; ///< as OptimizerResult::best_iteration
     std::vector<StepJump> jumps; ///< as OptimizerResult::jumps, so far
+    int jumps_found = 0; ///< as OptimizerResult::jumps_found, so far
     int steps_checked = 0;
     std::vector<CorrectionPair> lbfgs_pairs; ///< L-BFGS(-B): its memory, oldest first; else empty
 };
@@ -369,6 +371,7 @@ namespace optimizer_detail {
         double m_step_norm = 0; ///< of the last accepted iterate
         int m_best_evaluation = 0, m_best_iteration = -1;
         std::vector<StepJump> m_jumps;
+        int m_jumps_found = 0;
         int m_steps_checked = 0;
         OptimizerCheckpoint m_checkpoint; ///< the one passed to the callback
     };

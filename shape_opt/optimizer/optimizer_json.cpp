@@ -46,7 +46,7 @@ OptimizerSettings parse_optimizer_settings(const JsonField& spec)
             if (check.has("step"))
                 s.final_taylor_check.step = check["step"].positive();
             if (check.has("halvings"))
-                s.final_taylor_check.halvings = check["halvings"].integer(1);
+                s.final_taylor_check.halvings = check["halvings"].integer(2); // a verdict needs three steps
             if (check.has("seed"))
                 s.final_taylor_check.seed = unsigned(check["seed"].integer(0));
         } else

@@ -205,6 +205,30 @@ def test_lbfgsb_resumed_after_sigkill_and_with_rows_beyond_the_state(cli, tmp_pa
     assert_same_run(again, whole)
 
 
+def test_a_resumed_run_keeps_its_step_check_and_best_point(cli, tmp_path):
+    """The ridge of test_optimize_summary.py: Ipopt's steps to iterations 1 and 2 jump, and its best
+    point is a trial point at evaluation 2. Stopped after 3 iterations and resumed for one more,
+    the run's summary still lists those jumps, counts every step of both parts and keeps that best
+    point (the resumed part, at J near 1e-3, does not beat it)."""
+    from test_optimize_summary import ridge_problem
+    problem = ridge_problem(tmp_path)
+    out = tmp_path / "out"
+    assert run(cli, "optimize", problem, "-o", out, "-q", "--max-iterations", 3).returncode == 0
+    before = summary(out)
+    assert [j["iteration"] for j in before["step_check"]["jumps"]] == [1, 2], before["step_check"]
+    assert before["best_point"]["evaluation"] == 2 and before["best_point"]["iteration"] is None
+    r = run(cli, "optimize", "--resume", out, "-q", "--max-iterations", 4)
+    assert r.returncode == 0, r.stderr
+    after = summary(out)
+    assert after["resumed_at_iteration"] == 3 and after["iterations"] == 4
+    assert after["step_check"]["steps_checked"] == 4
+    for jump in before["step_check"]["jumps"]:
+        assert jump in after["step_check"]["jumps"], after["step_check"]
+    assert after["step_check"]["jumps_found"] == len(after["step_check"]["jumps"]) >= 2
+    assert after["best_point"] == before["best_point"]
+    assert any(w.startswith(f"{after['step_check']['jumps_found']} of 4 accepted steps") for w in after["warnings"])
+
+
 def test_ipopt_resumed_from_its_last_iterate_converges(cli, tmp_path):
     problem = beam_problem(tmp_path)
     whole, part = tmp_path / "whole", tmp_path / "part"

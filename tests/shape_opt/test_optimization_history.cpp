@@ -237,6 +237,7 @@ TEST(OptimizationHistory, RunStateRoundTrip)
             c.best_iteration = -1; // a trial point
             c.jumps.push_back({ 4, -0.3, 1e-3, 2e-3, 0.05 });
             c.steps_checked = 11;
+            c.jumps_found = 23; // more than the list keeps
         } else {
             for (int i = 0; i < 3; ++i)
                 c.lbfgs_pairs.push_back({ vec(n), vec(n) });
@@ -282,6 +283,7 @@ TEST(OptimizationHistory, RunStateRoundTrip)
         EXPECT_EQ(d.best_evaluation, c.best_evaluation);
         EXPECT_EQ(d.best_iteration, c.best_iteration);
         EXPECT_EQ(d.steps_checked, c.steps_checked);
+        EXPECT_EQ(d.jumps_found, c.jumps_found);
         ASSERT_EQ(d.jumps.size(), c.jumps.size());
         for (size_t i = 0; i < c.jumps.size(); ++i) {
             EXPECT_EQ(d.jumps[i].iteration, c.jumps[i].iteration);

@@ -1,6 +1,7 @@
-// The final Taylor check (shape_opt/optimizer/taylor_check.hpp): its verdict on a smooth f, a
-// kink and a jump at the point, on a constant f and on rejected points, and its direction kept
-// inside the bounds.
+// The final Taylor check (shape_opt/optimizer/taylor_check.hpp): its verdict on a smooth f (one
+// whose remainder changes sign between steps too), a kink and a jump at the point, on a constant
+// or linear f and on rejected points; its direction scaled per variable, kept inside the bounds
+// and its first step within max_valid_step().
 
 #include "forward/common/error.hpp"
 #include "shape_opt/optimizer/taylor_check.hpp"
@@ -27,6 +28,10 @@ public:
     {
     }
     Index size() const override { return m_n; }
+    double max_valid_step(const VectorXd& x, const VectorXd& dx) override
+    {
+        return valid_step ? valid_step(x, dx) : 1.0;
+    }
     bool evaluate(const VectorXd& x, OptimizationValues& out) override
     {
         ++evaluations;
@@ -45,6 +50,7 @@ public:
         return v;
     }
     std::function<bool(const VectorXd&)> invalid;
+    std::function<double(const VectorXd&, const VectorXd&)> valid_step;
     int evaluations = 0;
     std::vector<VectorXd> points;
 
@@ -59,7 +65,23 @@ const VectorXd FREE_LOWER = VectorXd::Constant(3, -INF), FREE_UPPER = VectorXd::
 TaylorCheck check_at(FunctionProblem& p, const VectorXd& x, const VectorXd& lower = FREE_LOWER,
     const VectorXd& upper = FREE_UPPER, TaylorCheckSettings s = {})
 {
-    return final_taylor_check(p, x, p.at(x), lower, upper, s);
+    return final_taylor_check(p, x, p.at(x), lower, upper, VectorXd::Ones(x.size()), s);
+}
+
+/// A problem of one variable whose f along the check's direction is phi(h) at x0 + h d
+/// (phi(0) = 0, phi'(0) given): f(x) = phi((x - x0) / d), d the direction the seed gives.
+TaylorCheck check_along(std::function<double(double)> phi, double slope, TaylorCheckSettings s = {})
+{
+    const VectorXd x0 = VectorXd::Constant(1, 0.3), free_lo = VectorXd::Constant(1, -INF),
+                   free_hi = VectorXd::Constant(1, INF);
+    FunctionProblem probe(
+        1, [](const VectorXd& x) { return x[0]; }, [](const VectorXd&) { return VectorXd(VectorXd::Ones(1)); });
+    const double d = check_at(probe, x0, free_lo, free_hi, s).direction[0];
+    FunctionProblem p(
+        1, [=](const VectorXd& x) { return 1 + phi((x[0] - x0[0]) / d); },
+        [=](const VectorXd&) { return VectorXd(VectorXd::Constant(1, slope / d)); });
+    // The gradient is only read at x0.
+    return check_at(p, x0, free_lo, free_hi, s);
 }
 
 } // namespace
@@ -69,7 +91,9 @@ TEST(TaylorCheck, SmoothObjectiveIsSmooth)
     FunctionProblem p(
         3, [](const VectorXd& x) { return std::exp(x[0]) + x[1] * x[1] * x[2] + 3 * x[2] * x[2]; },
         [](const VectorXd& x) { return Eigen::Vector3d(std::exp(x[0]), 2 * x[1] * x[2], x[1] * x[1] + 6 * x[2]); });
-    const TaylorCheck c = check_at(p, Eigen::Vector3d(0.3, -1.2, 2));
+    TaylorCheckSettings s;
+    s.step = 0.01;
+    const TaylorCheck c = check_at(p, Eigen::Vector3d(0.3, -1.2, 2), FREE_LOWER, FREE_UPPER, s);
     EXPECT_EQ(c.verdict, "smooth") << c.reason;
     EXPECT_EQ(c.evaluations, 4);
     EXPECT_EQ(p.evaluations, 4);
@@ -109,12 +133,95 @@ TEST(TaylorCheck, JumpCrossedByTheLargestStepIsNonSmooth)
     const auto g = [](const VectorXd& x) { return VectorXd(2 * x); };
     FunctionProblem smooth(
         3, [](const VectorXd& x) { return x.squaredNorm(); }, g);
-    const double first = 1e-2 * check_at(smooth, x0).direction.norm(); // the same direction (seed)
+    const double first = TaylorCheckSettings().step * check_at(smooth, x0).direction.norm(); // same seed
     FunctionProblem p(
         3, [&](const VectorXd& x) { return x.squaredNorm() + ((x - x0).norm() > 0.75 * first ? 0.05 : 0.0); }, g);
     const TaylorCheck c = check_at(p, x0);
     EXPECT_EQ(c.verdict, "non_smooth") << c.reason;
-    EXPECT_GT(c.rates.front(), TAYLOR_CROSSING_RATE);
+    EXPECT_NE(c.reason.find("crosses a jump or kink"), std::string::npos) << c.reason;
+}
+
+// phi(h) = h^2 - 182 h^3 is smooth, but at h = 0.01 its cubic term outweighs the quadratic one:
+// R = -8.2e-5 there, 2.25e-6 at 0.005, |R| falls by 2^5.2 in one halving and rises in the next.
+// R/h^2 (-0.82, 0.09, 0.545, 0.77) settles: its changes halve with h.
+TEST(TaylorCheck, RemainderChangingSignIsSmooth)
+{
+    TaylorCheckSettings s;
+    s.step = 0.01;
+    const TaylorCheck c = check_along([](double h) { return h * h - 182 * h * h * h; }, 0, s);
+    EXPECT_EQ(c.verdict, "smooth") << c.reason;
+    EXPECT_LT(c.remainders[0], 0);
+    EXPECT_GT(c.remainders[1], 0);
+    EXPECT_GT(c.rates[0], 5);
+    for (double r : c.settle_rates)
+        EXPECT_NEAR(r, 3, 1e-6);
+}
+
+TEST(TaylorCheck, AbsoluteValueKinkIsNonSmooth)
+{
+    const TaylorCheck c = check_along([](double h) { return std::abs(h) + h * h; }, 0);
+    EXPECT_EQ(c.verdict, "non_smooth") << c.reason;
+    EXPECT_NEAR(c.settle_rates.back(), 1, 1e-6);
+}
+
+TEST(TaylorCheck, StepFunctionJumpIsNonSmooth)
+{
+    const TaylorCheck c = check_along([](double h) { return h * h + (h > 0 ? 1e-3 : 0.0); }, 0);
+    EXPECT_EQ(c.verdict, "non_smooth") << c.reason;
+    EXPECT_NEAR(c.settle_rates.back(), 0, 1e-6);
+}
+
+TEST(TaylorCheck, ExactQuadraticIsSmooth)
+{
+    const TaylorCheck c = check_along([](double h) { return 3 * h + 0.5 * h * h; }, 3);
+    EXPECT_EQ(c.verdict, "smooth") << c.reason;
+}
+
+// No smooth verdict without two resolved rates: a linear f (no remainder above round-off), and a
+// curvature so small that only the two largest steps resolve their remainders (the resolution
+// is 100 x 1e-10 |f| = 1e-8 here).
+TEST(TaylorCheck, FewerThanTwoResolvedRatesIsInconclusive)
+{
+    const TaylorCheck linear = check_along([](double h) { return 2 * h; }, 2);
+    EXPECT_EQ(linear.verdict, "inconclusive") << linear.reason;
+    const double h0 = TaylorCheckSettings().step;
+    const TaylorCheck faint = check_along([&](double h) { return 5e-8 * (h / h0) * (h / h0); }, 0);
+    ASSERT_TRUE(std::isfinite(faint.rates[0]));
+    ASSERT_FALSE(std::isfinite(faint.rates[1]));
+    EXPECT_EQ(faint.verdict, "inconclusive") << faint.reason;
+}
+
+// Each variable's direction within [-1, 1] times its scale (diffipc gradcheck's), and the steps
+// within the problem's valid ones (max_valid_step()), as the optimizers' steps.
+TEST(TaylorCheck, DirectionFollowsTheScalesAndTheValidSteps)
+{
+    FunctionProblem p(
+        3, [](const VectorXd& x) { return x.squaredNorm(); }, [](const VectorXd& x) { return VectorXd(2 * x); });
+    const Eigen::Vector3d x(1, 2, 3), scales(1e-3, 5, 1);
+    const TaylorCheck c = final_taylor_check(p, x, p.at(x), FREE_LOWER, FREE_UPPER, scales, TaylorCheckSettings());
+    EXPECT_TRUE((c.direction.array().abs() <= scales.array()).all()) << c.direction.transpose();
+    EXPECT_TRUE((c.direction.array() != 0).all());
+    // Points beyond a quarter of the first step are invalid: the step is cut, none is rejected.
+    p.valid_step = [](const VectorXd&, const VectorXd&) { return 0.25; };
+    p.invalid = [&](const VectorXd& y) { return (y - x).norm() > 0.25 * 0.1 * c.direction.norm(); };
+    const TaylorCheck cut = final_taylor_check(p, x, p.at(x), FREE_LOWER, FREE_UPPER, scales, TaylorCheckSettings());
+    EXPECT_EQ(cut.rejected, 0);
+    EXPECT_DOUBLE_EQ(cut.steps[0], 0.1 * 0.25 * TAYLOR_VALID_FRACTION);
+    EXPECT_EQ(cut.verdict, "smooth") << cut.reason;
+    EXPECT_THROW(final_taylor_check(p, x, p.at(x), FREE_LOWER, FREE_UPPER, VectorXd::Ones(2), TaylorCheckSettings()),
+        std::invalid_argument);
+}
+
+TEST(TaylorCheck, StopEndsItInconclusive)
+{
+    FunctionProblem p(
+        3, [](const VectorXd& x) { return x.squaredNorm(); }, [](const VectorXd& x) { return VectorXd(2 * x); });
+    const Eigen::Vector3d x(1, 2, 3);
+    const TaylorCheck c = final_taylor_check(p, x, p.at(x), FREE_LOWER, FREE_UPPER, VectorXd::Ones(3),
+        TaylorCheckSettings(), [&] { return p.evaluations >= 2; });
+    EXPECT_TRUE(c.stopped);
+    EXPECT_EQ(c.evaluations, 2);
+    EXPECT_EQ(c.verdict, "inconclusive") << c.reason;
 }
 
 TEST(TaylorCheck, ConstantObjectiveIsInconclusive)
