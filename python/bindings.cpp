@@ -574,4 +574,12 @@ PYBIND11_MODULE(_diffipc, m)
         void bind_distribution(py::module_&);
         bind_distribution(m);
     } // Communicator, _distribute (distribution_bindings.cpp)
+    {
+        void bind_gradient_check(py::module_&);
+        bind_gradient_check(m);
+    } // _check_direction, _richardson_one_sided (gradient_check_bindings.cpp)
+    {
+        void bind_stress(py::module_&);
+        bind_stress(m);
+    } // Simulator.element_von_mises, young_poisson_of_lame (stress_bindings.cpp)
 }

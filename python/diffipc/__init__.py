@@ -41,6 +41,7 @@ from ._diffipc import (  # noqa: E402,F401
     element_hessian,
     lame_parameters,
     load_scene,
+    young_poisson_of_lame,
     registered_optimizer_algorithms,
     _scene_from_json_text,
     _thread_info,

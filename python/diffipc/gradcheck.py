@@ -4,14 +4,17 @@ For a function f with claimed gradient g at x and a direction d, the Taylor
 remainders r0(h) = |f(x + h d) - f(x)| and r1(h) = |f(x + h d) - f(x) - h g.d|
 converge with rates 1 and 2 when g is right (pyadjoint's convention).
 
-check_direction gives ``diffipc gradcheck``'s verdict on one direction, with
-one-sided differences where f'' jumps (an exterior penalty at its bound).
+check_direction gives ``diffipc gradcheck``'s verdict on one direction (the CLI's C++ check,
+shape_opt/gradient_check.hpp, bound), with one-sided differences where f'' jumps (an exterior
+penalty at its bound).
 These work on any callable; diffipc.reduced applies them to a ReducedFunctional.
 """
 
 import math
 
 import numpy as np
+
+from . import _diffipc
 
 
 def convergence_rates(remainders, steps):
@@ -77,36 +80,23 @@ def central_difference_errors(f, x, gradient, directions=2, h=1e-3, seed=1, scal
 
 
 #: Relative error of a difference against the claimed slope below which a direction passes.
-TOLERANCE = 1e-5
+TOLERANCE = _diffipc.GRADIENT_CHECK_TOLERANCE
 #: One-sided slopes further apart than this (relative) mean a kink of f itself.
-KINK_SLOPE_GAP = 1e-3
-
-
-def _relative_error(a, b):
-    return abs(a - b) / max(abs(a), abs(b), 1e-300)
+KINK_SLOPE_GAP = _diffipc.KINK_SLOPE_GAP
 
 
 def richardson_one_sided(quotients):
     """Richardson extrapolation of one-sided quotients D(h_i), h_i = h_0 / 2^i, with error c1 h + c2 h^2 + ...
 
-    Level 1 is 2 D(h/2) - D(h), level 2 (4 R1(h/2) - R1(h)) / 3; of the level-2 estimates, the one
-    that changed least from level 1 (the least affected by round-off, and by a kink that the coarser
-    steps reach). At least three quotients.
+    The C++ richardson_one_sided (shape_opt/gradient_check.hpp) that ``diffipc gradcheck`` uses.
+    At least three quotients (else ValueError).
     """
-    d = [float(q) for q in quotients]
-    if len(d) < 3:
-        raise ValueError("richardson_one_sided needs at least three quotients")
-    first = [0.0] + [2 * d[i] - d[i - 1] for i in range(1, len(d))]
-    best, change = 0.0, math.inf
-    for i in range(2, len(d)):
-        second = (4 * first[i] - first[i - 1]) / 3
-        if abs(second - first[i]) < change:
-            best, change = second, abs(second - first[i])
-    return best
+    return _diffipc._richardson_one_sided([float(q) for q in quotients])
 
 
 def check_direction(f, x, gradient, direction, step=1e-2, halvings=4, f0=None, printer=None):
-    """The verdict of ``diffipc gradcheck`` on one direction (docs/problem_format.md, "gradcheck").
+    """The verdict of ``diffipc gradcheck`` on one direction (docs/problem_format.md, "gradcheck"),
+    judged by the CLI's own C++ check_direction (shape_opt/gradient_check.hpp).
 
     j(h) = f(x + h d), slope = gradient.d. PASS: the fourth-order central difference at ``step``
     is within 1e-5 (relative) of the slope and the last rate of the second-order Taylor remainders
@@ -116,58 +106,18 @@ def check_direction(f, x, gradient, direction, step=1e-2, halvings=4, f0=None, p
     exterior penalty at its bound does, and the central difference straddles it), "NOT
     DIFFERENTIABLE" if they differ from each other by more than 1e-3 (no gradient to check),
     else "FAIL". "INCONCLUSIVE": j does not change above the floor. Returns a dict with
-    ``verdict``, ``passed`` and the numbers; ``printer`` (e.g. print) receives a summary line.
+    ``verdict``, ``passed``, ``slope``, ``central``, ``central_error``, ``taylor`` (rows
+    (h, |j(h) - j(0)|, |j(h) - j(0) - h slope|)), ``floor``, ``last_rate``, ``resolved``,
+    ``one_sided`` and, when ``one_sided``, ``forward``, ``backward`` and their ``_error``s;
+    ``printer`` (e.g. print) receives a summary line.
     """
     x = np.asarray(x, dtype=float)
     direction = np.asarray(direction, dtype=float)
     slope = float(np.dot(np.ravel(gradient), np.ravel(direction)))
-    known = {}
-
-    def j(h):
-        if h not in known:
-            known[h] = float(f(x + h * direction))
-        return known[h]
-
     j0 = float(f(x)) if f0 is None else float(f0)
-    central = (8 * (j(step) - j(-step)) - (j(2 * step) - j(-2 * step))) / (12 * step)
-    r = {"slope": slope, "central": central, "central_error": _relative_error(slope, central),
-         "floor": 1e-10 * abs(j0), "taylor": [], "last_rate": 0.0, "resolved": 0, "one_sided": False}
-    max_change, previous, h = 0.0, 0.0, step
-    for i in range(halvings + 1):
-        dj = j(h) - j0
-        first, second = abs(dj), abs(dj - h * slope)
-        r["taylor"].append((h, first, second))
-        max_change = max(max_change, first)
-        if second > r["floor"]:
-            if i > 0 and previous > r["floor"]:
-                r["last_rate"] = math.log2(previous / second)
-            r["resolved"] += 1
-        previous = second
-        h /= 2
-
-    def rate_ok(error):
-        return error < 1e-8 if r["resolved"] < 3 else r["last_rate"] >= 1.9
-
-    if not max_change > r["floor"]:
-        r["verdict"] = "INCONCLUSIVE"
-    elif r["central_error"] < TOLERANCE and rate_ok(r["central_error"]):
-        r["verdict"] = "PASS"
-    else:
-        r["one_sided"] = True
-        for side, key in ((1.0, "forward"), (-1.0, "backward")):
-            steps = [step / 2**i for i in range(max(halvings, 2) + 1)]
-            r[key] = richardson_one_sided([(j(side * s) - j0) / (side * s) for s in steps])
-            r[key + "_error"] = _relative_error(slope, r[key])
-        worst = max(r["forward_error"], r["backward_error"])
-        if worst < TOLERANCE and rate_ok(worst):
-            r["verdict"] = "PASS (kink)"
-        elif _relative_error(r["forward"], r["backward"]) > KINK_SLOPE_GAP:
-            r["verdict"] = "NOT DIFFERENTIABLE"
-        else:
-            r["verdict"] = "FAIL"
-    r["passed"] = r["verdict"] in ("PASS", "PASS (kink)")
+    r = _diffipc._check_direction(lambda h: float(f(x + h * direction)), j0, slope, float(step), int(halvings))
     if printer:
-        line = f"{r['verdict']}: slope {slope:.10e}, central difference {central:.10e} (relative error " \
+        line = f"{r['verdict']}: slope {slope:.10e}, central difference {r['central']:.10e} (relative error " \
                f"{r['central_error']:.2e})"
         if r["one_sided"]:
             line += f", one-sided {r['forward']:.10e} / {r['backward']:.10e} (relative errors " \

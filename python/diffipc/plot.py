@@ -27,7 +27,6 @@ import argparse
 import copy
 import csv
 import json
-import math
 import os
 import sys
 
@@ -42,7 +41,6 @@ __all__ = [
     "plot_convergence",
     "plot_constraints",
     "plot_objective_over_time",
-    "von_mises_stresses",
     "design_states",
     "plot_design",
     "plot_run",
@@ -593,39 +591,6 @@ _NOT_FOR_EVALUATION = ("constraints", "optimizer", "output", "gradcheck", "check
                        "parameters", "scene")
 
 
-def von_mises_stresses(model, rest, deformed, elements, mu, lam):
-    """Per element, the von Mises stress (Pa) of the Cauchy stress of P1 elements, as the VTU
-    writer's ``von_mises`` (docs/output_format.md): sqrt(3/2 s:s - 1/2 (tr s)^2) of sigma =
-    P F^T / det F, in 2D of the in-plane 2 by 2 sigma. P is the material's first Piola stress,
-    read off the element's energy gradient (``diffipc.element_gradient``): for P1, the gradient
-    at vertex a is |T| P grad N_a, so the gradients at vertices 1..d, as columns, are |T| P
-    Dm^-T with Dm the rest edge matrix.
-
-    ``model``: the material model name (one, or one per element); ``rest``, ``deformed``: #V by
-    d positions; ``elements``: #E by d+1; ``mu``, ``lam``: Lame parameters (Pa), one number or
-    one per element."""
-    import diffipc
-
-    rest = np.asarray(rest, dtype=float)
-    deformed = np.asarray(deformed, dtype=float)
-    elements = np.asarray(elements, dtype=int)
-    n, d = len(elements), rest.shape[1]
-    models = [model] * n if isinstance(model, str) else list(model)
-    mu = np.broadcast_to(np.asarray(mu, dtype=float), (n,))
-    lam = np.broadcast_to(np.asarray(lam, dtype=float), (n,))
-    out = np.empty(n)
-    for e, tet in enumerate(elements):
-        X, x = rest[tet], deformed[tet]
-        Dm = (X[1:] - X[0]).T
-        F = (x[1:] - x[0]).T @ np.linalg.inv(Dm)
-        volume = abs(np.linalg.det(Dm)) / (2.0 if d == 2 else 6.0)
-        g = np.asarray(diffipc.element_gradient(models[e], X, x, float(mu[e]), float(lam[e]))).reshape(d + 1, d)
-        P = g[1:].T @ Dm.T / volume
-        sigma = P @ F.T / np.linalg.det(F)
-        out[e] = math.sqrt(max(1.5 * np.sum(sigma * sigma) - 0.5 * np.trace(sigma) ** 2, 0.0))
-    return out
-
-
 def _read_design(path):
     """(points #V by d, elements, cell data dict) of a design VTU written by diffipc optimize."""
     if not os.path.isfile(path):
@@ -663,12 +628,6 @@ def _write_msh22(path, points, cells):
         f.write("$EndElements\n")
 
 
-def _lame(E, nu, plane_stress):
-    import diffipc
-
-    return diffipc.lame_parameters(float(E), float(nu), bool(plane_stress))
-
-
 def design_states(directory):
     """The initial and the optimal design (design_0.vtu, design_final.vtu) re-simulated: for each,
     the optimal problem's scene with each body's mesh replaced by the design's rest mesh (the
@@ -676,11 +635,11 @@ def design_states(directory):
     and nu (or mu and lambda) set (an adaptive barrier stiffness fixed as in
     :func:`objective_over_time`), run to its last step. Returns a dict ``initial``, ``optimal``,
     each a dict ``rest``, ``deformed`` (#V by d, the scene's body vertices), ``elements``,
-    ``von_mises`` (Pa, per element, :func:`von_mises_stresses` at the final state), ``time`` (the
-    final state's, s) and ``J`` ((recomputed, written)): the problem's objective evaluated on the
-    re-simulated scene must reproduce the J the run wrote for that design (history.csv's first,
-    summary.json's final_J) within 1e-6 relative, which it does only if the scene selects on the
-    design's mesh what the run's selected. ValueError names what cannot be re-simulated: a problem
+    ``von_mises`` (Pa, per element at the final state: ``Simulator.element_von_mises``, the VTU
+    frames' ``von_mises``), ``time`` (the final state's, s) and ``J`` ((recomputed, written)): the
+    problem's objective evaluated on the re-simulated scene must reproduce the J the run wrote for
+    that design (history.csv's first, summary.json's final_J) within 1e-6 relative, which it does
+    only if the scene selects on the design's mesh what the run's selected. ValueError names what cannot be re-simulated: a problem
     with several load cases, parameter types other than shape, E, nu, mu, lambda (the design VTU
     does not hold them), a design file that is missing, a run that does not converge, or a J that
     is not reproduced."""
@@ -737,21 +696,19 @@ def design_states(directory):
             E = np.empty(len(cells))
             nu = np.empty(len(cells))
             plane = np.zeros(len(cells), dtype=bool)
-            models = []
             element_body = body_of[order]
             for k, e in enumerate(order):
                 material = bodies[element_body[k]].get("material", {})
                 plane[k] = d == 2 and material.get("plane") == "stress"
-                models.append(material.get("model", "neo_hookean"))
-                if "mu" in data and "lambda" in data:
-                    m_, l_ = data["mu"][e], data["lambda"][e]
-                    if plane[k]:
-                        E[k], nu[k] = 4 * m_ * (l_ + m_) / (l_ + 2 * m_), l_ / (l_ + 2 * m_)
-                    else:
-                        E[k], nu[k] = m_ * (3 * l_ + 2 * m_) / (l_ + m_), l_ / (2 * (l_ + m_))
-                else:
+                if not ("mu" in data and "lambda" in data):
                     E[k] = data["E"][e] if "E" in data else float(material["E"])
                     nu[k] = data["nu"][e] if "nu" in data else float(material["nu"])
+            if "mu" in data and "lambda" in data:
+                for flag in (False, True):  # the C++ inverse of the Lame parameters, per plane kind
+                    mine = plane == flag
+                    if mine.any():
+                        E[mine], nu[mine] = diffipc.young_poisson_of_lame(
+                            data["mu"][order[mine]], data["lambda"][order[mine]], plane_stress=flag)
             sim = diffipc.Simulator(sc)
             sim.set_element_materials(E, nu)
             tr = sim.run()
@@ -771,11 +728,9 @@ def design_states(directory):
                              f"{written!r}: the drawing would not show the run's state (the scene's regions or "
                              "vertex lists select differently on the design's mesh)")
         nv = len(rest)
-        deformed = np.asarray(tr["positions"][-1], dtype=float)[:nv]
-        lame = np.array([_lame(E[k], nu[k], plane[k]) for k in range(len(E))])
-        out[name] = {"rest": rest, "deformed": deformed, "elements": elements, "time": float(tr["time"][-1]),
-                     "J": (again, written),
-                     "von_mises": von_mises_stresses(models, rest, deformed, elements, lame[:, 0], lame[:, 1])}
+        final = np.asarray(tr["positions"][-1], dtype=float)
+        out[name] = {"rest": rest, "deformed": final[:nv], "elements": elements, "time": float(tr["time"][-1]),
+                     "J": (again, written), "von_mises": np.asarray(sim.element_von_mises(final))}
     return out
 
 

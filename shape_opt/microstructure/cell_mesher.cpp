@@ -335,11 +335,16 @@ Mesh mesh_cell(const CellSDF& sdf, double width, const CellMeshSettings& setting
     for (size_t e = 0; e < edges.size(); ++e)
         boundary.row(Index(e)) << edges[e][0], edges[e][1];
     Mesh mesh = remesh_domain(x, boundary, 2, settings.size, false, settings.seconds);
+    check_cell_tiling(mesh, width, settings.height, sdf.graph().file);
+    return mesh;
+}
 
+void check_cell_tiling(const Mesh& mesh, double width, double height, const std::string& file)
+{
     // The tiling must hold together: one piece once opposite sides are glued, with solid on
     // both a vertical and a horizontal side.
-    const Eigen::Vector2d lo = cell_box_min(width, settings.height), hi = cell_box_max(width, settings.height);
-    const double tol = 1e-9 * settings.height;
+    const Eigen::Vector2d lo = cell_box_min(width, height), hi = cell_box_max(width, height);
+    const double tol = 1e-9 * height;
     const Index nv = mesh.rest_positions.rows();
     UnionFind pieces_of(nv);
     auto join = [&](Index a, Index b) { pieces_of.join(a, b); };
@@ -381,7 +386,7 @@ Mesh mesh_cell(const CellSDF& sdf, double width, const CellMeshSettings& setting
     // neighbours along x and y; then, by translation, the infinite tiling is one piece. The outer
     // copies are not asked to be whole: their bits on the 3 x 3 block's border belong to copies
     // outside it.
-    const CellTiling tiling(mesh, width, settings.height, 3, 3);
+    const CellTiling tiling(mesh, width, height, 3, 3);
     const Mesh& tiled = tiling.mesh();
     UnionFind tiled_pieces(tiled.num_vertices());
     for (Index e = 0; e < tiled.num_elements(); ++e)
@@ -390,20 +395,26 @@ Mesh mesh_cell(const CellSDF& sdf, double width, const CellMeshSettings& setting
     const Index ne = mesh.num_elements();
     auto copy_vertex = [&](int i, int j, Index e, int a) { return tiled.elements((Index(i) * 3 + j) * ne + e, a); };
     const Index root = tiled_pieces.find(copy_vertex(1, 1, 0, 0));
-    bool whole
-        = tiled_pieces.find(copy_vertex(2, 1, 0, 0)) == root && tiled_pieces.find(copy_vertex(1, 2, 0, 0)) == root;
+    // A neighbour holds with the middle copy if any of its elements does (the middle copy being
+    // one piece, so is the neighbour, its translate): no one element will do, as it may lie in a
+    // bit on the block's border that belongs to a copy outside the block (the cap of a beam
+    // ending on a side), and gmsh decides which element comes first.
+    const auto joined = [&](int i, int j) {
+        for (Index e = 0; e < ne; ++e)
+            if (tiled_pieces.find(copy_vertex(i, j, e, 0)) == root)
+                return true;
+        return false;
+    };
+    bool whole = joined(2, 1) && joined(1, 2);
     for (Index e = 0; e < ne && whole; ++e)
         for (int a = 0; a < 3; ++a)
             whole = whole && tiled_pieces.find(copy_vertex(1, 1, e, a)) == root;
-    if (!whole) {
-        const std::string& file = sdf.graph().file;
+    if (!whole)
         throw InputError(file.empty() ? "design" : file,
             "the cell's 3 x 3 tiling is not one connected solid: its solid connects to itself across the cell's "
             "sides but not to its copies in the neighbouring cells (a beam from the centre to a corner tiles into "
             "separate strokes); join the graph's beams across opposite sides of the cell (a node on a side and its "
             "image on the opposite side)");
-    }
-    return mesh;
 }
 
 void check_meshable(

@@ -35,6 +35,11 @@ struct CellMeshSettings {
 ///         RemeshError if gmsh fails
 Mesh mesh_cell(const CellSDF& sdf, double width, const CellMeshSettings& settings);
 
+/// @brief mesh_cell's checks that a cell mesh (of the box of the given width scale and height)
+/// tiles into one connected solid; `file` names the graph in the error ("" for "design").
+/// @throws InputError as mesh_cell
+void check_cell_tiling(const Mesh& mesh, double width, double height, const std::string& file);
+
 /// @brief Checks design p against its family's bounds and that no beam is thinner than the mesh
 /// size (its thinnest extent, w height / 2 min(width, 1)).
 /// @throws InputError naming `field`.<variable> (design.thickness[e], design.width) for either

@@ -3,6 +3,7 @@
 #include "forward/common/error.hpp"
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -13,7 +14,9 @@ namespace diffipc {
 
 WireGraphFormat wire_graph_format(const std::string& path)
 {
-    const std::string ext = std::filesystem::path(path).extension().string();
+    // Pattern libraries are not consistent about case (a ".WIRE" read as OBJ would stay unscaled).
+    std::string ext = std::filesystem::path(path).extension().string();
+    std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return char(std::tolower(c)); });
     return ext == ".wire" ? WireGraphFormat::WIRE : WireGraphFormat::OBJ;
 }
 
@@ -23,6 +26,7 @@ WireGraph parse_wire_graph(const std::string& text, const std::string& name, Wir
     std::vector<double> xy;
     double first_z = 0;
     int first_z_line = 0; // the line of the first node with a z (WIRE), 0 if none yet
+    int first_xy_line = 0; // the line of the first node without a z (WIRE), 0 if none yet
     std::vector<std::pair<long, long>> edges;
     std::vector<int> edge_line;
     std::vector<long> nodes_before; // per edge: nodes read before its line (for relative indices)
@@ -50,6 +54,18 @@ WireGraph parse_wire_graph(const std::string& text, const std::string& name, Wir
                     fail(number, "expected a finite, non-zero homogeneous coordinate w");
                 if (has_z && !std::isfinite(z))
                     fail(number, "expected \"v x y [z [w]]\" with finite coordinates");
+                // "v x y" nodes sit at z = 0, which a file that gives z elsewhere does not mean:
+                // a mix is refused rather than guessed.
+                if (has_z && first_xy_line != 0)
+                    fail(number,
+                        "\"v x y z\" after \"v x y\" on line " + std::to_string(first_xy_line)
+                            + ": give every node of a .wire file a z, or none");
+                if (!has_z && first_z_line != 0)
+                    fail(number,
+                        "\"v x y\" after \"v x y z\" on line " + std::to_string(first_z_line)
+                            + ": give every node of a .wire file a z, or none");
+                if (!has_z && first_xy_line == 0)
+                    first_xy_line = number;
                 x /= w;
                 y /= w;
                 z /= w;

@@ -1,9 +1,11 @@
 """gradcheck at a kink of J'' (docs/problem_format.md, "gradcheck"): an exterior penalty of a
 constraint that is active at the start is only C^1, so a central difference straddling it is off by
 O(h) although the adjoint is right. The shipped penalty problems must pass; a wrong gradient,
-at a kink or not, must still fail; and diffipc.gradcheck.check_direction judges as the CLI does."""
+at a kink or not, must still fail; and diffipc.gradcheck.check_direction (the CLI's C++ check, bound)
+gives the CLI's numbers and verdict on the CLI's own direction."""
 import math
 import os
+import re
 import subprocess
 
 import numpy as np
@@ -107,13 +109,47 @@ def test_richardson_removes_first_and_second_order_terms():
         richardson_one_sided([1, 2])
 
 
-def test_python_check_agrees_with_the_cli_on_401_penalty():
+def mt19937_uniform(seed, count):
+    """``count`` draws of std::uniform_real_distribution<double>(-1, 1) over std::mt19937(seed), as
+    libstdc++ makes them (generate_canonical: two 32-bit outputs g1 + g2 2^32, over 2^64): the
+    directions of `diffipc gradcheck` (cli/gradcheck.cpp) before their scales."""
+    key = np.empty(624, dtype=np.uint32)
+    key[0] = seed
+    for i in range(1, 624):  # std::mt19937's seeding (numpy's legacy seeding is the same)
+        prev = int(key[i - 1])
+        key[i] = (1812433253 * (prev ^ (prev >> 30)) + i) & 0xFFFFFFFF
+    bits = np.random.MT19937()
+    bits.state = {"bit_generator": "MT19937", "state": {"key": key, "pos": 624}}
+    raw = bits.random_raw(2 * count)
+    out = []
+    for k in range(count):
+        u = (float(raw[2 * k]) + float(raw[2 * k + 1]) * 4294967296.0) / 18446744073709551616.0
+        out.append(min(u, math.nextafter(1.0, 0.0)) * 2.0 - 1.0)
+    return np.array(out)
+
+
+def test_python_check_agrees_with_the_cli_on_401_penalty(cli):
+    # The CLI's first direction, redrawn here: the same slope, differences and verdict, from the
+    # output of `diffipc gradcheck` itself.
     import diffipc
 
+    r = gradcheck(cli, PENALTY_PROBLEMS[0], None, "--directions", "1")
+    assert r.returncode == 0, r.stdout + r.stderr
+    number = r"([-+0-9.e]+)"
+    head = re.search(rf"direction 1: dJ.dp adjoint {number}, central difference {number}", r.stdout)
+    sides = re.search(rf"one-sided differences .*: forward {number} .*backward {number} ", r.stdout)
+    assert head and sides and "PASS at a kink" in r.stdout, r.stdout
+    cli_slope, cli_central = float(head[1]), float(head[2])
+    cli_forward, cli_backward = float(sides[1]), float(sides[2])
+
     J = diffipc.ReducedFunctional(str(ROOT / PENALTY_PROBLEMS[0]))
-    p = J.initial
+    p = J.parameters_of(J.design_initial)  # where the CLI checks
     J0, g = J.value_and_gradient(p)
     settings = J.check_settings
-    d = np.random.default_rng(settings["seed"]).uniform(-1, 1, J.size) * J.scales
-    r = check_direction(J, p, g, d, step=settings["step"], halvings=settings["halvings"], f0=J0)
-    assert r["verdict"] == "PASS (kink)", r
+    d = mt19937_uniform(settings["seed"], J.size) * J.scales
+    assert float(g @ d) == pytest.approx(cli_slope, rel=1e-9), "not the CLI's direction"
+    c = check_direction(J, p, g, d, step=settings["step"], halvings=settings["halvings"], f0=J0)
+    assert c["verdict"] == "PASS (kink)", c
+    assert c["central"] == pytest.approx(cli_central, rel=1e-7)
+    assert c["forward"] == pytest.approx(cli_forward, rel=1e-7)
+    assert c["backward"] == pytest.approx(cli_backward, rel=1e-7)

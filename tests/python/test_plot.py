@@ -336,14 +336,17 @@ def simple_shear_von_mises(mu, g):
 
 @pytest.mark.parametrize("dim", [2, 3])
 def test_von_mises_of_homogeneous_deformations_matches_closed_forms(dim):
-    # A small box mesh, rotated so that its element edges are not along the axes.
+    # The C++ stresses that the VTU frames and design.png show (Simulator.element_von_mises), on a
+    # small box mesh whose element edges are not all along the axes.
     sc = diffipc.scene(box_scene_of(dim))
     rest, elements = np.asarray(sc.rest_positions), np.asarray(sc.elements)
+    sim = diffipc.Simulator(sc)
     mu, lam = diffipc.lame_parameters(2e5, 0.3)
     g = 0.3
     F = np.eye(dim)
     F[0, 1] = g
-    vm = plot.von_mises_stresses("neo_hookean", rest, rest @ F.T, elements, mu, lam)
+    vm = sim.element_von_mises(rest @ F.T)
+    assert vm.shape == (len(elements),)
     np.testing.assert_allclose(vm, simple_shear_von_mises(mu, g), rtol=1e-10)
     # A stretch diag(a, b[, c]): sigma = (mu (F F^T - I) + lam log J I) / J, principal and
     # diagonal; von Mises sqrt(1/2 sum_{i<j} (s_i - s_j)^2) (2D: with s_z = 0 in the sum).
@@ -352,17 +355,31 @@ def test_von_mises_of_homogeneous_deformations_matches_closed_forms(dim):
     s_p = (mu * (stretch**2 - 1) + lam * math.log(J)) / J
     full = np.concatenate([s_p, [0.0]]) if dim == 2 else s_p
     expected = math.sqrt(0.5 * sum((full[i] - full[j]) ** 2 for i in range(3) for j in range(i + 1, 3)))
-    vm = plot.von_mises_stresses("neo_hookean", rest, rest * stretch, elements, mu, lam)
-    np.testing.assert_allclose(vm, expected, rtol=1e-10)
-    # Per-element parameters and models are taken element by element; a rigid rotation is stress free.
-    mus = np.full(len(elements), mu)
-    mus[0] *= 2
-    vm = plot.von_mises_stresses(["neo_hookean"] * len(elements), rest, rest @ F.T, elements, mus, lam)
+    np.testing.assert_allclose(sim.element_von_mises(rest * stretch), expected, rtol=1e-10)
+    # Per-element materials are taken element by element; a rigid rotation is stress free.
+    E = np.full(len(elements), 2e5)
+    E[0] *= 2
+    other = diffipc.Simulator(sc)
+    other.set_element_materials(E, np.full(len(elements), 0.3))
+    vm = other.element_von_mises(rest @ F.T)
     assert vm[0] == pytest.approx(2 * vm[1], rel=1e-10)
     c, s_ = math.cos(0.7), math.sin(0.7)
     R = np.eye(dim)
     R[:2, :2] = [[c, -s_], [s_, c]]
-    assert np.abs(plot.von_mises_stresses("neo_hookean", rest, rest @ R.T, elements, mu, lam)).max() < 1e-6 * mu
+    assert np.abs(sim.element_von_mises(rest @ R.T)).max() < 1e-6 * mu
+    with pytest.raises(ValueError, match=r"positions: expected an array of shape"):
+        sim.element_von_mises(rest[:-1])
+
+
+@pytest.mark.parametrize("plane_stress", [False, True])
+def test_young_poisson_of_lame_inverts_lame_parameters(plane_stress):
+    E, nu = np.array([2e5, 7e9, 1.5]), np.array([0.3, -0.2, 0.45])
+    lame = np.array([diffipc.lame_parameters(e, n, plane_stress) for e, n in zip(E, nu)])
+    E2, nu2 = diffipc.young_poisson_of_lame(lame[:, 0], lame[:, 1], plane_stress=plane_stress)
+    np.testing.assert_allclose(E2, E, rtol=1e-12)
+    np.testing.assert_allclose(nu2, nu, rtol=1e-12)
+    with pytest.raises(ValueError, match="mu"):
+        diffipc.young_poisson_of_lame([-1.0], [1.0])
 
 
 def box_scene_of(dim):

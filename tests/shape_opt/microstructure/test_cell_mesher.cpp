@@ -7,6 +7,7 @@
 #include "shape_opt/microstructure/cell_mesher.hpp"
 
 #include "forward/common/error.hpp"
+#include "forward/common/union_find.hpp"
 
 #include <gtest/gtest.h>
 
@@ -14,6 +15,7 @@
 #include <filesystem>
 #include <fstream>
 #include <functional>
+#include <map>
 #include <set>
 
 #include <unistd.h>
@@ -187,4 +189,61 @@ TEST(CellMesher, ABeamEndingOnASideStillTiles)
     s.size = 0.03;
     const Mesh m = mesh_design(stub, stub.initial(), s);
     check_cell_mesh(m, CellSDF(stub.graph(), stub.cell_parameters(stub.initial())), 1.0, s);
+}
+
+TEST(CellMesher, ABeamEndingOnTheLeftOrBottomSideStillTiles)
+{
+    // The mirror of the above: a stub to the left (bottom) side leaves its loose cap on the right
+    // (top) side, so the right (top) neighbour in the 3 x 3 block holds a bit on the block's border
+    // whose beam lies outside the block: accepted, whichever element gmsh numbers first (the next
+    // test puts one of the cap first).
+    CellFamily::Settings settings;
+    CellMeshSettings s;
+    s.size = 0.03;
+    for (const char* end : { "v -1 0.5", "v 0.5 -1", "v -1 -0.5", "v -0.5 -1" }) {
+        const CellFamily stub(
+            parse_wire_graph(
+                "v -1 0\nv 1 0\nv 0 -1\nv 0 1\nv 0 0\n" + std::string(end) + "\nl 1 2\nl 3 4\nl 5 6\n", "stub.obj"),
+            settings, "f");
+        try {
+            const Mesh m = mesh_design(stub, stub.initial(), s);
+            check_cell_mesh(m, CellSDF(stub.graph(), stub.cell_parameters(stub.initial())), 1.0, s);
+        } catch (const InputError& e) {
+            ADD_FAILURE() << end << ": " << e.what();
+        }
+    }
+}
+
+TEST(CellMesher, TheTilingCheckDoesNotDependOnWhichElementComesFirst)
+{
+    // A stub to the left side: its cap is a loose bit on the right side. In the 3 x 3 block, the
+    // right neighbour's cap belongs to a copy outside the block; with an element of that cap put
+    // first (gmsh may number it so), the check still sees the neighbour joined to the middle copy.
+    CellFamily::Settings settings;
+    CellMeshSettings s;
+    s.size = 0.03;
+    for (const char* end : { "v -1 0.5", "v 0.5 -1" }) {
+        const CellFamily stub(
+            parse_wire_graph(
+                "v -1 0\nv 1 0\nv 0 -1\nv 0 1\nv 0 0\n" + std::string(end) + "\nl 1 2\nl 3 4\nl 5 6\n", "stub.obj"),
+            settings, "f");
+        Mesh m = mesh_design(stub, stub.initial(), s);
+        // The cell's pieces without gluing its sides: the cap is the smallest.
+        UnionFind pieces(m.num_vertices());
+        for (Index e = 0; e < m.num_elements(); ++e)
+            for (int a = 1; a < 3; ++a)
+                pieces.join(m.elements(e, 0), m.elements(e, a));
+        std::map<Index, Index> size;
+        for (Index e = 0; e < m.num_elements(); ++e)
+            ++size[pieces.find(m.elements(e, 0))];
+        ASSERT_EQ(size.size(), 2u) << end << ": the cross and the cap";
+        const Index cap = size.begin()->second < size.rbegin()->second ? size.begin()->first : size.rbegin()->first;
+        Index first = 0;
+        while (pieces.find(m.elements(first, 0)) != cap)
+            ++first;
+        const Eigen::RowVectorXi swapped = m.elements.row(0);
+        m.elements.row(0) = m.elements.row(first);
+        m.elements.row(first) = swapped;
+        EXPECT_NO_THROW(check_cell_tiling(m, 1.0, s.height, "stub.obj")) << end;
+    }
 }

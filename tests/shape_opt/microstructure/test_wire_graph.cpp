@@ -73,6 +73,30 @@ TEST(WireGraph, WireFilesOfPatternLibrariesAreRescaledFromTheUnitCell)
     EXPECT_EQ(wire_graph_format("cell.obj"), WireGraphFormat::OBJ);
 }
 
+TEST(WireGraph, TheExtensionIsReadWhateverItsCase)
+{
+    EXPECT_EQ(wire_graph_format("lib/PATTERN0646.WIRE"), WireGraphFormat::WIRE);
+    EXPECT_EQ(wire_graph_format("lib/pattern.Wire"), WireGraphFormat::WIRE);
+    EXPECT_EQ(wire_graph_format("CELL.OBJ"), WireGraphFormat::OBJ);
+    EXPECT_EQ(wire_graph_format("cell.Obj"), WireGraphFormat::OBJ);
+}
+
+TEST(WireGraph, AWireFileMixingNodesWithAndWithoutZIsRefusedNamingTheLine)
+{
+    auto wire_message = [](const std::string& text) {
+        try {
+            parse_wire_graph(text, "p.wire", WireGraphFormat::WIRE);
+        } catch (const InputError& e) {
+            return std::string(e.what());
+        }
+        return std::string("no error");
+    };
+    EXPECT_EQ(wire_message("v 0 0.5\nv 1 0.5 0\nl 1 2\n"),
+        "p.wire: line 2: \"v x y z\" after \"v x y\" on line 1: give every node of a .wire file a z, or none");
+    EXPECT_EQ(wire_message("# z first\nv 0 0.5 0.2\nv 0.5 0.5 0.2\nv 1 0.5\nl 1 2 3\n"),
+        "p.wire: line 4: \"v x y\" after \"v x y z\" on line 2: give every node of a .wire file a z, or none");
+}
+
 TEST(WireGraph, WireFilesThatCannotBeReadSayHow)
 {
     auto wire_message = [](const std::string& text) {
