@@ -8,7 +8,7 @@ the page: `./build/cli/diffipc` becomes the `cli` fixture's path, `PYTHONPATH=bu
 must appear in one of the page's ```sh blocks, and every ```sh block must be one of the commands
 here. Where the page shows a command's output (the ```text block that follows it), each shown
 line must be in the output, in order (`...` stands for lines left out): same words, same numbers
-(to one unit of the last printed digit, or 1e-8 relative where that is larger: the round-off of
+(to one unit of the last printed digit, or 1e-6 relative where that is larger: the round-off of
 another machine's BLAS kernel in numbers printed to many digits; numbers below 1e-5 in magnitude, round-off-level
 quantities such as a converged gradient norm, only need to stay below it), wall times and
 percentages masked. The
@@ -24,7 +24,7 @@ import pytest
 
 import diffipc
 from conftest import ROOT
-from tutorial_page import NUMBER, TutorialPage, TutorialRun, same_number
+from tutorial_page import ACROSS_MACHINES_AFTER_A_REMESH, NUMBER, TutorialPage, TutorialRun, same_number
 
 DOC = ROOT / "docs" / "tutorial_optimization.md"
 TUTORIAL = ROOT / "docs" / "tutorial"
@@ -144,8 +144,14 @@ def test_numbers_compare_at_the_stated_tolerance():
     assert same_number("3.3416427659", "3.3416427657")
     assert same_number("7104.1", "7104.14")
     assert not same_number("7104.1", "7104.3")
+    assert same_number("1.9996678410493423", "1.9996676730662537")
     assert not same_number("3.3416427659", "3.3416827659")
     assert not same_number("25", "26")
+    # After a remesh: 1e-3 relative, counts within one (the page says so).
+    assert same_number("2.107648e+02", "2.107748e+02", **ACROSS_MACHINES_AFTER_A_REMESH)
+    assert same_number("18", "17", **ACROSS_MACHINES_AFTER_A_REMESH)
+    assert not same_number("2.107648e+02", "2.110648e+02", **ACROSS_MACHINES_AFTER_A_REMESH)
+    assert not same_number("18", "16", **ACROSS_MACHINES_AFTER_A_REMESH)
 
 
 def test_the_page_and_its_files():
@@ -272,7 +278,7 @@ def test_step_3_stress_objective(tutorial):
 
 
 def test_step_3_remesh(tutorial):
-    tutorial.run(OPTIMIZE_REMESH)
+    tutorial.run(OPTIMIZE_REMESH, across_machines=ACROSS_MACHINES_AFTER_A_REMESH)
     out = tutorial.path("output", "tutorial", "remesh")
     summary = tutorial.summary("remesh")
     assert summary["stop_reason"] == "gradient_tolerance" and summary["max_violation"] == 0
@@ -293,9 +299,10 @@ def test_step_3_remesh(tutorial):
     assert attempts["trigger"] == pytest.approx(0.9 * old, rel=1e-5)           # old is printed to 6 digits
     for name in ("remesh_1_body0.msh", "current_problem.json", "design_final.vtu"):
         assert (out / name).is_file(), name
-    tutorial.run(READ_REMESHES)
+    tutorial.run(READ_REMESHES, across_machines=ACROSS_MACHINES_AFTER_A_REMESH)
     tutorial.run(OPTIMIZE)
-    printed = [numbers(line)[-1] for line in tutorial.run(FINE_MESH).splitlines()]
+    printed = [numbers(line)[-1] for line in
+               tutorial.run(FINE_MESH, across_machines=ACROSS_MACHINES_AFTER_A_REMESH).splitlines()]
     structured, remeshed, start = printed
     assert abs(structured / remeshed - 1) < 2e-4                                # "differ by 0.012%"
     coarse = tutorial.summary("optimize")["initial_J"]
