@@ -185,6 +185,29 @@ namespace {
         return d;
     }
 
+    /// The keys an entry of a type with this selection reads (docs/problem_format.md, "types that use it").
+    std::vector<std::string> own_keys(Selection selection)
+    {
+        std::vector<std::string> keys { "type", "maps", "initial", "lower", "upper" };
+        switch (selection) {
+        case Selection::COMPONENTS:
+            keys.insert(keys.end(), { "vertices", "components" });
+            break;
+        case Selection::ELEMENTS:
+            keys.insert(keys.end(), { "per", "body" });
+            break;
+        case Selection::STATE:
+            keys.insert(keys.end(), { "per", "body", "vertices" });
+            break;
+        case Selection::PRESCRIBED:
+            break;
+        case Selection::GROUPS:
+            keys.insert(keys.end(), { "per", "group" });
+            break;
+        }
+        return keys;
+    }
+
     ParameterSpec parse_parameter(const Scene& scene, const Simulator& sim, const json& spec, const std::string& field)
     {
         if (!spec.is_object() || !spec.contains("type") || !spec["type"].is_string())
@@ -206,6 +229,19 @@ namespace {
                 t = &k;
         if (!t)
             throw InputError(field + ".type", "unknown parameter type '" + type + "' (expected " + kind_names() + ")");
+        // A key that another type uses is refused too: `body` on a shape entry once selected every body.
+        const std::vector<std::string> own = own_keys(t->selection);
+        for (const auto& [key, value] : spec.items())
+            if (std::find(own.begin(), own.end(), key) == own.end()) {
+                std::string list;
+                for (const std::string& k : own)
+                    list += (list.empty() ? "" : ", ") + k;
+                throw InputError(field + "." + key,
+                    "a \"" + type + "\" parameter does not use this key (its keys: " + list + ")"
+                        + (key == "body" && t->selection == Selection::COMPONENTS
+                                ? "; select a body's vertices with \"vertices\": {\"body\": name}"
+                                : ""));
+            }
         ParameterSpec p;
         p.kind = t->kind;
         p.name = type;

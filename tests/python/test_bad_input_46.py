@@ -166,6 +166,28 @@ def test_shape_components_that_are_not_a_list_are_refused(cli, tmp_path, compone
         assert "parameters[0].components" in line and got in line, line
 
 
+@pytest.mark.parametrize("entry, key", [
+    ({"type": "shape", "body": "b"}, "body"),          # before: ignored, and every body's vertices moved
+    ({"type": "E", "components": [0]}, "components"),
+    ({"type": "E", "vertices": [0]}, "vertices"),
+    ({"type": "density", "group": "b"}, "group"),
+])
+def test_a_key_that_the_parameter_type_does_not_use_is_refused(cli, tmp_path, entry, key):
+    s = box_scene(dim=2, steps=1)
+    p = {"scene": s, "objective": {"type": "volume"}, "parameters": [entry]}
+    (tmp_path / "p.json").write_text(json.dumps(p))
+    r = run(cli, "validate", tmp_path / "p.json")
+    assert r.returncode == 1, r.stderr
+    line = one_line(r)
+    assert f"parameters[0].{key}" in line and f'a "{entry["type"]}" parameter does not use this key' in line, line
+    if entry["type"] == "shape":
+        assert '"vertices": {"body": name}' in line, line
+    # The same entry without the key is accepted.
+    del entry[key]
+    (tmp_path / "p.json").write_text(json.dumps(p))
+    assert run(cli, "validate", tmp_path / "p.json").returncode == 0
+
+
 def test_a_marker_just_outside_the_mesh_names_vertex_tolerance(cli, tmp_path):
     # Scan data rounded to 10 um: a marker 6 um outside the end x = 0.5 of the box, beside its
     # vertex (0.5, 0.1). Before, the error did not name the key that attaches it.
