@@ -18,6 +18,9 @@ case "${1:-}" in
 esac
 
 bash scripts/install_deps.sh
+# ccache: paths below the repository root hashed as relative ones, so that another clone (CI's, a second
+# checkout) reuses what this machine compiled before.
+export CCACHE_BASEDIR="${CCACHE_BASEDIR:-$PWD}"
 
 options=(-DCMAKE_BUILD_TYPE=Release -DDIFFIPC_PYTHON=ON -DDIFFIPC_PYTHON_EXECUTABLE=/usr/bin/python3)
 if [ "$mode" = all ]; then
