@@ -24,7 +24,7 @@
 /// Builds without CUDA compile this file too: constructing a DeviceSolver then throws an
 /// InputError naming the scene's "device" field. Nothing here depends on whether the build has
 /// CUDA (device_conversion.hpp holds what does), so that turning DIFFIPC_CUDA on or off
-/// recompiles device_solver.cpp, not every file that includes the scene.
+/// recompiles forward's files, not every file of the other libraries that includes the scene.
 
 #include "forward/contact/contact_potential.hpp"
 #include "forward/contact/friction/friction_potential.hpp"
