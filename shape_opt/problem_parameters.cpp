@@ -188,7 +188,7 @@ namespace {
     /// The keys an entry of a type with this selection reads (docs/problem_format.md, "types that use it").
     std::vector<std::string> own_keys(Selection selection)
     {
-        std::vector<std::string> keys { "type", "maps", "initial", "lower", "upper" };
+        std::vector<std::string> keys { "type" };
         switch (selection) {
         case Selection::COMPONENTS:
             keys.insert(keys.end(), { "vertices", "components" });
@@ -205,6 +205,7 @@ namespace {
             keys.insert(keys.end(), { "per", "group" });
             break;
         }
+        keys.insert(keys.end(), { "maps", "initial", "lower", "upper" });
         return keys;
     }
 
@@ -213,14 +214,23 @@ namespace {
         if (!spec.is_object() || !spec.contains("type") || !spec["type"].is_string())
             throw InputError(field + ".type", "expected a parameter type (" + kind_names() + ")");
         const std::string type = spec["type"];
-        for (const auto& [key, value] : spec.items()) {
-            static const char* const known[]
-                = { "type", "per", "body", "vertices", "components", "group", "maps", "initial", "lower", "upper" };
-            if (std::find(std::begin(known), std::end(known), key) == std::end(known))
-                throw InputError(field + "." + key,
-                    "unknown field (expected type, per, body, vertices, components, group, maps, initial, lower, "
-                    "upper)");
-        }
+        // The keys of any type: the union of own_keys (one list, not a second one kept by hand).
+        static const std::vector<std::string> known = [] {
+            std::vector<std::string> all;
+            for (const Selection s : { Selection::COMPONENTS, Selection::ELEMENTS, Selection::STATE,
+                     Selection::PRESCRIBED, Selection::GROUPS })
+                for (const std::string& k : own_keys(s))
+                    if (std::find(all.begin(), all.end(), k) == all.end())
+                        all.push_back(k);
+            return all;
+        }();
+        for (const auto& [key, value] : spec.items())
+            if (std::find(known.begin(), known.end(), key) == known.end()) {
+                std::string list;
+                for (const std::string& k : known)
+                    list += (list.empty() ? "" : ", ") + k;
+                throw InputError(field + "." + key, "unknown field (expected " + list + ")");
+            }
         if (spec.contains("per") && !spec["per"].is_string())
             throw InputError(field + ".per", "expected a string");
         const KindTraits* t = nullptr;
