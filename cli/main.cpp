@@ -55,23 +55,13 @@ void check_initial_state(const Scene& scene, const std::string& name)
         throw InputError(name, "the initial state is invalid: " + problem);
 }
 
-/// A problem file (docs/problem_format.md) rather than a scene: it names its scene(s), or has a
-/// problem's keys and none of a scene's. Before, validate read a problem as a scene and refused
-/// its first problem key ("gradcheck: unknown field").
+/// A problem file (docs/problem_format.md) rather than a scene: it names its scene(s) or has
+/// parameters, which every problem must and no scene may. Before, validate read a problem as a
+/// scene and refused its first problem key ("gradcheck: unknown field").
 bool is_problem_document(const nlohmann::json& document)
 {
-    if (!document.is_object())
-        return false;
-    if (document.contains("scene") || document.contains("scenes"))
-        return true;
-    bool problem_key = false, scene_key = false;
-    for (const char* k : { "objective", "weight", "parameters", "gradcheck", "checkpointing", "threads", "constraints",
-             "optimizer", "remesh" })
-        problem_key = problem_key || document.contains(k);
-    for (const char* k : { "dimension", "bodies", "gravity", "dirichlet", "neumann", "time", "mass", "solver",
-             "contact", "obstacles", "friction", "periodic", "device" })
-        scene_key = scene_key || document.contains(k);
-    return problem_key && !scene_key;
+    return document.is_object()
+        && (document.contains("scene") || document.contains("scenes") || document.contains("parameters"));
 }
 
 /// validate for a problem file: what gradcheck and optimize read before their first evaluation
