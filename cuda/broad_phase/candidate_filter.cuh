@@ -14,7 +14,7 @@
 /// images); edge_source #CE ints and edge_shift_positive #CE chars, or null. The pointers are device pointers in
 /// kernels and host pointers in host code.
 
-#include "cuda/common/vec3.cuh"
+#include "cuda/common/kernels.cuh"
 
 namespace diffipc {
 namespace gpu {

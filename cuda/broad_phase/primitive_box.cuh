@@ -15,7 +15,7 @@
 /// Layouts: positions are #V by dim doubles, row-major (vertex v at x + v * dim), metres; a primitive's vertex
 /// ids are N consecutive ints (an edge row, a face row, or one collision vertex). 2D boxes have min z = max z = 0.
 
-#include "cuda/common/vec3.cuh"
+#include "cuda/common/kernels.cuh"
 
 #include <cmath>
 #include <cstddef>

@@ -49,7 +49,7 @@
 /// Positions are in metres; 2D callers set z = 0.
 
 #include "cuda/ccd/distance_lower_bound.cuh"
-#include "cuda/common/vec3.cuh"
+#include "cuda/common/kernels.cuh"
 
 #include <cstddef>
 #include <vector>

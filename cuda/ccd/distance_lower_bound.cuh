@@ -14,7 +14,7 @@
 /// the device code is compiled without fused multiply-adds, see ccd.cuh).
 /// All functions take 3D points; 2D callers set z = 0.
 
-#include "cuda/common/vec3.cuh"
+#include "cuda/common/kernels.cuh"
 
 namespace diffipc {
 namespace gpu {

@@ -18,11 +18,12 @@
 /// plane's point); its local dofs are vertex-major, dim per vertex (n = #vertices * dim);
 /// Hessians are n by n, row-major.
 
-#include "cuda/contact/barrier.cuh"
-#include "cuda/contact/distance/edge_edge.cuh"
-#include "cuda/contact/distance/edge_edge_mollifier.cuh"
-#include "cuda/contact/distance/point_edge.cuh"
-#include "cuda/contact/distance/point_triangle.cuh"
+#include "cuda/common/kernels.cuh"
+#include "forward/kernels/barrier.hpp"
+#include "forward/kernels/distance/edge_edge.hpp"
+#include "forward/kernels/distance/edge_edge_mollifier.hpp"
+#include "forward/kernels/distance/point_edge.hpp"
+#include "forward/kernels/distance/point_triangle.hpp"
 #include "cuda/elastic/project_psd.cuh"
 
 namespace diffipc::gpu {
@@ -66,14 +67,14 @@ DIFFIPC_HD inline void pair_distance(PairKind kind, const vec3* points, const ve
         s = h * h;
         if (gs) {
             const vec3 g = 2 * h * normal, minus = -2 * h * normal;
-            distance_kernels::store(g, gs);
-            distance_kernels::store(minus, gs + 3);
+            store(g, gs);
+            store(minus, gs + 3);
         }
         if (Hs)
             for (int i = 0; i < 3; ++i)
                 for (int j = 0; j < 3; ++j) {
                     const double nn
-                        = (2 * distance_kernels::component(normal, i)) * distance_kernels::component(normal, j);
+                        = (2 * component(normal, i)) * component(normal, j);
                     Hs[i * 6 + j] = nn;
                     Hs[i * 6 + 3 + j] = -nn;
                     Hs[(3 + i) * 6 + j] = -nn;

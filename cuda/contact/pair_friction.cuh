@@ -14,7 +14,7 @@
 /// Layouts: the pair's local dofs are vertex-major, dim per vertex (n = #vertices * dim); the Hessian
 /// is n by n, row-major.
 
-#include "cuda/common/vec3.cuh"
+#include "cuda/common/kernels.cuh"
 
 namespace diffipc::gpu {
 

@@ -7,9 +7,9 @@
 /// and its transpose, entry by entry: the device's kernels (device_periodic_map.hpp) and the CPU tests
 /// call these same functions. q's layout is PeriodicMap's: class c's fluctuation component i at c dim + i,
 /// then L G(i, j) at C dim + i dim + j (so that q is C + dim blocks of dim: the classes, then G's rows).
-/// Compiles with nvcc and with a plain C++ compiler (cuda/common/vec3.cuh).
+/// Compiles with nvcc and with a plain C++ compiler (forward/kernels/host_device.hpp).
 
-#include "cuda/common/vec3.cuh"
+#include "cuda/common/kernels.cuh"
 
 namespace diffipc::gpu {
 

@@ -1,36 +1,17 @@
 #include "forward/contact/barrier.hpp"
 
+#include "forward/kernels/barrier.hpp"
+
 #include <algorithm>
 #include <cmath>
-#include <limits>
 
 namespace diffipc {
 
-double barrier(double s, double shat)
-{
-    if (s <= 0)
-        return std::numeric_limits<double>::infinity();
-    if (s >= shat)
-        return 0;
-    const double r = s - shat;
-    return -r * r * std::log(s / shat);
-}
+double barrier(double s, double shat) { return kernels::barrier(s, shat); }
 
-double barrier_first_derivative(double s, double shat)
-{
-    if (s <= 0 || s >= shat)
-        return 0;
-    const double r = s - shat;
-    return -2 * r * std::log(s / shat) - r * r / s;
-}
+double barrier_first_derivative(double s, double shat) { return kernels::barrier_first_derivative(s, shat); }
 
-double barrier_second_derivative(double s, double shat)
-{
-    if (s <= 0 || s >= shat)
-        return 0;
-    const double r = s - shat;
-    return -2 * std::log(s / shat) - 4 * r / s + r * r / (s * s);
-}
+double barrier_second_derivative(double s, double shat) { return kernels::barrier_second_derivative(s, shat); }
 
 double barrier_stiffness_min(double bbox_diagonal, double reference_mass, double dhat, double dmin)
 {

@@ -7,6 +7,8 @@
 /// s - dmin^2 with activation shat = (2 dmin + dhat) dhat, i.e. it is active
 /// for dmin < d < dmin + dhat.
 
+#include "forward/kernels/barrier.hpp"
+
 namespace diffipc {
 
 /// @brief b(s) = -(s - shat)^2 ln(s / shat) for 0 < s < shat, 0 for s >= shat, +inf for s <= 0.
@@ -19,7 +21,7 @@ double barrier_first_derivative(double s, double shat);
 double barrier_second_derivative(double s, double shat);
 
 /// The barrier's activation value for dhat and dmin: (2 dmin + dhat) dhat.
-inline double barrier_activation(double dhat, double dmin) { return (2 * dmin + dhat) * dhat; }
+inline double barrier_activation(double dhat, double dmin) { return kernels::barrier_activation(dhat, dmin); }
 
 /// @brief Lower bound of the adaptive barrier stiffness (IPC Toolkit):
 /// kappa_min = 1e11 m / (4 d0 b''(d0 - dmin^2)), d0 = (1e-8 L + dmin)^2;

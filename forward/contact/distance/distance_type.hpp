@@ -6,37 +6,16 @@
 /// line-line), so each type picks a smooth formula and its derivatives.
 /// Edges of a triangle: E0 = (t0, t1), E1 = (t1, t2), E2 = (t2, t0).
 
+#include "forward/kernels/distance/distance_type.hpp"
+
 #include <Eigen/Core>
 
 namespace diffipc {
 
-enum class PointEdgeDistanceType {
-    P_E0, ///< closest to e0
-    P_E1, ///< closest to e1
-    P_E, ///< closest to the edge's interior (point-line)
-};
-
-enum class PointTriangleDistanceType {
-    P_T0,
-    P_T1,
-    P_T2,
-    P_E0, ///< point-line to (t0, t1)
-    P_E1, ///< point-line to (t1, t2)
-    P_E2, ///< point-line to (t2, t0)
-    P_T, ///< point-plane
-};
-
-enum class EdgeEdgeDistanceType {
-    EA0_EB0,
-    EA0_EB1,
-    EA1_EB0,
-    EA1_EB1,
-    EA_EB0, ///< eb0 to line a
-    EA_EB1, ///< eb1 to line a
-    EA0_EB, ///< ea0 to line b
-    EA1_EB, ///< ea1 to line b
-    EA_EB, ///< line-line
-};
+// One enum per concept, shared with the GPU path (forward/kernels/distance/distance_type.hpp).
+using kernels::EdgeEdgeDistanceType;
+using kernels::PointEdgeDistanceType;
+using kernels::PointTriangleDistanceType;
 
 /// @brief Closest-feature type of point p to segment (e0, e1), in 2D or 3D
 /// (2D points have z = 0). A degenerate edge gives P_E0.

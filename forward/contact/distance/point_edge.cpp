@@ -1,26 +1,17 @@
 #include "forward/contact/distance/point_edge.hpp"
 
-#include "forward/contact/distance/distance_kernels.hpp"
-#include "forward/contact/distance/point_line.hpp"
-#include "forward/contact/distance/point_point.hpp"
+#include "forward/kernels/distance/point_edge.hpp"
+#include "forward/kernels/eigen_bridge.hpp"
 
 namespace diffipc {
 
-using distance_kernels::scatter_gradient;
-using distance_kernels::scatter_hessian;
+using kernels::kernel_matrix;
+using kernels::kernel_vector;
+using kernels::to_vec3;
 
-double point_edge_distance(
-    const Eigen::Vector3d& p, const Eigen::Vector3d& e0, const Eigen::Vector3d& e1, PointEdgeDistanceType type)
+double point_edge_distance(const Eigen::Vector3d& p, const Eigen::Vector3d& e0, const Eigen::Vector3d& e1, PointEdgeDistanceType type)
 {
-    switch (type) {
-    case PointEdgeDistanceType::P_E0:
-        return point_point_distance(p, e0);
-    case PointEdgeDistanceType::P_E1:
-        return point_point_distance(p, e1);
-    case PointEdgeDistanceType::P_E:
-        return point_line_distance(p, e0, e1);
-    }
-    return 0;
+    return kernels::point_edge_distance(to_vec3(p), to_vec3(e0), to_vec3(e1), type);
 }
 
 double point_edge_distance(const Eigen::Vector3d& p, const Eigen::Vector3d& e0, const Eigen::Vector3d& e1)
@@ -28,42 +19,22 @@ double point_edge_distance(const Eigen::Vector3d& p, const Eigen::Vector3d& e0, 
     return point_edge_distance(p, e0, e1, point_edge_distance_type(p, e0, e1));
 }
 
-Eigen::Matrix<double, 9, 1> point_edge_distance_gradient(
-    const Eigen::Vector3d& p, const Eigen::Vector3d& e0, const Eigen::Vector3d& e1, PointEdgeDistanceType type)
+Eigen::Matrix<double, 9, 1> point_edge_distance_gradient(const Eigen::Vector3d& p, const Eigen::Vector3d& e0, const Eigen::Vector3d& e1, PointEdgeDistanceType type)
 {
-    switch (type) {
-    case PointEdgeDistanceType::P_E0:
-        return scatter_gradient<3, 2>(point_point_distance_gradient(p, e0), { 0, 1 });
-    case PointEdgeDistanceType::P_E1:
-        return scatter_gradient<3, 2>(point_point_distance_gradient(p, e1), { 0, 2 });
-    case PointEdgeDistanceType::P_E:
-        return point_line_distance_gradient(p, e0, e1);
-    }
-    return Eigen::Matrix<double, 9, 1>::Zero();
+    return kernel_vector<9>([&](double* g) { kernels::point_edge_distance_gradient(to_vec3(p), to_vec3(e0), to_vec3(e1), type, g); });
 }
 
-Eigen::Matrix<double, 9, 1> point_edge_distance_gradient(
-    const Eigen::Vector3d& p, const Eigen::Vector3d& e0, const Eigen::Vector3d& e1)
+Eigen::Matrix<double, 9, 1> point_edge_distance_gradient(const Eigen::Vector3d& p, const Eigen::Vector3d& e0, const Eigen::Vector3d& e1)
 {
     return point_edge_distance_gradient(p, e0, e1, point_edge_distance_type(p, e0, e1));
 }
 
-Eigen::Matrix<double, 9, 9> point_edge_distance_hessian(
-    const Eigen::Vector3d& p, const Eigen::Vector3d& e0, const Eigen::Vector3d& e1, PointEdgeDistanceType type)
+Eigen::Matrix<double, 9, 9> point_edge_distance_hessian(const Eigen::Vector3d& p, const Eigen::Vector3d& e0, const Eigen::Vector3d& e1, PointEdgeDistanceType type)
 {
-    switch (type) {
-    case PointEdgeDistanceType::P_E0:
-        return scatter_hessian<3, 2>(point_point_distance_hessian(p, e0), { 0, 1 });
-    case PointEdgeDistanceType::P_E1:
-        return scatter_hessian<3, 2>(point_point_distance_hessian(p, e1), { 0, 2 });
-    case PointEdgeDistanceType::P_E:
-        return point_line_distance_hessian(p, e0, e1);
-    }
-    return Eigen::Matrix<double, 9, 9>::Zero();
+    return kernel_matrix<9>([&](double* H) { kernels::point_edge_distance_hessian(to_vec3(p), to_vec3(e0), to_vec3(e1), type, H); });
 }
 
-Eigen::Matrix<double, 9, 9> point_edge_distance_hessian(
-    const Eigen::Vector3d& p, const Eigen::Vector3d& e0, const Eigen::Vector3d& e1)
+Eigen::Matrix<double, 9, 9> point_edge_distance_hessian(const Eigen::Vector3d& p, const Eigen::Vector3d& e0, const Eigen::Vector3d& e1)
 {
     return point_edge_distance_hessian(p, e0, e1, point_edge_distance_type(p, e0, e1));
 }

@@ -1,97 +1,40 @@
 #include "forward/contact/distance/point_triangle.hpp"
 
-#include "forward/contact/distance/distance_kernels.hpp"
-#include "forward/contact/distance/point_line.hpp"
-#include "forward/contact/distance/point_plane.hpp"
-#include "forward/contact/distance/point_point.hpp"
+#include "forward/kernels/distance/point_triangle.hpp"
+#include "forward/kernels/eigen_bridge.hpp"
 
 namespace diffipc {
 
-using distance_kernels::scatter_gradient;
-using distance_kernels::scatter_hessian;
-using PT = PointTriangleDistanceType;
+using kernels::kernel_matrix;
+using kernels::kernel_vector;
+using kernels::to_vec3;
 
-double point_triangle_distance(const Eigen::Vector3d& p, const Eigen::Vector3d& t0, const Eigen::Vector3d& t1,
-    const Eigen::Vector3d& t2, PointTriangleDistanceType type)
+double point_triangle_distance(const Eigen::Vector3d& p, const Eigen::Vector3d& t0, const Eigen::Vector3d& t1, const Eigen::Vector3d& t2, PointTriangleDistanceType type)
 {
-    switch (type) {
-    case PT::P_T0:
-        return point_point_distance(p, t0);
-    case PT::P_T1:
-        return point_point_distance(p, t1);
-    case PT::P_T2:
-        return point_point_distance(p, t2);
-    case PT::P_E0:
-        return point_line_distance(p, t0, t1);
-    case PT::P_E1:
-        return point_line_distance(p, t1, t2);
-    case PT::P_E2:
-        return point_line_distance(p, t2, t0);
-    case PT::P_T:
-        return point_plane_distance(p, t0, t1, t2);
-    }
-    return 0;
+    return kernels::point_triangle_distance(to_vec3(p), to_vec3(t0), to_vec3(t1), to_vec3(t2), type);
 }
 
-double point_triangle_distance(
-    const Eigen::Vector3d& p, const Eigen::Vector3d& t0, const Eigen::Vector3d& t1, const Eigen::Vector3d& t2)
+double point_triangle_distance(const Eigen::Vector3d& p, const Eigen::Vector3d& t0, const Eigen::Vector3d& t1, const Eigen::Vector3d& t2)
 {
     return point_triangle_distance(p, t0, t1, t2, point_triangle_distance_type(p, t0, t1, t2));
 }
 
-Eigen::Matrix<double, 12, 1> point_triangle_distance_gradient(const Eigen::Vector3d& p, const Eigen::Vector3d& t0,
-    const Eigen::Vector3d& t1, const Eigen::Vector3d& t2, PointTriangleDistanceType type)
+Eigen::Matrix<double, 12, 1> point_triangle_distance_gradient(const Eigen::Vector3d& p, const Eigen::Vector3d& t0, const Eigen::Vector3d& t1, const Eigen::Vector3d& t2, PointTriangleDistanceType type)
 {
-    // Vertex ids in (p, t0, t1, t2) of each sub-distance's arguments.
-    switch (type) {
-    case PT::P_T0:
-        return scatter_gradient<4, 2>(point_point_distance_gradient(p, t0), { 0, 1 });
-    case PT::P_T1:
-        return scatter_gradient<4, 2>(point_point_distance_gradient(p, t1), { 0, 2 });
-    case PT::P_T2:
-        return scatter_gradient<4, 2>(point_point_distance_gradient(p, t2), { 0, 3 });
-    case PT::P_E0:
-        return scatter_gradient<4, 3>(point_line_distance_gradient(p, t0, t1), { 0, 1, 2 });
-    case PT::P_E1:
-        return scatter_gradient<4, 3>(point_line_distance_gradient(p, t1, t2), { 0, 2, 3 });
-    case PT::P_E2:
-        return scatter_gradient<4, 3>(point_line_distance_gradient(p, t2, t0), { 0, 3, 1 });
-    case PT::P_T:
-        return point_plane_distance_gradient(p, t0, t1, t2);
-    }
-    return Eigen::Matrix<double, 12, 1>::Zero();
+    return kernel_vector<12>([&](double* g) { kernels::point_triangle_distance_gradient(to_vec3(p), to_vec3(t0), to_vec3(t1), to_vec3(t2), type, g); });
 }
 
-Eigen::Matrix<double, 12, 1> point_triangle_distance_gradient(
-    const Eigen::Vector3d& p, const Eigen::Vector3d& t0, const Eigen::Vector3d& t1, const Eigen::Vector3d& t2)
+Eigen::Matrix<double, 12, 1> point_triangle_distance_gradient(const Eigen::Vector3d& p, const Eigen::Vector3d& t0, const Eigen::Vector3d& t1, const Eigen::Vector3d& t2)
 {
     return point_triangle_distance_gradient(p, t0, t1, t2, point_triangle_distance_type(p, t0, t1, t2));
 }
 
-Eigen::Matrix<double, 12, 12> point_triangle_distance_hessian(const Eigen::Vector3d& p, const Eigen::Vector3d& t0,
-    const Eigen::Vector3d& t1, const Eigen::Vector3d& t2, PointTriangleDistanceType type)
+Eigen::Matrix<double, 12, 12> point_triangle_distance_hessian(const Eigen::Vector3d& p, const Eigen::Vector3d& t0, const Eigen::Vector3d& t1, const Eigen::Vector3d& t2, PointTriangleDistanceType type)
 {
-    switch (type) {
-    case PT::P_T0:
-        return scatter_hessian<4, 2>(point_point_distance_hessian(p, t0), { 0, 1 });
-    case PT::P_T1:
-        return scatter_hessian<4, 2>(point_point_distance_hessian(p, t1), { 0, 2 });
-    case PT::P_T2:
-        return scatter_hessian<4, 2>(point_point_distance_hessian(p, t2), { 0, 3 });
-    case PT::P_E0:
-        return scatter_hessian<4, 3>(point_line_distance_hessian(p, t0, t1), { 0, 1, 2 });
-    case PT::P_E1:
-        return scatter_hessian<4, 3>(point_line_distance_hessian(p, t1, t2), { 0, 2, 3 });
-    case PT::P_E2:
-        return scatter_hessian<4, 3>(point_line_distance_hessian(p, t2, t0), { 0, 3, 1 });
-    case PT::P_T:
-        return point_plane_distance_hessian(p, t0, t1, t2);
-    }
-    return Eigen::Matrix<double, 12, 12>::Zero();
+    return kernel_matrix<12>([&](double* H) { kernels::point_triangle_distance_hessian(to_vec3(p), to_vec3(t0), to_vec3(t1), to_vec3(t2), type, H); });
 }
 
-Eigen::Matrix<double, 12, 12> point_triangle_distance_hessian(
-    const Eigen::Vector3d& p, const Eigen::Vector3d& t0, const Eigen::Vector3d& t1, const Eigen::Vector3d& t2)
+Eigen::Matrix<double, 12, 12> point_triangle_distance_hessian(const Eigen::Vector3d& p, const Eigen::Vector3d& t0, const Eigen::Vector3d& t1, const Eigen::Vector3d& t2)
 {
     return point_triangle_distance_hessian(p, t0, t1, t2, point_triangle_distance_type(p, t0, t1, t2));
 }

@@ -7,7 +7,7 @@
 #include "cuda/contact/pair_barrier.cuh"
 #include "forward/materials/material.hpp"
 #include "tests/cuda/contact/contact_test_utils.hpp"
-#include "tests/cuda/contact/distance/distance_test_utils.hpp"
+#include "tests/forward/kernels/kernel_test_utils.hpp"
 
 #include <Eigen/Eigenvalues>
 
@@ -169,5 +169,5 @@ TEST(GpuPairBarrier, IntersectingPairIsInfinite)
     EXPECT_TRUE(std::isinf(gpu::pair_barrier(gpu::PairKind::VERTEX_FACE, 3, face_pair, gpu::vec3(), 0, 4e-8,
         gpu::barrier_activation(1e-3, 2e-4), nullptr, nullptr)));
     EXPECT_TRUE(std::isfinite(gpu::pair_barrier(gpu::PairKind::VERTEX_FACE, 3, face_pair, gpu::vec3(), 0, 0,
-        gpu::barrier_activation(1e-3, 0), nullptr, nullptr)));
+        gpu::barrier_activation(1e-3, 0.0), nullptr, nullptr)));
 }

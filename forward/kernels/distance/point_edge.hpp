@@ -1,31 +1,31 @@
 #pragma once
-/// @file point_edge.cuh
-/// Host and device port of forward/contact/distance/point_edge: the squared distance from a
+/// @file point_edge.hpp
+/// The squared distance from a
 /// point to a segment for a closest-feature type (point-point to an endpoint, point-line to the
 /// interior), with gradient and Hessian. Derivatives are vertex-major in argument order
 /// (p, e0, e1), xyz per vertex, zeros for vertices the type does not involve; Hessians row-major.
 
-#include "cuda/contact/distance/distance_type.cuh"
+#include "forward/kernels/distance/distance_type.hpp"
 
-namespace diffipc::gpu {
+namespace diffipc::kernels {
 
 /// @brief Squared distance from p to the segment (e0, e1) for `type` (m^2).
-DIFFIPC_HD inline double point_edge_distance(const vec3& p, const vec3& e0, const vec3& e1, PointEdgeDistanceType type)
+template <class T> DIFFIPC_HD inline T point_edge_distance(const Vec3<T>& p, const Vec3<T>& e0, const Vec3<T>& e1, PointEdgeDistanceType type)
 {
     return distance_type_detail::point_edge_distance(p, e0, e1, type);
 }
 
 /// @brief Squared distance from p to the segment (e0, e1), classifying first.
-DIFFIPC_HD inline double point_edge_distance(const vec3& p, const vec3& e0, const vec3& e1)
+template <class T> DIFFIPC_HD inline T point_edge_distance(const Vec3<T>& p, const Vec3<T>& e0, const Vec3<T>& e1)
 {
     return point_edge_distance(p, e0, e1, point_edge_distance_type(p, e0, e1));
 }
 
 /// @brief Gradient of point_edge_distance for `type`. @param g out: 9 (d/dp, d/de0, d/de1), m
-DIFFIPC_HD inline void point_edge_distance_gradient(
-    const vec3& p, const vec3& e0, const vec3& e1, PointEdgeDistanceType type, double* g)
+template <class T> DIFFIPC_HD inline void point_edge_distance_gradient(
+    const Vec3<T>& p, const Vec3<T>& e0, const Vec3<T>& e1, PointEdgeDistanceType type, T* g)
 {
-    double local[6];
+    T local[6];
     switch (type) {
     case PointEdgeDistanceType::P_E0: {
         const int ids[2] = { 0, 1 };
@@ -48,10 +48,10 @@ DIFFIPC_HD inline void point_edge_distance_gradient(
 }
 
 /// @brief Hessian of point_edge_distance for `type`. @param H out: 9 x 9 row-major, ordered (p, e0, e1)
-DIFFIPC_HD inline void point_edge_distance_hessian(
-    const vec3& p, const vec3& e0, const vec3& e1, PointEdgeDistanceType type, double* H)
+template <class T> DIFFIPC_HD inline void point_edge_distance_hessian(
+    const Vec3<T>& p, const Vec3<T>& e0, const Vec3<T>& e1, PointEdgeDistanceType type, T* H)
 {
-    double local[36];
+    T local[36];
     switch (type) {
     case PointEdgeDistanceType::P_E0: {
         const int ids[2] = { 0, 1 };
@@ -73,4 +73,4 @@ DIFFIPC_HD inline void point_edge_distance_hessian(
         H[k] = 0;
 }
 
-} // namespace diffipc::gpu
+} // namespace diffipc::kernels

@@ -1,20 +1,20 @@
 #pragma once
-/// @file edge_edge.cuh
-/// Host and device port of forward/contact/distance/edge_edge: the squared distance between two
+/// @file edge_edge.hpp
+/// The squared distance between two
 /// segments for a closest-feature type (point-point between end points, point-line from an end
 /// point to the other edge's interior, or line-line), with gradient and Hessian. Derivatives are
 /// vertex-major in argument order (ea0, ea1, eb0, eb1), xyz per vertex, zeros for vertices the
 /// type does not involve; Hessians row-major. Multiply the barrier by the edge-edge mollifier
-/// (edge_edge_mollifier.cuh) where the edges are nearly parallel.
+/// (edge_edge_mollifier.hpp) where the edges are nearly parallel.
 
-#include "cuda/contact/distance/distance_type.cuh"
-#include "cuda/contact/distance/line_line.cuh"
+#include "forward/kernels/distance/distance_type.hpp"
+#include "forward/kernels/distance/line_line.hpp"
 
-namespace diffipc::gpu {
+namespace diffipc::kernels {
 
 namespace edge_edge_detail {
     /// The sub-distance of each type: its kind (0 point-point, 1 point-line, 2 line-line) and the
-    /// ids in (ea0, ea1, eb0, eb1) of its arguments, in the CPU's argument order.
+    /// ids in (ea0, ea1, eb0, eb1) of its arguments, in argument order.
     struct SubDistance {
         int kind;
         int ids[3];
@@ -47,10 +47,10 @@ namespace edge_edge_detail {
 } // namespace edge_edge_detail
 
 /// @brief Squared distance between the segments (ea0, ea1) and (eb0, eb1) for `type` (m^2).
-DIFFIPC_HD inline double edge_edge_distance(
-    const vec3& ea0, const vec3& ea1, const vec3& eb0, const vec3& eb1, EdgeEdgeDistanceType type)
+template <class T> DIFFIPC_HD inline T edge_edge_distance(
+    const Vec3<T>& ea0, const Vec3<T>& ea1, const Vec3<T>& eb0, const Vec3<T>& eb1, EdgeEdgeDistanceType type)
 {
-    const vec3* v[4] = { &ea0, &ea1, &eb0, &eb1 };
+    const Vec3<T>* v[4] = { &ea0, &ea1, &eb0, &eb1 };
     const edge_edge_detail::SubDistance sub = edge_edge_detail::sub_distance(type);
     if (sub.kind == 0)
         return point_point_distance(*v[sub.ids[0]], *v[sub.ids[1]]);
@@ -60,18 +60,18 @@ DIFFIPC_HD inline double edge_edge_distance(
 }
 
 /// @brief Squared distance between the segments, classifying first.
-DIFFIPC_HD inline double edge_edge_distance(const vec3& ea0, const vec3& ea1, const vec3& eb0, const vec3& eb1)
+template <class T> DIFFIPC_HD inline T edge_edge_distance(const Vec3<T>& ea0, const Vec3<T>& ea1, const Vec3<T>& eb0, const Vec3<T>& eb1)
 {
     return edge_edge_distance(ea0, ea1, eb0, eb1, edge_edge_distance_type(ea0, ea1, eb0, eb1));
 }
 
 /// @brief Gradient of edge_edge_distance for `type`. @param g out: 12 (d/dea0, d/dea1, d/deb0, d/deb1), m
-DIFFIPC_HD inline void edge_edge_distance_gradient(
-    const vec3& ea0, const vec3& ea1, const vec3& eb0, const vec3& eb1, EdgeEdgeDistanceType type, double* g)
+template <class T> DIFFIPC_HD inline void edge_edge_distance_gradient(
+    const Vec3<T>& ea0, const Vec3<T>& ea1, const Vec3<T>& eb0, const Vec3<T>& eb1, EdgeEdgeDistanceType type, T* g)
 {
-    const vec3* v[4] = { &ea0, &ea1, &eb0, &eb1 };
+    const Vec3<T>* v[4] = { &ea0, &ea1, &eb0, &eb1 };
     const edge_edge_detail::SubDistance sub = edge_edge_detail::sub_distance(type);
-    double local[9];
+    T local[9];
     if (sub.kind == 0) {
         point_point_distance_gradient(*v[sub.ids[0]], *v[sub.ids[1]], local);
         distance_kernels::scatter_gradient<4, 2>(local, sub.ids, g);
@@ -83,12 +83,12 @@ DIFFIPC_HD inline void edge_edge_distance_gradient(
 }
 
 /// @brief Hessian of edge_edge_distance for `type`. @param H out: 12 x 12 row-major, ordered (ea0, ea1, eb0, eb1)
-DIFFIPC_HD inline void edge_edge_distance_hessian(
-    const vec3& ea0, const vec3& ea1, const vec3& eb0, const vec3& eb1, EdgeEdgeDistanceType type, double* H)
+template <class T> DIFFIPC_HD inline void edge_edge_distance_hessian(
+    const Vec3<T>& ea0, const Vec3<T>& ea1, const Vec3<T>& eb0, const Vec3<T>& eb1, EdgeEdgeDistanceType type, T* H)
 {
-    const vec3* v[4] = { &ea0, &ea1, &eb0, &eb1 };
+    const Vec3<T>* v[4] = { &ea0, &ea1, &eb0, &eb1 };
     const edge_edge_detail::SubDistance sub = edge_edge_detail::sub_distance(type);
-    double local[81];
+    T local[81];
     if (sub.kind == 0) {
         point_point_distance_hessian(*v[sub.ids[0]], *v[sub.ids[1]], local);
         distance_kernels::scatter_hessian<4, 2>(local, sub.ids, H);
@@ -99,4 +99,4 @@ DIFFIPC_HD inline void edge_edge_distance_hessian(
         line_line_distance_hessian(ea0, ea1, eb0, eb1, H);
 }
 
-} // namespace diffipc::gpu
+} // namespace diffipc::kernels

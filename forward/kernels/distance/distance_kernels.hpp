@@ -1,34 +1,25 @@
 #pragma once
-/// @file distance_kernels.cuh
-/// Host and device port of forward/contact/distance/distance_kernels: the rational functions
-/// behind every squared distance, in difference vectors (r = p - e0, a = t1 - t0, ...), and the
-/// maps that carry their derivatives back to vertex-major coordinates. Every expression is the
-/// CPU's, evaluated in the CPU's order (vec3.cuh rounds like Eigen::Vector3d, products of a
-/// scaled vector and a transposed vector like Eigen's outer products), so that the host build of
-/// this header gives the CPU's values bit for bit.
+/// @file distance_kernels.hpp
+/// The rational functions behind every squared distance, written in difference vectors
+/// (r = p - e0, a = t1 - t0, ...), where their derivatives are short, and the maps that carry
+/// those derivatives back to vertex-major coordinates. Internal to forward/kernels/distance
+/// (include the distance headers instead).
+///
+/// Why difference vectors: every distance is translation invariant, so its vertex derivatives
+/// are a fixed +-1 combination of the derivatives in 2 or 3 edge vectors. Differentiating in the
+/// edge vectors keeps the closed forms small (the cross products stay intact, which also keeps
+/// them accurate when the distance is tiny) and the pull-back is a handful of 3x3 block copies.
 ///
 /// Layouts: K stacked difference vectors have a 3K gradient and a 3K by 3K Hessian, row-major
 /// (H[r * 3K + c]); a pulled-back derivative is vertex-major over K + 1 vertices, xyz each.
-/// Internal to cuda/contact/distance (include the distance headers instead).
 
-#include "cuda/common/vec3.cuh"
+#include "forward/kernels/vec3.hpp"
 
-namespace diffipc::gpu::distance_kernels {
-
-/// Component i (0, 1, 2) of v.
-DIFFIPC_HD inline double component(const vec3& v, int i) { return i == 0 ? v.x : i == 1 ? v.y : v.z; }
-
-/// Writes v into g[0..2].
-DIFFIPC_HD inline void store(const vec3& v, double* g)
-{
-    g[0] = v.x;
-    g[1] = v.y;
-    g[2] = v.z;
-}
+namespace diffipc::kernels::distance_kernels {
 
 /// @brief Adds the cross-product matrix [v]x to the 3x3 block (i, j) of the row-major n by n
-/// matrix H and its transpose -[v]x to the block (j, i) (the CPU's add_cross_matrix).
-DIFFIPC_HD inline void add_cross_matrix(double* H, int n, int i, int j, const vec3& v)
+/// matrix H (so that [v]x w = v x w) and its transpose -[v]x to the block (j, i).
+template <class T> DIFFIPC_HD inline void add_cross_matrix(T* H, int n, int i, int j, const Vec3<T>& v)
 {
     H[(i + 0) * n + j + 1] -= v.z;
     H[(i + 0) * n + j + 2] += v.y;
@@ -46,24 +37,26 @@ DIFFIPC_HD inline void add_cross_matrix(double* H, int n, int i, int j, const ve
 
 /// @brief \f$ |a \times b|^2 \f$ with gradient and Hessian in the stacked (a, b).
 /// @param grad 6, or nullptr; @param hess 6 x 6 row-major, or nullptr
-DIFFIPC_HD inline double cross_squarednorm(const vec3& a, const vec3& b, double* grad, double* hess)
+template <class T> DIFFIPC_HD inline T cross_squarednorm(const Vec3<T>& a, const Vec3<T>& b, non_deduced<T>* grad, non_deduced<T>* hess)
 {
-    const vec3 n = cross(a, b);
+    const Vec3<T> n = cross(a, b);
     if (grad) {
-        // With n rather than 2 a |b|^2 - 2 (a.b) b, which cancels for nearly parallel a and b.
+        // Written with n rather than as 2 a |b|^2 - 2 (a.b) b: the expanded form cancels
+        // catastrophically when a and b are nearly parallel, exactly where the mollifier needs
+        // this gradient.
         store(2.0 * cross(b, n), grad);
         store(2.0 * cross(n, a), grad + 3);
     }
     if (hess) {
-        const double bb = squared_norm(b), aa = squared_norm(a), ab = dot(a, b);
+        const T bb = squared_norm(b), aa = squared_norm(a), ab = dot(a, b);
         for (int i = 0; i < 3; ++i)
             for (int j = 0; j < 3; ++j) {
-                const double ai = component(a, i), aj = component(a, j);
-                const double bi = component(b, i), bj = component(b, j);
+                const T ai = component(a, i), aj = component(a, j);
+                const T bi = component(b, i), bj = component(b, j);
                 hess[i * 6 + j] = 2 * ((i == j ? bb : 0.0) - bi * bj);
                 hess[(3 + i) * 6 + 3 + j] = 2 * ((i == j ? aa : 0.0) - ai * aj);
                 // 4 a b^T - 2 b a^T - 2 (a.b) I, and its transpose below the diagonal
-                const double v = (4 * ai) * bj - (2 * bi) * aj - (i == j ? 2 * ab : 0.0);
+                const T v = (4 * ai) * bj - (2 * bi) * aj - (i == j ? 2 * ab : 0.0);
                 hess[i * 6 + 3 + j] = v;
                 hess[(3 + j) * 6 + i] = v;
             }
@@ -77,16 +70,16 @@ DIFFIPC_HD inline double cross_squarednorm(const vec3& a, const vec3& b, double*
 
 /// @brief \f$ |r \times e|^2 / |e|^2 \f$ with derivatives in the stacked (r, e). Requires e != 0.
 /// @param grad 6, or nullptr; @param hess 6 x 6 row-major, or nullptr
-DIFFIPC_HD inline double point_line(const vec3& r, const vec3& e, double* grad, double* hess)
+template <class T> DIFFIPC_HD inline T point_line(const Vec3<T>& r, const Vec3<T>& e, non_deduced<T>* grad, non_deduced<T>* hess)
 {
-    double gN[6];
-    const double N = cross_squarednorm(r, e, (grad || hess) ? gN : nullptr, hess);
-    const double D = squared_norm(e);
-    const double d = N / D;
+    T gN[6];
+    const T N = cross_squarednorm(r, e, (grad || hess) ? gN : nullptr, hess);
+    const T D = squared_norm(e);
+    const T d = N / D;
     if (!grad && !hess)
         return d;
     // grad D = (0, 2 e), hess D = diag(0, 2 I).
-    double gd[6];
+    T gd[6];
     for (int k = 0; k < 6; ++k)
         gd[k] = gN[k];
     for (int i = 0; i < 3; ++i)
@@ -97,7 +90,7 @@ DIFFIPC_HD inline double point_line(const vec3& r, const vec3& e, double* grad, 
         for (int k = 0; k < 6; ++k)
             grad[k] = gd[k];
     if (hess) {
-        double* H = hess; // holds hess N
+        T* H = hess; // holds hess N
         for (int i = 0; i < 3; ++i)
             H[(3 + i) * 6 + 3 + i] -= 2 * d;
         // H.block<6, 3>(0, 3) -= gd (2 e)^T, then H.block<3, 6>(3, 0) -= (2 e) gd^T.
@@ -116,28 +109,36 @@ DIFFIPC_HD inline double point_line(const vec3& r, const vec3& e, double* grad, 
 /// @brief \f$ (r \cdot (a \times b))^2 / |a \times b|^2 \f$ with derivatives in the stacked
 /// (r, a, b). Point-plane and line-line distances are both this function. Requires a x b != 0.
 /// @param grad 9, or nullptr; @param hess 9 x 9 row-major, or nullptr
-DIFFIPC_HD inline double point_plane(const vec3& r, const vec3& a, const vec3& b, double* grad, double* hess)
+template <class T> DIFFIPC_HD inline T point_plane(const Vec3<T>& r, const Vec3<T>& a, const Vec3<T>& b, non_deduced<T>* grad, non_deduced<T>* hess)
 {
-    // h = r . (a x b) with r's component along a removed, which keeps h accurate for nearly
-    // parallel a and b (the CPU kernel says why).
-    const double alpha = dot(r, a) / squared_norm(a);
-    const vec3 r_perp = r - alpha * a;
-    const vec3 n = cross(a, b);
-    const double D = squared_norm(n);
-    const double h = dot(r_perp, n); // triple product [r, a, b]
-    const double d = h * h / D;
+    // h = r . (a x b) is unchanged by removing r's component along a (n is orthogonal to a), and
+    // the removal keeps h accurate for nearly parallel a and b: n = a x b is rounded by
+    // ~eps |a| |b| in every direction, also within the plane of a and b, where r has an O(|r|)
+    // component but r_perp only its offset across a, which is O(angle) wherever the closest
+    // points lie inside both edges (where line-line is used). Dotting with r makes the relative
+    // error of the distance grow like eps |r| / (distance angle); NearlyParallelLines in
+    // tests/forward/kernels/distance/test_line_line.cpp checks the value.
+    const T alpha = dot(r, a) / squared_norm(a);
+    const Vec3<T> r_perp = r - alpha * a;
+    const Vec3<T> n = cross(a, b);
+    const T D = squared_norm(n);
+    const T h = dot(r_perp, n); // triple product [r, a, b]
+    const T d = h * h / D;
     if (!grad && !hess)
         return d;
 
-    double gh[9]; // gradient of the triple product
+    T gh[9]; // gradient of the triple product
     store(n, gh);
     store(cross(b, r_perp) - alpha * n, gh + 3);
     store(cross(r_perp, a), gh + 6);
-    double gD_ab[6];
-    double HD_ab[36];
+    T gD_ab[6];
+    T HD_ab[36];
     cross_squarednorm(a, b, gD_ab, hess ? HD_ab : nullptr);
 
-    // hess d = (2 / D) y y^T + (2 h hess h - d hess D) / D,  y = grad h - (h / D) grad D.
+    // D does not depend on r. With the quotient rule above and
+    // grad d = (2 h grad h - d grad D) / D substituted, the Hessian collapses to
+    //   hess d = (2 / D) y y^T + (2 h hess h - d hess D) / D,  y = grad h - (h / D) grad D,
+    // one outer product instead of three.
     if (grad) {
         for (int k = 0; k < 9; ++k)
             grad[k] = (2 * h / D) * gh[k];
@@ -145,17 +146,17 @@ DIFFIPC_HD inline double point_plane(const vec3& r, const vec3& a, const vec3& b
             grad[3 + k] -= (d / D) * gD_ab[k];
     }
     if (hess) {
-        double y[9];
+        T y[9];
         for (int k = 0; k < 9; ++k)
             y[k] = gh[k];
         for (int k = 0; k < 6; ++k)
             y[3 + k] -= (h / D) * gD_ab[k];
-        double* H = hess;
+        T* H = hess;
         for (int i = 0; i < 9; ++i)
             for (int j = 0; j < 9; ++j)
                 H[i * 9 + j] = ((2 / D) * y[i]) * y[j];
         // The triple product is trilinear: d2h/dr da = -[b]x, d2h/dr db = [a]x, d2h/da db = -[r]x.
-        const double c = 2 * h / D;
+        const T c = 2 * h / D;
         add_cross_matrix(H, 9, 0, 3, -c * b);
         add_cross_matrix(H, 9, 0, 6, c * a);
         add_cross_matrix(H, 9, 3, 6, -c * r);
@@ -167,11 +168,11 @@ DIFFIPC_HD inline double point_plane(const vec3& r, const vec3& a, const vec3& b
 }
 
 /// @brief Chain rule for kernel variables that share one vertex, x_k = X[plus[k]] - X[minus]
-/// (k < K, K + 1 vertices X): the 3(K+1) gradient (the CPU's pull_back_gradient).
+/// (k < K, K + 1 vertices X): the 3(K+1) gradient.
 /// @param g 3K, @param out 3(K+1)
-template <int K> DIFFIPC_HD inline void pull_back_gradient(const double* g, const int* plus, int minus, double* out)
+template <int K, class T> DIFFIPC_HD inline void pull_back_gradient(const T* g, const int* plus, int minus, T* out)
 {
-    double sum[3] = { 0, 0, 0 };
+    T sum[3] = { 0, 0, 0 };
     for (int k = 0; k < K; ++k)
         for (int i = 0; i < 3; ++i) {
             out[3 * plus[k] + i] = g[3 * k + i];
@@ -182,19 +183,20 @@ template <int K> DIFFIPC_HD inline void pull_back_gradient(const double* g, cons
 }
 
 /// @brief Chain rule for kernel variables that share one vertex (see pull_back_gradient): the
-/// 3(K+1) by 3(K+1) Hessian J^T H J, every block written once (the CPU's pull_back_hessian).
+/// 3(K+1) by 3(K+1) Hessian J^T H J. Every output block is written once, which measured 2-3x
+/// faster than accumulating +-H blocks into a zeroed matrix (this runs for every contact).
 /// @param H 3K by 3K row-major, @param out 3(K+1) by 3(K+1) row-major
-template <int K> DIFFIPC_HD inline void pull_back_hessian(const double* H, const int* plus, int minus, double* out)
+template <int K, class T> DIFFIPC_HD inline void pull_back_hessian(const T* H, const int* plus, int minus, T* out)
 {
     constexpr int n = 3 * K, m = 3 * (K + 1);
-    double row_sums[n * 3]; // row_sums(r, j) = sum_l H(r, 3 l + j), l increasing
+    T row_sums[n * 3]; // row_sums(r, j) = sum_l H(r, 3 l + j), l increasing
     for (int k = 0; k < n * 3; ++k)
         row_sums[k] = 0;
     for (int l = 0; l < K; ++l)
         for (int r = 0; r < n; ++r)
             for (int j = 0; j < 3; ++j)
                 row_sums[r * 3 + j] += H[r * n + 3 * l + j];
-    double total[9] = { 0, 0, 0, 0, 0, 0, 0, 0, 0 };
+    T total[9] = { 0, 0, 0, 0, 0, 0, 0, 0, 0 };
     for (int k = 0; k < K; ++k) {
         for (int l = 0; l < K; ++l)
             for (int i = 0; i < 3; ++i)
@@ -202,7 +204,7 @@ template <int K> DIFFIPC_HD inline void pull_back_hessian(const double* H, const
                     out[(3 * plus[k] + i) * m + 3 * plus[l] + j] = H[(3 * k + i) * n + 3 * l + j];
         for (int i = 0; i < 3; ++i)
             for (int j = 0; j < 3; ++j) {
-                const double S = row_sums[(3 * k + i) * 3 + j];
+                const T S = row_sums[(3 * k + i) * 3 + j];
                 out[(3 * plus[k] + i) * m + 3 * minus + j] = -S;
                 out[(3 * minus + j) * m + 3 * plus[k] + i] = -S;
                 total[i * 3 + j] += S;
@@ -215,7 +217,7 @@ template <int K> DIFFIPC_HD inline void pull_back_hessian(const double* H, const
 
 /// @brief Places the 3L gradient of a sub-distance on L of the V vertices (ids), zeros elsewhere.
 /// @param g 3L, @param out 3V
-template <int V, int L> DIFFIPC_HD inline void scatter_gradient(const double* g, const int* ids, double* out)
+template <int V, int L, class T> DIFFIPC_HD inline void scatter_gradient(const T* g, const int* ids, T* out)
 {
     for (int k = 0; k < 3 * V; ++k)
         out[k] = 0;
@@ -226,7 +228,7 @@ template <int V, int L> DIFFIPC_HD inline void scatter_gradient(const double* g,
 
 /// @brief Places the 3L by 3L Hessian of a sub-distance on L of the V vertices (ids), zeros elsewhere.
 /// @param H 3L by 3L row-major, @param out 3V by 3V row-major
-template <int V, int L> DIFFIPC_HD inline void scatter_hessian(const double* H, const int* ids, double* out)
+template <int V, int L, class T> DIFFIPC_HD inline void scatter_hessian(const T* H, const int* ids, T* out)
 {
     constexpr int n = 3 * L, m = 3 * V;
     for (int k = 0; k < m * m; ++k)
@@ -238,4 +240,4 @@ template <int V, int L> DIFFIPC_HD inline void scatter_hessian(const double* H, 
                     out[(3 * ids[a] + i) * m + 3 * ids[b] + j] = H[(3 * a + i) * n + 3 * b + j];
 }
 
-} // namespace diffipc::gpu::distance_kernels
+} // namespace diffipc::kernels::distance_kernels

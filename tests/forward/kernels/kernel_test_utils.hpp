@@ -1,8 +1,9 @@
 #pragma once
-// Helpers for the tests of the GPU distance ports (cuda/contact/distance): point quadruples, random
-// and degenerate, and comparisons of the ports' row-major arrays with the CPU's Eigen results.
+// Helpers for the tests of the shared kernels (forward/kernels/) and of the GPU code that calls them:
+// point quadruples, random and degenerate, and comparisons of the kernels' row-major arrays with
+// Eigen results.
 
-#include "cuda/common/vec3.cuh"
+#include "forward/kernels/vec3.hpp"
 
 #include <Eigen/Core>
 #include <gtest/gtest.h>
@@ -19,7 +20,7 @@ namespace diffipc::test {
 
 using Quad = std::array<Eigen::Vector3d, 4>;
 
-inline gpu::vec3 to_gpu(const Eigen::Vector3d& v) { return gpu::vec3(v.x(), v.y(), v.z()); }
+inline kernels::vec3 to_gpu(const Eigen::Vector3d& v) { return kernels::vec3(v.x(), v.y(), v.z()); }
 
 /// Hand-made degenerate configurations, read as (p, e0, e1, -), (p, t0, t1, t2) or
 /// (ea0, ea1, eb0, eb1): points on an edge's line and on its ends, degenerate edges, points in a

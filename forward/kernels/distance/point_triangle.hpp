@@ -1,19 +1,19 @@
 #pragma once
-/// @file point_triangle.cuh
-/// Host and device port of forward/contact/distance/point_triangle: the squared distance from a
+/// @file point_triangle.hpp
+/// The squared distance from a
 /// point to a triangle for a closest-feature type (point-point to a corner, point-line to an
 /// edge E0 = (t0, t1), E1 = (t1, t2), E2 = (t2, t0), or point-plane), with gradient and Hessian.
 /// Derivatives are vertex-major in argument order (p, t0, t1, t2), xyz per vertex, zeros for
 /// vertices the type does not involve; Hessians row-major.
 
-#include "cuda/contact/distance/distance_type.cuh"
-#include "cuda/contact/distance/point_plane.cuh"
+#include "forward/kernels/distance/distance_type.hpp"
+#include "forward/kernels/distance/point_plane.hpp"
 
-namespace diffipc::gpu {
+namespace diffipc::kernels {
 
 /// @brief Squared distance from p to the triangle (t0, t1, t2) for `type` (m^2).
-DIFFIPC_HD inline double point_triangle_distance(
-    const vec3& p, const vec3& t0, const vec3& t1, const vec3& t2, PointTriangleDistanceType type)
+template <class T> DIFFIPC_HD inline T point_triangle_distance(
+    const Vec3<T>& p, const Vec3<T>& t0, const Vec3<T>& t1, const Vec3<T>& t2, PointTriangleDistanceType type)
 {
     using PT = PointTriangleDistanceType;
     switch (type) {
@@ -36,18 +36,18 @@ DIFFIPC_HD inline double point_triangle_distance(
 }
 
 /// @brief Squared distance from p to the triangle (t0, t1, t2), classifying first.
-DIFFIPC_HD inline double point_triangle_distance(const vec3& p, const vec3& t0, const vec3& t1, const vec3& t2)
+template <class T> DIFFIPC_HD inline T point_triangle_distance(const Vec3<T>& p, const Vec3<T>& t0, const Vec3<T>& t1, const Vec3<T>& t2)
 {
     return point_triangle_distance(p, t0, t1, t2, point_triangle_distance_type(p, t0, t1, t2));
 }
 
 /// @brief Gradient of point_triangle_distance for `type`. @param g out: 12 (d/dp, d/dt0, d/dt1, d/dt2), m
-DIFFIPC_HD inline void point_triangle_distance_gradient(
-    const vec3& p, const vec3& t0, const vec3& t1, const vec3& t2, PointTriangleDistanceType type, double* g)
+template <class T> DIFFIPC_HD inline void point_triangle_distance_gradient(
+    const Vec3<T>& p, const Vec3<T>& t0, const Vec3<T>& t1, const Vec3<T>& t2, PointTriangleDistanceType type, T* g)
 {
     using PT = PointTriangleDistanceType;
     using distance_kernels::scatter_gradient;
-    double local[9];
+    T local[9];
     // Vertex ids in (p, t0, t1, t2) of each sub-distance's arguments.
     switch (type) {
     case PT::P_T0: {
@@ -95,12 +95,12 @@ DIFFIPC_HD inline void point_triangle_distance_gradient(
 }
 
 /// @brief Hessian of point_triangle_distance for `type`. @param H out: 12 x 12 row-major, ordered (p, t0, t1, t2)
-DIFFIPC_HD inline void point_triangle_distance_hessian(
-    const vec3& p, const vec3& t0, const vec3& t1, const vec3& t2, PointTriangleDistanceType type, double* H)
+template <class T> DIFFIPC_HD inline void point_triangle_distance_hessian(
+    const Vec3<T>& p, const Vec3<T>& t0, const Vec3<T>& t1, const Vec3<T>& t2, PointTriangleDistanceType type, T* H)
 {
     using PT = PointTriangleDistanceType;
     using distance_kernels::scatter_hessian;
-    double local[81];
+    T local[81];
     switch (type) {
     case PT::P_T0: {
         const int ids[2] = { 0, 1 };
@@ -146,4 +146,4 @@ DIFFIPC_HD inline void point_triangle_distance_hessian(
         H[k] = 0;
 }
 
-} // namespace diffipc::gpu
+} // namespace diffipc::kernels
