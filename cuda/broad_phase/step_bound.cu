@@ -1,10 +1,10 @@
 #include "cuda/broad_phase/step_bound.hpp"
 #include "cuda/common/device_event.hpp"
 
-#include "cuda/broad_phase/point_plane_ccd.cuh"
 #include "cuda/ccd/ccd.cuh"
 #include "cuda/common/device.hpp"
 #include "forward/common/error.hpp" // header-only, standard library only: InputError, format_number
+#include "forward/contact/ccd/check_ccd_settings.hpp" // header-only too
 
 #include <cuda_runtime.h>
 

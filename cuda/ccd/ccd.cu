@@ -3,7 +3,8 @@
 #include "cuda/common/device.hpp"
 #include "cuda/common/device_event.hpp"
 #include "cuda/linalg/device_array.hpp"
-#include "forward/common/error.hpp" // header-only, standard library only: the CPU CCD's InputError
+#include "forward/common/error.hpp" // header-only, standard library only
+#include "forward/contact/ccd/check_ccd_settings.hpp" // header-only too
 
 #include <cuda_runtime.h>
 
@@ -30,23 +31,6 @@ namespace gpu {
         }
 
     } // namespace
-
-    void check_ccd_settings(const CCDSettings& s)
-    {
-        // The CPU's check_settings (forward/contact/ccd/ccd.cpp), same fields and messages.
-        if (!(s.min_distance >= 0) || !is_finite(s.min_distance))
-            throw InputError("ccd.min_distance", "must be finite and >= 0, got " + format_number(s.min_distance));
-        if (!(s.conservative_rescaling > 0 && s.conservative_rescaling < 1))
-            throw InputError("ccd.conservative_rescaling",
-                "must be in (0, 1) (0.9 is usual), got " + format_number(s.conservative_rescaling));
-        if (!(s.t_max >= 0) || !is_finite(s.t_max))
-            throw InputError("ccd.t_max", "must be finite and >= 0, got " + format_number(s.t_max));
-        if (!(s.refine_tolerance > 0) || !is_finite(s.refine_tolerance))
-            throw InputError(
-                "ccd.refine_tolerance", "must be finite and > 0, got " + format_number(s.refine_tolerance));
-        if (s.max_iterations < 1)
-            throw InputError("ccd.max_iterations", "must be >= 1, got " + std::to_string(s.max_iterations));
-    }
 
     std::vector<CCDResult> ccd_batch(CCDKind kind, const double* vertices, std::size_t n_queries,
         const CCDSettings& settings, CCDBatchTiming* timing)

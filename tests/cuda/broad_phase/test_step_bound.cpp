@@ -5,7 +5,6 @@
 // (no GPU needed). A disabled test times the GPU broad phase and step bound against the CPU's on two slabs of
 // about 200k tetrahedra (run it with --gtest_also_run_disabled_tests).
 
-#include "cuda/broad_phase/point_plane_ccd.cuh"
 #include "tests/cuda/broad_phase/broad_phase_test_utils.hpp"
 
 #include "cuda/linalg/device_array.hpp"

@@ -9,6 +9,7 @@
 
 #include "forward/common/error.hpp"
 #include "forward/contact/ccd/ccd.hpp"
+#include "forward/contact/ccd/check_ccd_settings.hpp"
 #include "forward/contact/ccd/ccd_sample_queries.hpp"
 
 #include <gtest/gtest.h>
@@ -52,17 +53,6 @@ std::vector<std::string> sample_query_folders()
     return folders;
 }
 
-gpu::CCDSettings to_gpu(const CCDSettings& s)
-{
-    gpu::CCDSettings g;
-    g.min_distance = s.min_distance;
-    g.conservative_rescaling = s.conservative_rescaling;
-    g.max_iterations = s.max_iterations;
-    g.t_max = s.t_max;
-    g.refine = s.refine;
-    g.refine_tolerance = s.refine_tolerance;
-    return g;
-}
 
 std::uint64_t bits(double x)
 {
@@ -233,7 +223,7 @@ Comparison compare(
 
 std::vector<gpu::CCDResult> run_on_host(const Batch& b, const CCDSettings& s)
 {
-    const gpu::CCDSettings g = to_gpu(s);
+    const gpu::CCDSettings g = (s);
     std::vector<gpu::CCDResult> results;
     for (std::size_t q = 0; q < b.size(); ++q)
         results.push_back(gpu::ccd_query(b.kind, b.query(q), g));
@@ -413,7 +403,7 @@ TEST(GpuCCDHost, SampleQueriesGiveTheCPUResultsBitForBit)
 TEST(GpuCCDHost, DegenerateCasesGiveTheCPUResultsBitForBit)
 {
     for (const Case& c : degenerate_cases())
-        check_case(c, gpu::ccd_query(c.kind, flatten(c.x).data(), to_gpu(c.settings)), "host");
+        check_case(c, gpu::ccd_query(c.kind, flatten(c.x).data(), (c.settings)), "host");
 }
 
 TEST(GpuCCDHost, SettingsAreCheckedLikeTheCPU)
@@ -434,11 +424,11 @@ TEST(GpuCCDHost, SettingsAreCheckedLikeTheCPU)
     };
     const std::vector<double> query(24, 0.0);
     for (const gpu::CCDSettings& s : bad) {
-        EXPECT_THROW(gpu::check_ccd_settings(s), InputError);
+        EXPECT_THROW(check_ccd_settings(s), InputError);
         // Checked before any device call, so this holds without a GPU too.
         EXPECT_THROW(gpu::ccd_batch(gpu::CCDKind::POINT_TRIANGLE, query.data(), 1, s), InputError);
     }
-    EXPECT_NO_THROW(gpu::check_ccd_settings(gpu::CCDSettings()));
+    EXPECT_NO_THROW(check_ccd_settings(gpu::CCDSettings()));
     EXPECT_TRUE(gpu::ccd_batch(gpu::CCDKind::EDGE_EDGE, nullptr, 0, {}).empty()); // no device call
     if (!gpu::cuda_device_available()) {
         try {
@@ -471,7 +461,7 @@ TEST(GpuCCD, SampleQueriesGiveTheCPUResultsBitForBit)
         for (Batch& b : batches) {
             run_cpu(b, settings);
             gpu::CCDBatchTiming timing;
-            const auto results = gpu::ccd_batch(b.kind, b.vertices.data(), b.size(), to_gpu(settings), &timing);
+            const auto results = gpu::ccd_batch(b.kind, b.vertices.data(), b.size(), (settings), &timing);
             const Comparison c = compare(b, results, settings, std::string("GPU, ") + name);
             print("GPU", b, name, c, &timing);
             EXPECT_EQ(c.false_negatives, 0);
@@ -483,7 +473,7 @@ TEST(GpuCCD, DegenerateCasesGiveTheCPUResultsBitForBit)
 {
     SKIP_WITHOUT_GPU();
     for (const Case& c : degenerate_cases()) {
-        const auto r = gpu::ccd_batch(c.kind, flatten(c.x).data(), 1, to_gpu(c.settings));
+        const auto r = gpu::ccd_batch(c.kind, flatten(c.x).data(), 1, (c.settings));
         ASSERT_EQ(r.size(), 1u);
         check_case(c, r[0], "GPU");
     }

@@ -1,14 +1,15 @@
 // Conservative CCD: the sample-query benchmark against its exact ground truth,
 // hand-made trajectories with known times of impact, a randomized comparison
 // with densely sampled distances, and the certified distance lower bounds
-// (forward/contact/ccd/distance_lower_bound.hpp) on configurations whose exact
+// (forward/kernels/ccd/distance_lower_bound.hpp) on configurations whose exact
 // distance is known. Independent distances come from forward/contact/distance.
 
 #include "forward/common/error.hpp"
 #include "forward/contact/ccd/ccd.hpp"
 #include "forward/contact/ccd/ccd_sample_queries.hpp"
-#include "forward/contact/ccd/distance_lower_bound.hpp"
 #include "forward/contact/distance/distance.hpp"
+#include "forward/kernels/ccd/distance_lower_bound.hpp"
+#include "forward/kernels/eigen_bridge.hpp"
 
 #include <gtest/gtest.h>
 
@@ -31,6 +32,25 @@ namespace {
 const std::string kSampleQueries = DIFFIPC_SOURCE_DIR "/tests/data/ccd-sample-queries";
 
 V lerp(const V& a, const V& b, double t) { return a + t * (b - a); }
+
+// The certified lower bounds under test, on Eigen points.
+using kernels::to_vec3;
+double point_point_distance_lower_bound(const V& p0, const V& p1)
+{
+    return kernels::point_point_distance_lower_bound(to_vec3(p0), to_vec3(p1));
+}
+double point_edge_distance_lower_bound(const V& p, const V& e0, const V& e1)
+{
+    return kernels::point_edge_distance_lower_bound(to_vec3(p), to_vec3(e0), to_vec3(e1));
+}
+double point_triangle_distance_lower_bound(const V& p, const V& t0, const V& t1, const V& t2)
+{
+    return kernels::point_triangle_distance_lower_bound(to_vec3(p), to_vec3(t0), to_vec3(t1), to_vec3(t2));
+}
+double edge_edge_distance_lower_bound(const V& ea0, const V& ea1, const V& eb0, const V& eb1)
+{
+    return kernels::edge_edge_distance_lower_bound(to_vec3(ea0), to_vec3(ea1), to_vec3(eb0), to_vec3(eb1));
+}
 
 // Independent (unsquared) distances.
 double pt_distance(const V& p, const V& t0, const V& t1, const V& t2)
