@@ -3,7 +3,7 @@
 /// Lagged smoothed Coulomb friction on the GPU: the device twin of FrictionPotential
 /// (forward/contact/friction/friction_potential.hpp) for the lagged data of one Newton solve,
 /// D(x) = sum_k mu_k lambda_k f0(|u_k|), u_k = T_k^T sum_i gamma_ki (x_i - x0_i), with each pair's
-/// value, gradient and Hessian from pair_friction.cuh (the CPU's per-pair formulas). The Hessian is
+/// value, gradient and Hessian from forward/kernels/friction_pair.hpp (the formulas the CPU runs). The Hessian is
 /// PSD by construction (FrictionPotential's file comment), so `project` changes nothing.
 ///
 /// The pairs are set on the host once per lagging (the CPU's FrictionPotential::lag gives them), checked
@@ -19,11 +19,12 @@
 /// Not covered: periodic images.
 
 #include "cuda/common/device_potential.hpp"
+#include "cuda/common/kernels.cuh"
 #include "cuda/contact/barrier_pairs.hpp"
 #include "cuda/contact/device_barrier.hpp"
-#include "cuda/contact/pair_friction.cuh"
 #include "cuda/linalg/bsr_matrix.hpp"
 #include "cuda/linalg/device_array.hpp"
+#include "forward/kernels/friction_pair.hpp"
 
 #include <vector>
 

@@ -19,12 +19,12 @@
 /// Hessians are n by n, row-major.
 
 #include "cuda/common/kernels.cuh"
+#include "cuda/elastic/project_psd.cuh"
 #include "forward/kernels/barrier.hpp"
 #include "forward/kernels/distance/edge_edge.hpp"
 #include "forward/kernels/distance/edge_edge_mollifier.hpp"
 #include "forward/kernels/distance/point_edge.hpp"
 #include "forward/kernels/distance/point_triangle.hpp"
-#include "cuda/elastic/project_psd.cuh"
 
 namespace diffipc::gpu {
 
@@ -73,8 +73,7 @@ DIFFIPC_HD inline void pair_distance(PairKind kind, const vec3* points, const ve
         if (Hs)
             for (int i = 0; i < 3; ++i)
                 for (int j = 0; j < 3; ++j) {
-                    const double nn
-                        = (2 * component(normal, i)) * component(normal, j);
+                    const double nn = (2 * component(normal, i)) * component(normal, j);
                     Hs[i * 6 + j] = nn;
                     Hs[i * 6 + 3 + j] = -nn;
                     Hs[(3 + i) * 6 + j] = -nn;

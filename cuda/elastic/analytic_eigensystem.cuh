@@ -19,8 +19,9 @@
 /// Layouts as in material.cuh: F, U, V dim by dim row-major (U[a * dim + k] = component a of the
 /// k-th singular vector); dP/dF dim^2 by dim^2 row-major, row index i * dim + j for F_ij.
 
-#include "cuda/elastic/material.cuh"
+#include "cuda/common/kernels.cuh"
 #include "cuda/elastic/project_psd.cuh"
+#include "forward/kernels/material/material.hpp"
 
 namespace diffipc::gpu {
 
@@ -109,6 +110,15 @@ template <int dim> constexpr int num_singular_pairs = dim*(dim - 1) / 2;
 
 /// @brief The eigenvalue data of an isotropic model at signed singular values s: the Hessian
 /// d^2 Psi / ds^2 (dim by dim, row-major) and per pair i < j the twist and flip eigenvalues.
+/// @brief Whether the laws below have their eigensystem here: a law of
+/// forward/kernels/material/material.hpp that is not listed is projected with project_psd's
+/// numerical eigensystem (slower, the same projection).
+DIFFIPC_HD inline bool has_closed_form_eigensystem(MaterialModel model)
+{
+    return model == MaterialModel::STVK || model == MaterialModel::NEO_HOOKEAN
+        || model == MaterialModel::STABLE_NEO_HOOKEAN;
+}
+
 /// Not for MaterialModel::LINEAR (not a function of s).
 template <int dim>
 DIFFIPC_HD inline void singular_value_eigendata(
@@ -249,7 +259,7 @@ DIFFIPC_HD inline bool project_stress_derivative(
         return true;
     }
     double U[dim * dim], s[dim], V[dim * dim];
-    if (!signed_svd<dim>(F, U, s, V))
+    if (!has_closed_form_eigensystem(model) || !signed_svd<dim>(F, U, s, V))
         return project_psd<n>(A);
     isotropic_stress_derivative_from_eigensystem<dim>(model, U, s, V, mu, lambda, true, A);
     return true;

@@ -150,7 +150,7 @@ namespace {
 } // namespace
 
 void DeviceElasticMesh::upload(int dim, const std::vector<double>& rest_positions, const std::vector<int>& elements,
-    const std::vector<int>& models, const std::vector<double>& mu, const std::vector<double>& lambda)
+    const std::vector<MaterialModel>& models, const std::vector<double>& mu, const std::vector<double>& lambda)
 {
     if (dim != 2 && dim != 3)
         throw std::invalid_argument("DeviceElasticMesh: dim must be 2 or 3, not " + std::to_string(dim));
@@ -161,10 +161,13 @@ void DeviceElasticMesh::upload(int dim, const std::vector<double>& rest_position
     if (models.size() != ne || mu.size() != ne || lambda.size() != ne)
         throw std::invalid_argument(
             "DeviceElasticMesh: models, mu and lambda need one value per element (" + std::to_string(ne) + ")");
-    for (size_t e = 0; e < ne; ++e)
-        if (models[e] < 0 || models[e] > 3)
+    std::vector<int> codes(ne);
+    for (size_t e = 0; e < ne; ++e) {
+        codes[e] = int(models[e]);
+        if (codes[e] < 0 || codes[e] >= MATERIAL_MODEL_COUNT)
             throw std::invalid_argument("DeviceElasticMesh: element " + std::to_string(e) + " has model code "
-                + std::to_string(models[e]) + " (expected 0..3)");
+                + std::to_string(codes[e]) + " (expected 0.." + std::to_string(MATERIAL_MODEL_COUNT - 1) + ")");
+    }
 
     m_pattern = element_bsr_pattern(int(nv), n, elements); // checks the indices
     std::vector<double> G;
@@ -179,7 +182,7 @@ void DeviceElasticMesh::upload(int dim, const std::vector<double>& rest_position
     m_elements.upload(transpose(elements, ne, size_t(n)));
     m_shape_gradients.upload(transpose(G, ne, size_t(n * dim)));
     m_volumes.upload(m_rest_volumes_host);
-    m_models.upload(models);
+    m_models.upload(codes);
     set_lame_parameters(mu, lambda);
     m_vertex_offsets.upload(m_pattern.vertex_offsets);
     m_vertex_codes.upload(m_pattern.vertex_codes);

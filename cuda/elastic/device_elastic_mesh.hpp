@@ -10,7 +10,7 @@
 ///   (xyzxyz), in metres and newtons;
 /// - elements: #E * (dim+1) vertex indices, flattened element-major (elements[e (dim+1) + a]),
 ///   as the rows of Mesh::elements;
-/// - models: #E codes, int(diffipc::MaterialModel) (= int(gpu::MaterialModel));
+/// - models: #E laws (forward/kernels/material/material_model.hpp, one enum for both paths);
 ///   mu, lambda: #E Lame parameters (Pa);
 /// - Hessians: a DeviceBsrMatrix (cuda/linalg/bsr_matrix.hpp) with dim by dim blocks, one block
 ///   row per vertex, on the fixed pattern of the mesh (the diagonal blocks and every vertex pair
@@ -22,9 +22,11 @@
 /// CPU's VertexScatter does. No atomics: repeated evaluations are bitwise equal.
 
 #include "cuda/common/device_potential.hpp"
+#include "cuda/common/kernels.cuh"
 #include "cuda/linalg/bsr_matrix.hpp"
 #include "cuda/linalg/bsr_pattern.hpp"
 #include "cuda/linalg/device_array.hpp"
+#include "forward/kernels/material/material_model.hpp"
 
 #include <vector>
 
@@ -42,7 +44,7 @@ public:
     /// @throws std::invalid_argument for inconsistent sizes, out-of-range indices or model codes,
     ///         and degenerate rest elements (det Dm = 0), naming the element
     void upload(int dim, const std::vector<double>& rest_positions, const std::vector<int>& elements,
-        const std::vector<int>& models, const std::vector<double>& mu, const std::vector<double>& lambda);
+        const std::vector<MaterialModel>& models, const std::vector<double>& mu, const std::vector<double>& lambda);
     /// @brief Replaces the per-element Lame parameters (#E each).
     void set_lame_parameters(const std::vector<double>& mu, const std::vector<double>& lambda);
 

@@ -12,7 +12,8 @@
 ///
 /// Layout: an n by n matrix is row-major, A[r * n + c].
 
-#include "cuda/elastic/small_matrix.cuh"
+#include "cuda/common/kernels.cuh"
+#include "forward/kernels/small_matrix.hpp"
 
 namespace diffipc::gpu {
 

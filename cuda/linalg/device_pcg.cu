@@ -1,10 +1,11 @@
 #include "cuda/linalg/device_pcg.hpp"
 
 #include "cuda/common/device.hpp"
+#include "cuda/common/kernels.cuh"
 #include "cuda/elastic/project_psd.cuh"
-#include "cuda/elastic/small_matrix.cuh"
 #include "cuda/linalg/block_diagonal.cuh"
 #include "cuda/linalg/reduction.hpp"
+#include "forward/kernels/small_matrix.hpp"
 
 #include <cuda_runtime.h>
 

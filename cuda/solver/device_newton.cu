@@ -1,13 +1,14 @@
 #include "cuda/solver/device_newton.hpp"
 
 #include "cuda/common/device.hpp"
+#include "cuda/common/kernels.cuh"
 #include "cuda/contact/sum_operator.hpp"
-#include "cuda/elastic/material.cuh"
 #include "cuda/linalg/device_amg.hpp"
 #include "cuda/linalg/reduction.hpp"
 #include "cuda/periodic/device_periodic_map.hpp"
 #include "cuda/periodic/reduced_operator.hpp"
-#include "cuda/solver/inversion_bound.cuh"
+#include "forward/kernels/inversion_bound.hpp"
+#include "forward/kernels/material/material.hpp"
 
 #include <cuda_runtime.h>
 
@@ -171,7 +172,7 @@ namespace {
     };
     const Ops<5> DIRECTION_OPS { { SUM, MAX, MAX, MAX, MAX } };
 
-    /// Per element: [ its inversion bound along p (min) ] (inversion_bound.cuh).
+    /// Per element: [ its inversion bound along p (min) ] (forward/kernels/inversion_bound.hpp).
     template <int dim> struct StepBoundTerm {
         const int* elements; // (dim+1) * #E, vertex a of element e at a #E + e
         int ne;
@@ -937,7 +938,7 @@ void DeviceNewton::set_force_reference(const std::vector<double>& reference)
     m_impl->reference.upload(reference);
 }
 
-void DeviceNewton::set_material_scale(const std::vector<int>& models, const std::vector<double>& mu)
+void DeviceNewton::set_material_scale(const std::vector<MaterialModel>& models, const std::vector<double>& mu)
 {
     const size_t ne = size_t(m_mesh.num_elements());
     if (models.size() != ne || mu.size() != ne)
@@ -946,7 +947,7 @@ void DeviceNewton::set_material_scale(const std::vector<int>& models, const std:
     const std::vector<double>& volumes = m_mesh.rest_volumes();
     double scale = 0;
     for (size_t e = 0; e < ne; ++e)
-        if (models[e] == int(MaterialModel::NEO_HOOKEAN) || models[e] == int(MaterialModel::STABLE_NEO_HOOKEAN))
+        if (models[e] == MaterialModel::NEO_HOOKEAN || models[e] == MaterialModel::STABLE_NEO_HOOKEAN)
             scale += volumes[e] * mu[e] * m_mesh.dim();
     m_impl->material_scale = scale;
 }

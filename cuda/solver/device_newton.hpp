@@ -215,7 +215,7 @@ public:
     /// whose model is neo-Hookean or stable neo-Hookean of rest volume * mu * dim (J).
     /// @param models #E model codes, @param mu #E Lame parameters (Pa), as given to the mesh's upload
     /// @throws std::invalid_argument on a size mismatch
-    void set_material_scale(const std::vector<int>& models, const std::vector<double>& mu);
+    void set_material_scale(const std::vector<MaterialModel>& models, const std::vector<double>& mu);
     /// material_scale (J), 0 until set.
     double material_scale() const;
 

@@ -1,5 +1,7 @@
 #include "forward/fem/fe_space.hpp"
 
+#include "forward/kernels/inversion_bound.hpp"
+
 #include <Eigen/Dense>
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_reduce.h>
@@ -94,93 +96,46 @@ double FESpace::min_volume_ratio(const VectorXd& x) const
         [](double a, double b) { return std::min(a, b); });
 }
 
-Eigen::Vector4d volume_polynomial(const Mesh& mesh, Index e, const VectorXd& x, const VectorXd& p)
-{
-    const int d = mesh.dim;
-    const Index v0 = mesh.elements(e, 0);
-    if (d == 2) {
-        Eigen::Vector2d u, v, du, dv;
-        for (int i = 0; i < 2; ++i) {
-            u[i] = x[mesh.elements(e, 1) * 2 + i] - x[v0 * 2 + i];
-            v[i] = x[mesh.elements(e, 2) * 2 + i] - x[v0 * 2 + i];
-            du[i] = p[mesh.elements(e, 1) * 2 + i] - p[v0 * 2 + i];
-            dv[i] = p[mesh.elements(e, 2) * 2 + i] - p[v0 * 2 + i];
-        }
-        return Eigen::Vector4d(u[0] * v[1] - u[1] * v[0], u[0] * dv[1] + du[0] * v[1] - u[1] * dv[0] - du[1] * v[0],
-            du[0] * dv[1] - du[1] * dv[0], 0.0);
-    }
-    Eigen::Matrix3d A, B;
-    for (int a = 0; a < 3; ++a)
-        for (int i = 0; i < 3; ++i) {
-            A(i, a) = x[mesh.elements(e, a + 1) * 3 + i] - x[v0 * 3 + i];
-            B(i, a) = p[mesh.elements(e, a + 1) * 3 + i] - p[v0 * 3 + i];
-        }
-    auto mixed = [](const Eigen::Matrix3d& P, const Eigen::Matrix3d& Q) {
-        // t-coefficient of det(P + t Q): sum over columns of Q_k . (P_{k+1} x P_{k+2})
-        return Q.col(0).dot(P.col(1).cross(P.col(2))) + Q.col(1).dot(P.col(2).cross(P.col(0)))
-            + Q.col(2).dot(P.col(0).cross(P.col(1)));
-    };
-    return Eigen::Vector4d(A.determinant(), mixed(A, B), mixed(B, A), B.determinant());
-}
-
 namespace {
 
-    double eval_cubic(const Eigen::Vector4d& c, double t) { return ((c[3] * t + c[2]) * t + c[1]) * t + c[0]; }
-
-    /// First t in (0, 1] where q(t) = c(t) - target <= 0, or 1 if none; returns a t with q(t) > 0.
-    double first_crossing(const Eigen::Vector4d& c, double target)
+    /// Element e's vertex positions and step components, flattened vertex-major (the kernel's layout).
+    void gather_element(const Mesh& mesh, Index e, const VectorXd& x, const VectorXd& p, double* xe, double* pe)
     {
-        Eigen::Vector4d q = c;
-        q[0] -= target;
-        // Critical points of q: roots of q'(t) = q1 + 2 q2 t + 3 q3 t^2 in (0, 1).
-        double breaks[4] = { 0, 1, 1, 1 };
-        int nb = 1;
-        const double a = 3 * q[3], b = 2 * q[2], cc = q[1];
-        const double scale = std::abs(a) + std::abs(b) + std::abs(cc);
-        if (std::abs(a) > 1e-14 * scale) {
-            const double disc = b * b - 4 * a * cc;
-            if (disc >= 0) {
-                const double s = std::sqrt(disc);
-                const double qq = -0.5 * (b + (b >= 0 ? s : -s));
-                const double r1 = qq / a, r2 = qq != 0 ? cc / qq : r1;
-                for (double r : { std::min(r1, r2), std::max(r1, r2) })
-                    if (r > 0 && r < 1)
-                        breaks[nb++] = r;
+        const int d = mesh.dim;
+        for (int a = 0; a <= d; ++a)
+            for (int i = 0; i < d; ++i) {
+                const Index k = mesh.elements(e, a) * d + i;
+                xe[a * d + i] = x[k];
+                pe[a * d + i] = p[k];
             }
-        } else if (std::abs(b) > 1e-14 * scale) {
-            const double r = -cc / b;
-            if (r > 0 && r < 1)
-                breaks[nb++] = r;
-        }
-        std::sort(breaks + 1, breaks + nb);
-        breaks[nb++] = 1.0;
-        for (int k = 1; k < nb; ++k) {
-            double lo = breaks[k - 1], hi = breaks[k];
-            if (eval_cubic(q, hi) > 0)
-                continue;
-            for (int it = 0; it < 80 && hi - lo > 1e-15; ++it) {
-                const double mid = 0.5 * (lo + hi);
-                (eval_cubic(q, mid) > 0 ? lo : hi) = mid;
-            }
-            return lo;
-        }
-        return 1.0;
     }
 
 } // namespace
+
+Eigen::Vector4d volume_polynomial(const Mesh& mesh, Index e, const VectorXd& x, const VectorXd& p)
+{
+    double xe[12], pe[12], c[4];
+    gather_element(mesh, e, x, p, xe, pe);
+    if (mesh.dim == 2)
+        kernels::volume_polynomial<2>(xe, pe, c);
+    else
+        kernels::volume_polynomial<3>(xe, pe, c);
+    return Eigen::Vector4d(c[0], c[1], c[2], c[3]);
+}
 
 double inversion_free_step(const Mesh& mesh, const VectorXd& x, const VectorXd& p, double keep)
 {
     return tbb::parallel_reduce(
         tbb::blocked_range<Index>(0, mesh.num_elements(), 1024), 1.0,
         [&](const tbb::blocked_range<Index>& r, double t) {
+            double xe[12], pe[12];
             for (Index e = r.begin(); e < r.end(); ++e) {
-                const Eigen::Vector4d c = volume_polynomial(mesh, e, x, p);
-                if (c[0] <= 0)
-                    return 0.0; // already not positive: no step is admissible
-                if (c[1] >= 0 && c[2] >= 0 && c[3] >= 0)
-                    continue; // volume never decreases along the step
-                t = std::min(t, first_crossing(c, keep * c[0]));
+                gather_element(mesh, e, x, p, xe, pe);
+                t = std::min(t,
+                    mesh.dim == 2 ? kernels::element_step_bound<2>(xe, pe, keep)
+                                  : kernels::element_step_bound<3>(xe, pe, keep));
+                if (!(t > 0))
+                    return 0.0; // an element already not positive: no step is admissible
             }
             return t;
         },

@@ -48,7 +48,10 @@ template <class T, class S> DIFFIPC_HD inline Vec3<T> operator/(const Vec3<T>& a
     return Vec3<T>(a.x / s, a.y / s, a.z / s);
 }
 
-template <class T> DIFFIPC_HD inline T dot(const Vec3<T>& a, const Vec3<T>& b) { return a.x * b.x + a.y * b.y + a.z * b.z; }
+template <class T> DIFFIPC_HD inline T dot(const Vec3<T>& a, const Vec3<T>& b)
+{
+    return a.x * b.x + a.y * b.y + a.z * b.z;
+}
 template <class T> DIFFIPC_HD inline Vec3<T> cross(const Vec3<T>& a, const Vec3<T>& b)
 {
     return Vec3<T>(a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x);

@@ -1,12 +1,15 @@
 #pragma once
 /// @file material.hpp
 /// Hyperelastic energy densities Psi(F; mu, lambda) with first Piola-Kirchhoff
-/// stress P = dPsi/dF and its derivative dP/dF. Lame parameters are passed per
-/// call so that every element can carry its own (they will be optimized).
-/// 2D models are plane strain: the same formulas with d = 2.
+/// stress P = dPsi/dF and its derivative dP/dF, on Eigen matrices: the CPU's
+/// view of the laws in forward/kernels/material/ (the GPU runs the same code).
+/// Lame parameters are passed per call so that every element can carry its own
+/// (they will be optimized). 2D models are plane strain: the same formulas with d = 2.
 ///
 /// Flattening of F and P: index(i, j) = i * dim + j (row-major), so
 /// stress_derivative(F)(index(i,j), index(k,l)) = dP_ij / dF_kl.
+
+#include "forward/kernels/material/material_model.hpp"
 
 #include <Eigen/Core>
 
@@ -15,9 +18,11 @@
 
 namespace diffipc {
 
-enum class MaterialModel { LINEAR, STVK, NEO_HOOKEAN, STABLE_NEO_HOOKEAN };
+// One enum for both paths; the names are registered beside it.
+using kernels::MaterialModel;
 
-/// @brief Parses "linear" | "stvk" | "neo_hookean" | "stable_neo_hookean".
+/// @brief Parses a law's name (kernels::MATERIAL_MODEL_NAMES: "linear", "stvk", "neo_hookean",
+/// "stable_neo_hookean").
 /// @throws InputError naming `field` for any other string.
 MaterialModel parse_material_model(const std::string& name, const std::string& field);
 std::string to_string(MaterialModel model);

@@ -95,15 +95,7 @@ std::pair<gpu::BarrierPair, gpu::FrictionPair> to_device(const FrictionContact& 
     for (int a = 0; a < 4; ++a)
         pair.vertices[a] = a < c.num_vertices ? int(c.vertices[size_t(a)]) : -1;
     pair.plane = c.kind == ContactKind::VERTEX_PLANE ? c.source.plane : -1;
-    gpu::FrictionPair f;
-    f.num_vertices = c.num_vertices;
-    for (int a = 0; a < 4; ++a)
-        f.weights[a] = c.weights[size_t(a)];
-    for (int col = 0; col < 2; ++col)
-        for (int i = 0; i < 3; ++i)
-            f.tangent[3 * col + i] = c.tangent(i, col);
-    f.scale = c.coefficient * c.normal_force;
-    return { pair, f };
+    return { pair, friction_pair(c) };
 }
 
 struct DeviceSolver::Impl {
@@ -212,11 +204,7 @@ DeviceSolver::DeviceSolver(const ElasticPotential& elastic, const InertiaPotenti
     for (Index e = 0; e < mesh.num_elements(); ++e)
         for (int a = 0; a <= dim; ++a)
             elements[size_t(e * (dim + 1) + a)] = int(mesh.elements(e, a));
-    std::vector<int> models;
-    models.reserve(elastic.models().size());
-    for (MaterialModel m : elastic.models())
-        models.push_back(int(m));
-    m_impl->mesh.upload(dim, rest, elements, models, to_std(elastic.mu()), to_std(elastic.lambda()));
+    m_impl->mesh.upload(dim, rest, elements, elastic.models(), to_std(elastic.mu()), to_std(elastic.lambda()));
     m_impl->rest = rest;
     std::vector<double> mass;
     if (inertia) {
@@ -245,7 +233,7 @@ DeviceSolver::DeviceSolver(const ElasticPotential& elastic, const InertiaPotenti
     // The CPU's energy measures the external work from the rest positions and its round-off
     // allowance counts the neo-Hookean models' cancelling terms: the same here.
     m_impl->newton->set_force_reference(rest);
-    m_impl->newton->set_material_scale(models, to_std(elastic.mu()));
+    m_impl->newton->set_material_scale(elastic.models(), to_std(elastic.mu()));
     if (contact) {
         // With periodic images the contact runs on the image surface (rest positions T X); set_periodic()
         // hands it to the Newton with the surface's map.

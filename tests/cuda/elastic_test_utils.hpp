@@ -40,13 +40,6 @@ struct ElasticBox {
     {
         return std::vector<int>(mesh.elements.data(), mesh.elements.data() + mesh.elements.size());
     }
-    std::vector<int> model_codes() const
-    {
-        std::vector<int> codes;
-        for (MaterialModel m : models)
-            codes.push_back(int(m));
-        return codes;
-    }
     std::vector<double> mu_vector() const { return std::vector<double>(mu.data(), mu.data() + mu.size()); }
     std::vector<double> lambda_vector() const
     {

@@ -22,8 +22,8 @@ CCDResult edge_edge_ccd(const Eigen::Vector3d& ea0_t0, const Eigen::Vector3d& ea
     const Eigen::Vector3d& eb0_t1, const Eigen::Vector3d& eb1_t1, const CCDSettings& settings)
 {
     check_ccd_settings(settings);
-    return kernels::edge_edge_ccd(to_vec3(ea0_t0), to_vec3(ea1_t0), to_vec3(eb0_t0), to_vec3(eb1_t0),
-        to_vec3(ea0_t1), to_vec3(ea1_t1), to_vec3(eb0_t1), to_vec3(eb1_t1), settings);
+    return kernels::edge_edge_ccd(to_vec3(ea0_t0), to_vec3(ea1_t0), to_vec3(eb0_t0), to_vec3(eb1_t0), to_vec3(ea0_t1),
+        to_vec3(ea1_t1), to_vec3(eb0_t1), to_vec3(eb1_t1), settings);
 }
 
 CCDResult point_edge_ccd(const Eigen::Vector3d& p_t0, const Eigen::Vector3d& e0_t0, const Eigen::Vector3d& e1_t0,

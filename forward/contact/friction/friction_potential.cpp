@@ -5,6 +5,7 @@
 #include "forward/contact/barrier.hpp"
 #include "forward/contact/contact_potential.hpp"
 #include "forward/contact/distance/distance.hpp"
+#include "forward/kernels/friction_pair.hpp"
 #include "forward/solver/sparse_assembler.hpp"
 
 #include <Eigen/Geometry>
@@ -153,25 +154,23 @@ namespace {
 
 } // namespace
 
-double FrictionPotential::f0(double y, double eps)
-{
-    if (y >= eps)
-        return y;
-    return -y * y * y / (3 * eps * eps) + y * y / eps + eps / 3;
-}
+double FrictionPotential::f0(double y, double eps) { return kernels::friction_f0(y, eps); }
 
-double FrictionPotential::f1(double y, double eps)
-{
-    if (y >= eps)
-        return 1;
-    return -y * y / (eps * eps) + 2 * y / eps;
-}
+double FrictionPotential::f1(double y, double eps) { return kernels::friction_f1(y, eps); }
 
-double FrictionPotential::f1_derivative(double y, double eps)
+double FrictionPotential::f1_derivative(double y, double eps) { return kernels::friction_f1_derivative(y, eps); }
+
+kernels::FrictionPair friction_pair(const FrictionContact& c)
 {
-    if (y >= eps)
-        return 0;
-    return -2 * y / (eps * eps) + 2 / eps;
+    kernels::FrictionPair f;
+    f.num_vertices = c.num_vertices;
+    for (int a = 0; a < 4; ++a)
+        f.weights[a] = c.weights[size_t(a)];
+    for (int col = 0; col < 2; ++col)
+        for (int i = 0; i < 3; ++i)
+            f.tangent[3 * col + i] = c.tangent(i, col);
+    f.scale = c.coefficient * c.normal_force;
+    return f;
 }
 
 FrictionPotential::FrictionPotential(
@@ -264,14 +263,24 @@ Eigen::Vector2d FrictionPotential::tangential_displacement(const FrictionContact
     return u;
 }
 
+double FrictionPotential::pair(const FrictionContact& c, const VectorXd& x, double* gradient, double* hessian) const
+{
+    kernels::vec3 dx[4];
+    for (int i = 0; i < c.num_vertices; ++i) {
+        const Index v = c.vertices[size_t(i)];
+        double d[3] = { 0, 0, 0 };
+        for (int a = 0; a < m_dim; ++a)
+            d[a] = x[v * m_dim + a] - m_x_start[v * m_dim + a];
+        dx[i] = kernels::vec3(d[0], d[1], d[2]);
+    }
+    return kernels::pair_friction(m_dim, friction_pair(c), dx, m_eps, gradient, hessian);
+}
+
 double FrictionPotential::value(const VectorXd& mesh_x) const
 {
     VectorXd storage;
     const VectorXd& x = surface(mesh_x, storage);
-    return parallel_sum(m_contacts.size(), 64, [&](size_t k) {
-        const FrictionContact& c = m_contacts[k];
-        return c.coefficient * c.normal_force * f0(tangential_displacement(c, x).norm(), m_eps);
-    });
+    return parallel_sum(m_contacts.size(), 64, [&](size_t k) { return pair(m_contacts[k], x, nullptr, nullptr); });
 }
 
 void FrictionPotential::add_gradient(const VectorXd& mesh_x, double weight, VectorXd& mesh_g) const
@@ -285,16 +294,12 @@ void FrictionPotential::add_gradient(const VectorXd& mesh_x, double weight, Vect
     std::vector<double>& locals = m_gradient_buffer;
     locals.assign(m_contacts.size() * 4 * size_t(m_dim), 0.0);
     tbb::parallel_for(tbb::blocked_range<size_t>(0, m_contacts.size(), 64), [&](const tbb::blocked_range<size_t>& r) {
+        double local[12];
         for (size_t k = r.begin(); k < r.end(); ++k) {
             const FrictionContact& c = m_contacts[k];
-            const Eigen::Vector2d u = tangential_displacement(c, x);
-            const double y = u.norm();
-            // f1(y)/y stays finite as y -> 0 (2/eps); at y = 0 the gradient is zero anyway.
-            const double ratio = y > 0 ? f1(y, m_eps) / y : 0.0;
-            const Eigen::Vector3d force = weight * c.coefficient * c.normal_force * ratio * (c.tangent * u);
-            for (int i = 0; i < c.num_vertices; ++i)
-                for (int d = 0; d < m_dim; ++d)
-                    locals[(4 * k + size_t(i)) * size_t(m_dim) + size_t(d)] = c.weights[size_t(i)] * force[d];
+            pair(c, x, local, nullptr);
+            for (int i = 0; i < c.num_vertices * m_dim; ++i)
+                locals[4 * k * size_t(m_dim) + size_t(i)] = weight * local[i];
         }
     });
     m_scatter.build(x.size() / m_dim, m_contacts.size(), 4, [&](size_t k, int a) {
@@ -315,32 +320,15 @@ void FrictionPotential::add_hessian(
     SparseAssembler& H = m_images.hessian_target(mesh_H);
     const size_t first = H.reserve_locals(m_contacts.size());
     tbb::parallel_for(tbb::blocked_range<size_t>(0, m_contacts.size(), 64), [&](const tbb::blocked_range<size_t>& r) {
-        Eigen::MatrixXd local;
+        double row_major[144], local[144];
         for (size_t k = r.begin(); k < r.end(); ++k) {
             const FrictionContact& c = m_contacts[k];
-            const Eigen::Vector2d u = tangential_displacement(c, x);
-            const double y = u.norm();
-            // M = (f1/y) I + (d(f1/y)/dy) u u^T / y: for y < eps, 2/eps - y/eps^2 and -1/(eps^2 y);
-            // for y >= eps, 1/y and -1/y^3. Both PSD; the limit y -> 0 is (2/eps) I.
-            Eigen::Matrix2d M;
-            if (y < m_eps) {
-                M = (2 / m_eps - y / (m_eps * m_eps)) * Eigen::Matrix2d::Identity();
-                if (y > 0)
-                    M -= u * u.transpose() / (m_eps * m_eps * y);
-            } else {
-                M = Eigen::Matrix2d::Identity() / y - u * u.transpose() / (y * y * y);
-            }
-            if (m_dim == 2) {
-                M(0, 1) = M(1, 0) = M(1, 1) = 0;
-            }
-            const Eigen::Matrix3d K3 = c.tangent * M * c.tangent.transpose();
-            const Eigen::MatrixXd K = weight * c.coefficient * c.normal_force * K3.topLeftCorner(m_dim, m_dim);
+            pair(c, x, nullptr, row_major);
             const int n = c.num_vertices * m_dim;
-            local.resize(n, n);
-            for (int i = 0; i < c.num_vertices; ++i)
-                for (int j = 0; j < c.num_vertices; ++j)
-                    local.block(i * m_dim, j * m_dim, m_dim, m_dim) = c.weights[size_t(i)] * c.weights[size_t(j)] * K;
-            H.set_local(first + k, c.vertices.data(), c.num_vertices, local.data());
+            for (int i = 0; i < n; ++i) // column-major for set_local
+                for (int j = 0; j < n; ++j)
+                    local[j * n + i] = weight * row_major[i * n + j];
+            H.set_local(first + k, c.vertices.data(), c.num_vertices, local);
         }
     });
     m_images.finish_hessian(mesh_H);

@@ -13,6 +13,7 @@
 #include "forward/common/parallel.hpp"
 #include "forward/contact/contact_set.hpp"
 #include "forward/contact/surface_images.hpp"
+#include "forward/kernels/friction_pair.hpp"
 #include "forward/potentials/potential.hpp"
 
 #include <vector>
@@ -40,6 +41,10 @@ struct FrictionContact {
 /// points of the contact's classified feature pair at x (edge parameters clamped to [0, 1]).
 /// @param x #V*dim positions
 std::array<double, 4> closest_point_weights(const Contact& c, const VectorXd& x, int dim);
+
+/// @brief The lagged pair in the layout of the shared kernel (forward/kernels/friction_pair.hpp),
+/// which the CPU's FrictionPotential and the GPU's DeviceFriction both evaluate.
+kernels::FrictionPair friction_pair(const FrictionContact& c);
 
 class FrictionPotential : public Potential {
 public:
@@ -92,6 +97,9 @@ private:
     const VectorXd& surface(const VectorXd& x, VectorXd& storage) const { return m_images.surface(x, storage); }
     /// u = T^T sum_i gamma_i (x_i - x0_i) (first dim-1 entries used; x on the surface).
     Eigen::Vector2d tangential_displacement(const FrictionContact& c, const VectorXd& x) const;
+    /// One pair's energy, gradient (n) and Hessian (n by n, row-major; n = #vertices * dim) at the
+    /// surface positions x (forward/kernels/friction_pair.hpp); either pointer may be null.
+    double pair(const FrictionContact& c, const VectorXd& x, double* gradient, double* hessian) const;
 
     int m_dim;
     std::vector<double> m_group_coefficient;

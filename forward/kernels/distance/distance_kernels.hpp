@@ -37,7 +37,8 @@ template <class T> DIFFIPC_HD inline void add_cross_matrix(T* H, int n, int i, i
 
 /// @brief \f$ |a \times b|^2 \f$ with gradient and Hessian in the stacked (a, b).
 /// @param grad 6, or nullptr; @param hess 6 x 6 row-major, or nullptr
-template <class T> DIFFIPC_HD inline T cross_squarednorm(const Vec3<T>& a, const Vec3<T>& b, non_deduced<T>* grad, non_deduced<T>* hess)
+template <class T>
+DIFFIPC_HD inline T cross_squarednorm(const Vec3<T>& a, const Vec3<T>& b, non_deduced<T>* grad, non_deduced<T>* hess)
 {
     const Vec3<T> n = cross(a, b);
     if (grad) {
@@ -70,7 +71,8 @@ template <class T> DIFFIPC_HD inline T cross_squarednorm(const Vec3<T>& a, const
 
 /// @brief \f$ |r \times e|^2 / |e|^2 \f$ with derivatives in the stacked (r, e). Requires e != 0.
 /// @param grad 6, or nullptr; @param hess 6 x 6 row-major, or nullptr
-template <class T> DIFFIPC_HD inline T point_line(const Vec3<T>& r, const Vec3<T>& e, non_deduced<T>* grad, non_deduced<T>* hess)
+template <class T>
+DIFFIPC_HD inline T point_line(const Vec3<T>& r, const Vec3<T>& e, non_deduced<T>* grad, non_deduced<T>* hess)
 {
     T gN[6];
     const T N = cross_squarednorm(r, e, (grad || hess) ? gN : nullptr, hess);
@@ -109,7 +111,9 @@ template <class T> DIFFIPC_HD inline T point_line(const Vec3<T>& r, const Vec3<T
 /// @brief \f$ (r \cdot (a \times b))^2 / |a \times b|^2 \f$ with derivatives in the stacked
 /// (r, a, b). Point-plane and line-line distances are both this function. Requires a x b != 0.
 /// @param grad 9, or nullptr; @param hess 9 x 9 row-major, or nullptr
-template <class T> DIFFIPC_HD inline T point_plane(const Vec3<T>& r, const Vec3<T>& a, const Vec3<T>& b, non_deduced<T>* grad, non_deduced<T>* hess)
+template <class T>
+DIFFIPC_HD inline T point_plane(
+    const Vec3<T>& r, const Vec3<T>& a, const Vec3<T>& b, non_deduced<T>* grad, non_deduced<T>* hess)
 {
     // h = r . (a x b) is unchanged by removing r's component along a (n is orthogonal to a), and
     // the removal keeps h accurate for nearly parallel a and b: n = a x b is rounded by

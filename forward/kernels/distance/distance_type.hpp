@@ -42,7 +42,9 @@ enum class EdgeEdgeDistanceType : int {
 
 namespace distance_type_detail {
     /// point_edge_distance (point_edge.hpp) for a given type, needed here for the classification.
-    template <class T> DIFFIPC_HD inline T point_edge_distance(const Vec3<T>& p, const Vec3<T>& e0, const Vec3<T>& e1, PointEdgeDistanceType t)
+    template <class T>
+    DIFFIPC_HD inline T point_edge_distance(
+        const Vec3<T>& p, const Vec3<T>& e0, const Vec3<T>& e1, PointEdgeDistanceType t)
     {
         switch (t) {
         case PointEdgeDistanceType::P_E0:
@@ -58,7 +60,8 @@ namespace distance_type_detail {
 
 /// @brief Closest-feature type of point p to segment (e0, e1), 2D (z = 0) or 3D. A degenerate
 /// edge gives P_E0.
-template <class T> DIFFIPC_HD inline PointEdgeDistanceType point_edge_distance_type(const Vec3<T>& p, const Vec3<T>& e0, const Vec3<T>& e1)
+template <class T>
+DIFFIPC_HD inline PointEdgeDistanceType point_edge_distance_type(const Vec3<T>& p, const Vec3<T>& e0, const Vec3<T>& e1)
 {
     const Vec3<T> e = e1 - e0;
     const T ee = squared_norm(e);
@@ -75,7 +78,8 @@ template <class T> DIFFIPC_HD inline PointEdgeDistanceType point_edge_distance_t
 /// @brief Closest-feature type of point p to triangle (t0, t1, t2): the plane type only when the
 /// projection of p falls inside the triangle, otherwise the closest of the three edges decides;
 /// a sliver whose normal is lost in round-off is treated through its edges.
-template <class T> DIFFIPC_HD inline PointTriangleDistanceType point_triangle_distance_type(
+template <class T>
+DIFFIPC_HD inline PointTriangleDistanceType point_triangle_distance_type(
     const Vec3<T>& p, const Vec3<T>& t0, const Vec3<T>& t1, const Vec3<T>& t2)
 {
     using PE = PointEdgeDistanceType;
@@ -110,7 +114,8 @@ template <class T> DIFFIPC_HD inline PointTriangleDistanceType point_triangle_di
 /// @brief Closest-feature type of segments (ea0, ea1) and (eb0, eb1): the interior critical point
 /// of the line-line distance (non-parallel lines only) if it lies inside both edges, otherwise
 /// the closest of the four endpoint-against-segment candidates (no parallelism threshold).
-template <class T> DIFFIPC_HD inline EdgeEdgeDistanceType edge_edge_distance_type(
+template <class T>
+DIFFIPC_HD inline EdgeEdgeDistanceType edge_edge_distance_type(
     const Vec3<T>& ea0, const Vec3<T>& ea1, const Vec3<T>& eb0, const Vec3<T>& eb1)
 {
     using EE = EdgeEdgeDistanceType;

@@ -47,7 +47,8 @@ namespace edge_edge_detail {
 } // namespace edge_edge_detail
 
 /// @brief Squared distance between the segments (ea0, ea1) and (eb0, eb1) for `type` (m^2).
-template <class T> DIFFIPC_HD inline T edge_edge_distance(
+template <class T>
+DIFFIPC_HD inline T edge_edge_distance(
     const Vec3<T>& ea0, const Vec3<T>& ea1, const Vec3<T>& eb0, const Vec3<T>& eb1, EdgeEdgeDistanceType type)
 {
     const Vec3<T>* v[4] = { &ea0, &ea1, &eb0, &eb1 };
@@ -60,13 +61,15 @@ template <class T> DIFFIPC_HD inline T edge_edge_distance(
 }
 
 /// @brief Squared distance between the segments, classifying first.
-template <class T> DIFFIPC_HD inline T edge_edge_distance(const Vec3<T>& ea0, const Vec3<T>& ea1, const Vec3<T>& eb0, const Vec3<T>& eb1)
+template <class T>
+DIFFIPC_HD inline T edge_edge_distance(const Vec3<T>& ea0, const Vec3<T>& ea1, const Vec3<T>& eb0, const Vec3<T>& eb1)
 {
     return edge_edge_distance(ea0, ea1, eb0, eb1, edge_edge_distance_type(ea0, ea1, eb0, eb1));
 }
 
 /// @brief Gradient of edge_edge_distance for `type`. @param g out: 12 (d/dea0, d/dea1, d/deb0, d/deb1), m
-template <class T> DIFFIPC_HD inline void edge_edge_distance_gradient(
+template <class T>
+DIFFIPC_HD inline void edge_edge_distance_gradient(
     const Vec3<T>& ea0, const Vec3<T>& ea1, const Vec3<T>& eb0, const Vec3<T>& eb1, EdgeEdgeDistanceType type, T* g)
 {
     const Vec3<T>* v[4] = { &ea0, &ea1, &eb0, &eb1 };
@@ -83,7 +86,8 @@ template <class T> DIFFIPC_HD inline void edge_edge_distance_gradient(
 }
 
 /// @brief Hessian of edge_edge_distance for `type`. @param H out: 12 x 12 row-major, ordered (ea0, ea1, eb0, eb1)
-template <class T> DIFFIPC_HD inline void edge_edge_distance_hessian(
+template <class T>
+DIFFIPC_HD inline void edge_edge_distance_hessian(
     const Vec3<T>& ea0, const Vec3<T>& ea1, const Vec3<T>& eb0, const Vec3<T>& eb1, EdgeEdgeDistanceType type, T* H)
 {
     const Vec3<T>* v[4] = { &ea0, &ea1, &eb0, &eb1 };

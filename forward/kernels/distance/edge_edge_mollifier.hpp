@@ -63,13 +63,16 @@ namespace edge_edge_mollifier_detail {
 } // namespace edge_edge_mollifier_detail
 
 /// @brief \f$ x = |(e_{a1} - e_{a0}) \times (e_{b1} - e_{b0})|^2 \f$ (m^4).
-template <class T> DIFFIPC_HD inline T edge_edge_cross_squarednorm(const Vec3<T>& ea0, const Vec3<T>& ea1, const Vec3<T>& eb0, const Vec3<T>& eb1)
+template <class T>
+DIFFIPC_HD inline T edge_edge_cross_squarednorm(
+    const Vec3<T>& ea0, const Vec3<T>& ea1, const Vec3<T>& eb0, const Vec3<T>& eb1)
 {
     return squared_norm(cross(ea1 - ea0, eb1 - eb0));
 }
 
 /// @brief Gradient of edge_edge_cross_squarednorm. @param g out: 12, m^3
-template <class T> DIFFIPC_HD inline void edge_edge_cross_squarednorm_gradient(
+template <class T>
+DIFFIPC_HD inline void edge_edge_cross_squarednorm_gradient(
     const Vec3<T>& ea0, const Vec3<T>& ea1, const Vec3<T>& eb0, const Vec3<T>& eb1, T* g)
 {
     T k[6];
@@ -78,7 +81,8 @@ template <class T> DIFFIPC_HD inline void edge_edge_cross_squarednorm_gradient(
 }
 
 /// @brief Hessian of edge_edge_cross_squarednorm. @param H out: 12 x 12 row-major, m^2
-template <class T> DIFFIPC_HD inline void edge_edge_cross_squarednorm_hessian(
+template <class T>
+DIFFIPC_HD inline void edge_edge_cross_squarednorm_hessian(
     const Vec3<T>& ea0, const Vec3<T>& ea1, const Vec3<T>& eb0, const Vec3<T>& eb1, T* H)
 {
     T k[36];
@@ -87,7 +91,8 @@ template <class T> DIFFIPC_HD inline void edge_edge_cross_squarednorm_hessian(
 }
 
 /// @brief eps_x of an edge pair at its rest positions (m^4).
-template <class T> DIFFIPC_HD inline T edge_edge_mollifier_threshold(
+template <class T>
+DIFFIPC_HD inline T edge_edge_mollifier_threshold(
     const Vec3<T>& ea0_rest, const Vec3<T>& ea1_rest, const Vec3<T>& eb0_rest, const Vec3<T>& eb1_rest)
 {
     return edge_edge_mollifier_detail::MOLLIFIER_THRESHOLD_SCALE * squared_norm(ea1_rest - ea0_rest)
@@ -157,31 +162,46 @@ template <class T> DIFFIPC_HD inline T edge_edge_mollifier_gradient_jacobian_wrt
 }
 
 /// @brief The mollifier of the edge pair at its current positions, m(x(ea0, ea1, eb0, eb1)).
-template <class T> DIFFIPC_HD inline T edge_edge_mollifier(
+template <class T>
+DIFFIPC_HD inline T edge_edge_mollifier(
     const Vec3<T>& ea0, const Vec3<T>& ea1, const Vec3<T>& eb0, const Vec3<T>& eb1, T eps_x)
 {
     return edge_edge_mollifier(edge_edge_cross_squarednorm(ea0, ea1, eb0, eb1), eps_x);
 }
 
+namespace edge_edge_mollifier_detail {
+    /// c(x) grad x for x < eps_x, zeros otherwise, with c = dm/dx (wrt_eps_x false) or
+    /// d^2m/(dx d eps_x) (true): the shape of both position gradients.
+    template <class T>
+    DIFFIPC_HD inline void factor_times_cross_gradient(
+        const Vec3<T>& ea0, const Vec3<T>& ea1, const Vec3<T>& eb0, const Vec3<T>& eb1, T eps_x, bool wrt_eps_x, T* g)
+    {
+        const T x = edge_edge_cross_squarednorm(ea0, ea1, eb0, eb1);
+        if (!(x < eps_x)) { // the common case: skip the cross product's gradient
+            for (int k = 0; k < 12; ++k)
+                g[k] = 0;
+            return;
+        }
+        const T c = wrt_eps_x ? edge_edge_mollifier_gradient_jacobian_wrt_eps_x(x, eps_x)
+                              : edge_edge_mollifier_gradient(x, eps_x);
+        T gx[12];
+        edge_edge_cross_squarednorm_gradient(ea0, ea1, eb0, eb1, gx);
+        for (int k = 0; k < 12; ++k)
+            g[k] = c * gx[k];
+    }
+} // namespace edge_edge_mollifier_detail
+
 /// @brief m'(x) grad x. @param g out: 12, m^-1
-template <class T> DIFFIPC_HD inline void edge_edge_mollifier_gradient(
+template <class T>
+DIFFIPC_HD inline void edge_edge_mollifier_gradient(
     const Vec3<T>& ea0, const Vec3<T>& ea1, const Vec3<T>& eb0, const Vec3<T>& eb1, T eps_x, T* g)
 {
-    const T x = edge_edge_cross_squarednorm(ea0, ea1, eb0, eb1);
-    if (!(x < eps_x)) {
-        for (int k = 0; k < 12; ++k)
-            g[k] = 0;
-        return;
-    }
-    const T dm = edge_edge_mollifier_gradient(x, eps_x);
-    T gx[12];
-    edge_edge_cross_squarednorm_gradient(ea0, ea1, eb0, eb1, gx);
-    for (int k = 0; k < 12; ++k)
-        g[k] = dm * gx[k];
+    edge_edge_mollifier_detail::factor_times_cross_gradient(ea0, ea1, eb0, eb1, eps_x, false, g);
 }
 
 /// @brief m''(x) grad x grad x^T + m'(x) hess x. @param H out: 12 x 12 row-major, m^-2
-template <class T> DIFFIPC_HD inline void edge_edge_mollifier_hessian(
+template <class T>
+DIFFIPC_HD inline void edge_edge_mollifier_hessian(
     const Vec3<T>& ea0, const Vec3<T>& ea1, const Vec3<T>& eb0, const Vec3<T>& eb1, T eps_x, T* H)
 {
     T g[6], Hx[36];
@@ -205,17 +225,7 @@ template <class T>
 DIFFIPC_HD inline void edge_edge_mollifier_gradient_jacobian_wrt_eps_x(
     const Vec3<T>& ea0, const Vec3<T>& ea1, const Vec3<T>& eb0, const Vec3<T>& eb1, T eps_x, T* g)
 {
-    const T x = edge_edge_cross_squarednorm(ea0, ea1, eb0, eb1);
-    if (!(x < eps_x)) {
-        for (int k = 0; k < 12; ++k)
-            g[k] = 0;
-        return;
-    }
-    const T c = edge_edge_mollifier_gradient_jacobian_wrt_eps_x(x, eps_x);
-    T gx[12];
-    edge_edge_cross_squarednorm_gradient(ea0, ea1, eb0, eb1, gx);
-    for (int k = 0; k < 12; ++k)
-        g[k] = c * gx[k];
+    edge_edge_mollifier_detail::factor_times_cross_gradient(ea0, ea1, eb0, eb1, eps_x, true, g);
 }
 
 } // namespace diffipc::kernels

@@ -59,13 +59,15 @@ namespace line_line_detail {
 /// @brief Squared distance between the lines through ea0, ea1 and eb0, eb1,
 /// \f$ ((e_{a0} - e_{b0}) \cdot n)^2 / |n|^2 \f$, \f$ n = (e_{a1} - e_{a0}) \times (e_{b1} - e_{b0}) \f$
 /// (m^2); undefined for parallel lines.
-template <class T> DIFFIPC_HD inline T line_line_distance(const Vec3<T>& ea0, const Vec3<T>& ea1, const Vec3<T>& eb0, const Vec3<T>& eb1)
+template <class T>
+DIFFIPC_HD inline T line_line_distance(const Vec3<T>& ea0, const Vec3<T>& ea1, const Vec3<T>& eb0, const Vec3<T>& eb1)
 {
     return distance_kernels::point_plane(ea0 - eb0, ea1 - ea0, eb1 - eb0, nullptr, nullptr);
 }
 
 /// @brief Gradient of line_line_distance. @param g out: 12 (d/dea0, d/dea1, d/deb0, d/deb1), m
-template <class T> DIFFIPC_HD inline void line_line_distance_gradient(
+template <class T>
+DIFFIPC_HD inline void line_line_distance_gradient(
     const Vec3<T>& ea0, const Vec3<T>& ea1, const Vec3<T>& eb0, const Vec3<T>& eb1, T* g)
 {
     T k[9], ky[9];
@@ -76,7 +78,8 @@ template <class T> DIFFIPC_HD inline void line_line_distance_gradient(
 }
 
 /// @brief Hessian of line_line_distance. @param H out: 12 x 12 row-major, ordered (ea0, ea1, eb0, eb1)
-template <class T> DIFFIPC_HD inline void line_line_distance_hessian(
+template <class T>
+DIFFIPC_HD inline void line_line_distance_hessian(
     const Vec3<T>& ea0, const Vec3<T>& ea1, const Vec3<T>& eb0, const Vec3<T>& eb1, T* H)
 {
     T k[81], ky[81];

@@ -10,7 +10,9 @@
 namespace diffipc::kernels {
 
 /// @brief Squared distance from p to the segment (e0, e1) for `type` (m^2).
-template <class T> DIFFIPC_HD inline T point_edge_distance(const Vec3<T>& p, const Vec3<T>& e0, const Vec3<T>& e1, PointEdgeDistanceType type)
+template <class T>
+DIFFIPC_HD inline T point_edge_distance(
+    const Vec3<T>& p, const Vec3<T>& e0, const Vec3<T>& e1, PointEdgeDistanceType type)
 {
     return distance_type_detail::point_edge_distance(p, e0, e1, type);
 }
@@ -22,7 +24,8 @@ template <class T> DIFFIPC_HD inline T point_edge_distance(const Vec3<T>& p, con
 }
 
 /// @brief Gradient of point_edge_distance for `type`. @param g out: 9 (d/dp, d/de0, d/de1), m
-template <class T> DIFFIPC_HD inline void point_edge_distance_gradient(
+template <class T>
+DIFFIPC_HD inline void point_edge_distance_gradient(
     const Vec3<T>& p, const Vec3<T>& e0, const Vec3<T>& e1, PointEdgeDistanceType type, T* g)
 {
     T local[6];
@@ -48,7 +51,8 @@ template <class T> DIFFIPC_HD inline void point_edge_distance_gradient(
 }
 
 /// @brief Hessian of point_edge_distance for `type`. @param H out: 9 x 9 row-major, ordered (p, e0, e1)
-template <class T> DIFFIPC_HD inline void point_edge_distance_hessian(
+template <class T>
+DIFFIPC_HD inline void point_edge_distance_hessian(
     const Vec3<T>& p, const Vec3<T>& e0, const Vec3<T>& e1, PointEdgeDistanceType type, T* H)
 {
     T local[36];

@@ -17,7 +17,8 @@ template <class T> DIFFIPC_HD inline T point_line_distance(const Vec3<T>& p, con
 }
 
 /// @brief Gradient of point_line_distance. @param g out: 9 (d/dp, d/de0, d/de1), m
-template <class T> DIFFIPC_HD inline void point_line_distance_gradient(const Vec3<T>& p, const Vec3<T>& e0, const Vec3<T>& e1, T* g)
+template <class T>
+DIFFIPC_HD inline void point_line_distance_gradient(const Vec3<T>& p, const Vec3<T>& e0, const Vec3<T>& e1, T* g)
 {
     T k[6];
     distance_kernels::point_line(p - e0, e1 - e0, k, nullptr);
@@ -26,7 +27,8 @@ template <class T> DIFFIPC_HD inline void point_line_distance_gradient(const Vec
 }
 
 /// @brief Hessian of point_line_distance. @param H out: 9 x 9 row-major, ordered (p, e0, e1)
-template <class T> DIFFIPC_HD inline void point_line_distance_hessian(const Vec3<T>& p, const Vec3<T>& e0, const Vec3<T>& e1, T* H)
+template <class T>
+DIFFIPC_HD inline void point_line_distance_hessian(const Vec3<T>& p, const Vec3<T>& e0, const Vec3<T>& e1, T* H)
 {
     T k[36];
     distance_kernels::point_line(p - e0, e1 - e0, nullptr, k);

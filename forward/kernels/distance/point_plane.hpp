@@ -12,13 +12,15 @@ namespace diffipc::kernels {
 
 /// @brief \f$ ((p - t_0) \cdot n)^2 / |n|^2 \f$, \f$ n = (t_1 - t_0) \times (t_2 - t_0) \f$ (m^2);
 /// t0, t1, t2 not collinear.
-template <class T> DIFFIPC_HD inline T point_plane_distance(const Vec3<T>& p, const Vec3<T>& t0, const Vec3<T>& t1, const Vec3<T>& t2)
+template <class T>
+DIFFIPC_HD inline T point_plane_distance(const Vec3<T>& p, const Vec3<T>& t0, const Vec3<T>& t1, const Vec3<T>& t2)
 {
     return distance_kernels::point_plane(p - t0, t1 - t0, t2 - t0, nullptr, nullptr);
 }
 
 /// @brief Gradient of point_plane_distance. @param g out: 12 (d/dp, d/dt0, d/dt1, d/dt2), m
-template <class T> DIFFIPC_HD inline void point_plane_distance_gradient(
+template <class T>
+DIFFIPC_HD inline void point_plane_distance_gradient(
     const Vec3<T>& p, const Vec3<T>& t0, const Vec3<T>& t1, const Vec3<T>& t2, T* g)
 {
     T k[9];
@@ -28,7 +30,8 @@ template <class T> DIFFIPC_HD inline void point_plane_distance_gradient(
 }
 
 /// @brief Hessian of point_plane_distance. @param H out: 12 x 12 row-major, ordered (p, t0, t1, t2)
-template <class T> DIFFIPC_HD inline void point_plane_distance_hessian(
+template <class T>
+DIFFIPC_HD inline void point_plane_distance_hessian(
     const Vec3<T>& p, const Vec3<T>& t0, const Vec3<T>& t1, const Vec3<T>& t2, T* H)
 {
     T k[81];

@@ -9,7 +9,10 @@
 namespace diffipc::kernels {
 
 /// @brief \f$ |p_0 - p_1|^2 \f$ (m^2); 2D callers set z = 0.
-template <class T> DIFFIPC_HD inline T point_point_distance(const Vec3<T>& p0, const Vec3<T>& p1) { return squared_norm(p0 - p1); }
+template <class T> DIFFIPC_HD inline T point_point_distance(const Vec3<T>& p0, const Vec3<T>& p1)
+{
+    return squared_norm(p0 - p1);
+}
 
 /// @brief Gradient of point_point_distance, \f$ 2 (p_0 - p_1, p_1 - p_0) \f$.
 /// @param g out: 6 (d/dp0, d/dp1), m

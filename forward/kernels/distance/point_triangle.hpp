@@ -12,7 +12,8 @@
 namespace diffipc::kernels {
 
 /// @brief Squared distance from p to the triangle (t0, t1, t2) for `type` (m^2).
-template <class T> DIFFIPC_HD inline T point_triangle_distance(
+template <class T>
+DIFFIPC_HD inline T point_triangle_distance(
     const Vec3<T>& p, const Vec3<T>& t0, const Vec3<T>& t1, const Vec3<T>& t2, PointTriangleDistanceType type)
 {
     using PT = PointTriangleDistanceType;
@@ -36,13 +37,15 @@ template <class T> DIFFIPC_HD inline T point_triangle_distance(
 }
 
 /// @brief Squared distance from p to the triangle (t0, t1, t2), classifying first.
-template <class T> DIFFIPC_HD inline T point_triangle_distance(const Vec3<T>& p, const Vec3<T>& t0, const Vec3<T>& t1, const Vec3<T>& t2)
+template <class T>
+DIFFIPC_HD inline T point_triangle_distance(const Vec3<T>& p, const Vec3<T>& t0, const Vec3<T>& t1, const Vec3<T>& t2)
 {
     return point_triangle_distance(p, t0, t1, t2, point_triangle_distance_type(p, t0, t1, t2));
 }
 
 /// @brief Gradient of point_triangle_distance for `type`. @param g out: 12 (d/dp, d/dt0, d/dt1, d/dt2), m
-template <class T> DIFFIPC_HD inline void point_triangle_distance_gradient(
+template <class T>
+DIFFIPC_HD inline void point_triangle_distance_gradient(
     const Vec3<T>& p, const Vec3<T>& t0, const Vec3<T>& t1, const Vec3<T>& t2, PointTriangleDistanceType type, T* g)
 {
     using PT = PointTriangleDistanceType;
@@ -95,7 +98,8 @@ template <class T> DIFFIPC_HD inline void point_triangle_distance_gradient(
 }
 
 /// @brief Hessian of point_triangle_distance for `type`. @param H out: 12 x 12 row-major, ordered (p, t0, t1, t2)
-template <class T> DIFFIPC_HD inline void point_triangle_distance_hessian(
+template <class T>
+DIFFIPC_HD inline void point_triangle_distance_hessian(
     const Vec3<T>& p, const Vec3<T>& t0, const Vec3<T>& t1, const Vec3<T>& t2, PointTriangleDistanceType type, T* H)
 {
     using PT = PointTriangleDistanceType;

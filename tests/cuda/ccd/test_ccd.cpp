@@ -9,8 +9,8 @@
 
 #include "forward/common/error.hpp"
 #include "forward/contact/ccd/ccd.hpp"
-#include "forward/contact/ccd/check_ccd_settings.hpp"
 #include "forward/contact/ccd/ccd_sample_queries.hpp"
+#include "forward/contact/ccd/check_ccd_settings.hpp"
 
 #include <gtest/gtest.h>
 
@@ -52,7 +52,6 @@ std::vector<std::string> sample_query_folders()
     std::sort(folders.begin(), folders.end());
     return folders;
 }
-
 
 std::uint64_t bits(double x)
 {

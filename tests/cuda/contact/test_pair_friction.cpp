@@ -1,10 +1,11 @@
-// cuda/contact/pair_friction.cuh, one pair at a time, on the CPU: the lagged friction pairs of 3D and
-// 2D contact scenes summed over the pairs against the CPU's FrictionPotential (value, gradient,
-// Hessian), in the sticking (|u| < eps) and sliding regimes; and each pair's gradient and Hessian
-// against finite differences of its energy. Runs without a GPU.
+// The friction pair kernel (forward/kernels/friction_pair.hpp), one pair at a time, on the CPU: the
+// lagged friction pairs of 3D and 2D contact scenes summed over the pairs against FrictionPotential's
+// assembled value, gradient and Hessian, in the sticking (|u| < eps) and sliding regimes; and each
+// pair's gradient and Hessian against finite differences of its energy. Runs without a GPU.
 
-#include "cuda/contact/pair_friction.cuh"
+#include "cuda/common/kernels.cuh"
 #include "forward/contact/friction/friction_potential.hpp"
+#include "forward/kernels/friction_pair.hpp"
 #include "forward/simulation/device_conversion.hpp"
 #include "forward/simulation/device_solver.hpp"
 #include "tests/cuda/contact/contact_test_utils.hpp"

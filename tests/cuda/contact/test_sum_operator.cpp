@@ -27,7 +27,7 @@ gpu::DeviceBsrMatrix elastic_matrix(const test::ContactScene& scene, double mass
     const size_t ne = size_t(mesh.num_elements());
     const double E = 1e5, nu = 0.3;
     gpu::DeviceElasticMesh elastic;
-    elastic.upload(dim, scene.rest_vector(), elements, std::vector<int>(ne, int(MaterialModel::NEO_HOOKEAN)),
+    elastic.upload(dim, scene.rest_vector(), elements, std::vector<MaterialModel>(ne, MaterialModel::NEO_HOOKEAN),
         std::vector<double>(ne, E / (2 * (1 + nu))), std::vector<double>(ne, E * nu / ((1 + nu) * (1 - 2 * nu))));
     gpu::HostBsrMatrix A = elastic.hessian_bsr(scene.x_vector(), true).download();
     for (int r = 0; r < A.num_block_rows; ++r)

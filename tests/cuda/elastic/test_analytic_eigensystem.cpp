@@ -19,10 +19,10 @@ namespace {
 
 template <int dim> using RowMat = Eigen::Matrix<double, dim, dim, Eigen::RowMajor>;
 
-constexpr gpu::MaterialModel ISOTROPIC[]
-    = { gpu::MaterialModel::STVK, gpu::MaterialModel::NEO_HOOKEAN, gpu::MaterialModel::STABLE_NEO_HOOKEAN };
-constexpr gpu::MaterialModel ALL[] = { gpu::MaterialModel::LINEAR, gpu::MaterialModel::STVK,
-    gpu::MaterialModel::NEO_HOOKEAN, gpu::MaterialModel::STABLE_NEO_HOOKEAN };
+constexpr MaterialModel ISOTROPIC[]
+    = { MaterialModel::STVK, MaterialModel::NEO_HOOKEAN, MaterialModel::STABLE_NEO_HOOKEAN };
+constexpr MaterialModel ALL[]
+    = { MaterialModel::LINEAR, MaterialModel::STVK, MaterialModel::NEO_HOOKEAN, MaterialModel::STABLE_NEO_HOOKEAN };
 
 template <int dim> RowMat<dim> random_rotation(std::mt19937& rng)
 {
@@ -159,14 +159,14 @@ template <int dim> void check_eigensystem()
         // Both dP/dF's formulas and the eigensystem lose accuracy with the conditioning of F (the
         // neo-Hookean F^{-T} = cof F / det F): round-off times cond F.
         const double tolerance = 1e-13 * std::max(1.0, s[0] / std::abs(s[dim - 1]));
-        for (gpu::MaterialModel model : ALL) {
-            if (model == gpu::MaterialModel::NEO_HOOKEAN && !(F.determinant() > 0))
+        for (MaterialModel model : ALL) {
+            if (model == MaterialModel::NEO_HOOKEAN && !(F.determinant() > 0))
                 continue; // not defined there (the line search keeps J > 0)
             const std::string where = "dim " + std::to_string(dim) + ", model " + std::to_string(int(model)) + ", "
                 + kind + " case " + std::to_string(k);
             Big A;
             gpu::stress_derivative<dim>(model, F.data(), mu, lambda, A.data());
-            if (model != gpu::MaterialModel::LINEAR) {
+            if (model != MaterialModel::LINEAR) {
                 Big back;
                 gpu::isotropic_stress_derivative_from_eigensystem<dim>(
                     model, U.data(), s.data(), V.data(), mu, lambda, false, back.data());
@@ -205,14 +205,14 @@ TEST(GpuAnalyticEigensystem, LinearElasticityIsLeftUnchangedWhenPositiveSemiDefi
     const double F[9] = { 1.1, 0.2, 0, -0.1, 0.9, 0.3, 0, 0.05, 1.0 };
     using Big = Eigen::Matrix<double, 9, 9, Eigen::RowMajor>;
     Big A;
-    gpu::stress_derivative<3>(gpu::MaterialModel::LINEAR, F, 2.0, 3.0, A.data());
+    gpu::stress_derivative<3>(MaterialModel::LINEAR, F, 2.0, 3.0, A.data());
     Big projected = A;
-    EXPECT_FALSE(gpu::project_stress_derivative<3>(gpu::MaterialModel::LINEAR, F, 2.0, 3.0, projected.data()));
+    EXPECT_FALSE(gpu::project_stress_derivative<3>(MaterialModel::LINEAR, F, 2.0, 3.0, projected.data()));
     EXPECT_TRUE(projected == A);
     // lambda < -2 mu / 3: the volumetric eigenvalue is negative and removed.
-    gpu::stress_derivative<3>(gpu::MaterialModel::LINEAR, F, 2.0, -3.0, A.data());
+    gpu::stress_derivative<3>(MaterialModel::LINEAR, F, 2.0, -3.0, A.data());
     projected = A;
-    EXPECT_TRUE(gpu::project_stress_derivative<3>(gpu::MaterialModel::LINEAR, F, 2.0, -3.0, projected.data()));
+    EXPECT_TRUE(gpu::project_stress_derivative<3>(MaterialModel::LINEAR, F, 2.0, -3.0, projected.data()));
     const Eigen::Matrix<double, 9, 9> expected = project_psd<9>(Eigen::Matrix<double, 9, 9>(A));
     EXPECT_LE((Eigen::Matrix<double, 9, 9>(projected) - expected).norm(), 1e-13 * A.norm());
 }

@@ -23,8 +23,7 @@ namespace {
 gpu::DeviceElasticMesh upload(const test::ElasticBox& box)
 {
     gpu::DeviceElasticMesh m;
-    m.upload(
-        box.mesh.dim, box.rest_flat(), box.elements_flat(), box.model_codes(), box.mu_vector(), box.lambda_vector());
+    m.upload(box.mesh.dim, box.rest_flat(), box.elements_flat(), box.models, box.mu_vector(), box.lambda_vector());
     return m;
 }
 
@@ -112,9 +111,12 @@ TEST(DeviceElasticMesh, RejectsBadInput)
     gpu::DeviceElasticMesh m;
     // Checked on the host before any GPU work.
     EXPECT_THROW(m.upload(4, {}, {}, {}, {}, {}), std::invalid_argument);
-    EXPECT_THROW(m.upload(2, { 0, 0, 1, 0, 0, 1 }, { 0, 1, 2 }, { 7 }, { 1 }, { 1 }), std::invalid_argument);
-    EXPECT_THROW(m.upload(2, { 0, 0, 1, 0, 2, 0 }, { 0, 1, 2 }, { 0 }, { 1 }, { 1 }), std::invalid_argument);
-    EXPECT_THROW(m.upload(2, { 0, 0, 1, 0, 0, 1 }, { 0, 1, 3 }, { 0 }, { 1 }, { 1 }), std::invalid_argument);
+    EXPECT_THROW(
+        m.upload(2, { 0, 0, 1, 0, 0, 1 }, { 0, 1, 2 }, { MaterialModel(7) }, { 1 }, { 1 }), std::invalid_argument);
+    EXPECT_THROW(
+        m.upload(2, { 0, 0, 1, 0, 2, 0 }, { 0, 1, 2 }, { MaterialModel::LINEAR }, { 1 }, { 1 }), std::invalid_argument);
+    EXPECT_THROW(
+        m.upload(2, { 0, 0, 1, 0, 0, 1 }, { 0, 1, 3 }, { MaterialModel::LINEAR }, { 1 }, { 1 }), std::invalid_argument);
 }
 
 /// Seconds of GPU work between two events around `work`, averaged over `repeats`.

@@ -30,7 +30,7 @@ template <int dim> void check_gathers(const std::vector<int>& cells)
                 rest[a * dim + i] = box.mesh.rest_positions(box.mesh.elements(e, a), i);
                 xe[a * dim + i] = box.x[box.mesh.elements(e, a) * dim + i];
             }
-        const auto model = gpu::MaterialModel(int(box.models[size_t(e)]));
+        const MaterialModel model = box.models[size_t(e)];
         gpu::element_hessian_from_rest<dim>(
             model, rest, xe, box.mu[e], box.lambda[e], true, Ke.data() + size_t(e) * L * L);
         gpu::element_gradient_from_rest<dim>(model, rest, xe, box.mu[e], box.lambda[e], ge.data() + size_t(e) * L);

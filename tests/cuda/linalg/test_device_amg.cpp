@@ -32,7 +32,7 @@ struct Problem {
         : box(test::make_elastic_box(dim, cells, int(MaterialModel::NEO_HOOKEAN), 0.1, 0.1, seed))
         , fixed(test::clamped_face(box))
     {
-        mesh.upload(dim, box.rest_flat(), box.elements_flat(), box.model_codes(), box.mu_vector(), box.lambda_vector());
+        mesh.upload(dim, box.rest_flat(), box.elements_flat(), box.models, box.mu_vector(), box.lambda_vector());
         const VectorXd r = VectorXd::Random(box.mesh.num_dofs());
         b.assign(r.data(), r.data() + r.size());
     }

@@ -22,7 +22,7 @@ void solve_newton_system(int dim, const std::vector<int>& cells)
 {
     const test::ElasticBox box = test::make_elastic_box(dim, cells, -1, 0.15, 0.1, 31 + unsigned(dim));
     gpu::DeviceElasticMesh m;
-    m.upload(dim, box.rest_flat(), box.elements_flat(), box.model_codes(), box.mu_vector(), box.lambda_vector());
+    m.upload(dim, box.rest_flat(), box.elements_flat(), box.models, box.mu_vector(), box.lambda_vector());
     const std::vector<double> x = box.x_vector();
     const gpu::DeviceBsrMatrix& H = m.hessian_bsr(x, true);
     std::vector<double> b = m.gradient(x);
@@ -212,7 +212,7 @@ TEST(DevicePCG, SolvesOnAHyperplaneLikeTheKktSystem)
     const int dim = 3;
     const test::ElasticBox box = test::make_elastic_box(dim, { 5, 4, 3 }, -1, 0.15, 0.1, 37);
     gpu::DeviceElasticMesh m;
-    m.upload(dim, box.rest_flat(), box.elements_flat(), box.model_codes(), box.mu_vector(), box.lambda_vector());
+    m.upload(dim, box.rest_flat(), box.elements_flat(), box.models, box.mu_vector(), box.lambda_vector());
     const std::vector<double> x = box.x_vector();
     gpu::HostBsrMatrix host = m.hessian_bsr(x, true).download();
     std::vector<double> b = m.gradient(x);

@@ -67,9 +67,9 @@ TEST(DevicePeriodicNewton, HeterogeneousCellUnderCompressionAsOnTheCpu)
 
         // GPU.
         gpu::DeviceElasticMesh mesh;
-        mesh.upload(d, box.rest_flat(), box.elements_flat(), box.model_codes(), box.mu_vector(), box.lambda_vector());
+        mesh.upload(d, box.rest_flat(), box.elements_flat(), box.models, box.mu_vector(), box.lambda_vector());
         gpu::DeviceNewton solver(mesh, {});
-        solver.set_material_scale(box.model_codes(), box.mu_vector());
+        solver.set_material_scale(box.models, box.mu_vector());
         solver.set_periodic(&cell.device(box.rest_flat()), fixed);
         gpu::DeviceNewtonSettings settings;
         settings.residual_tolerance = TOLERANCE;
@@ -109,7 +109,7 @@ TEST(DevicePeriodicNewton, MisuseIsRefused)
     const test::ElasticBox box = test::make_elastic_box(2, { 3, 2 }, -1, 0, 0, 5);
     test::BoxCell cell(box.mesh);
     gpu::DeviceElasticMesh mesh;
-    mesh.upload(2, box.rest_flat(), box.elements_flat(), box.model_codes(), box.mu_vector(), box.lambda_vector());
+    mesh.upload(2, box.rest_flat(), box.elements_flat(), box.models, box.mu_vector(), box.lambda_vector());
     gpu::DevicePeriodicMap& device_map = cell.device(box.rest_flat());
     gpu::DeviceNewton solver(mesh, {});
     std::vector<double> q(size_t(device_map.num_reduced()), 0.0), x = box.rest_flat();

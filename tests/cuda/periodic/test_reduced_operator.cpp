@@ -31,7 +31,7 @@ TEST(ReducedOperator, ProductsBlocksAndSolvesEqualTheCpus)
         const int nq = int(map.num_reduced()), classes = int(pairing.num_classes());
 
         gpu::DeviceElasticMesh mesh;
-        mesh.upload(d, box.rest_flat(), box.elements_flat(), box.model_codes(), box.mu_vector(), box.lambda_vector());
+        mesh.upload(d, box.rest_flat(), box.elements_flat(), box.models, box.mu_vector(), box.lambda_vector());
         const gpu::DeviceBsrMatrix& H = mesh.hessian_bsr(box.x_vector(), true);
         gpu::ReducedOperator R;
         R.bind(H, cell.device(box.rest_flat()));
@@ -120,13 +120,13 @@ TEST(ReducedOperator, OperatorSumAddsProductsAndBlocks)
     const test::ElasticBox box = test::make_elastic_box(d, { 3, 3, 2 }, -1, 0.15, 0.1, 41);
     test::BoxCell cell(box.mesh);
     gpu::DeviceElasticMesh mesh, stiffer;
-    mesh.upload(d, box.rest_flat(), box.elements_flat(), box.model_codes(), box.mu_vector(), box.lambda_vector());
+    mesh.upload(d, box.rest_flat(), box.elements_flat(), box.models, box.mu_vector(), box.lambda_vector());
     std::vector<double> mu2 = box.mu_vector(), lambda2 = box.lambda_vector();
     for (double& v : mu2)
         v *= 2;
     for (double& v : lambda2)
         v *= 2;
-    stiffer.upload(d, box.rest_flat(), box.elements_flat(), box.model_codes(), mu2, lambda2);
+    stiffer.upload(d, box.rest_flat(), box.elements_flat(), box.models, mu2, lambda2);
     gpu::DevicePeriodicMap& map = cell.device(box.rest_flat());
     gpu::ReducedOperator A, B;
     A.bind(mesh.hessian_bsr(box.x_vector(), true), map);

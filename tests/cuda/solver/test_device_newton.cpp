@@ -1,7 +1,7 @@
 // DeviceNewton (cuda/solver/device_newton.hpp) on the GPU against the CPU NewtonSolver on the same
 // problems, built with the forward library: a 3D cantilever's implicit-Euler step under gravity,
 // a static 2D strip whose end is prescribed (lifting), every material model; determinism, a failed
-// solve leaving x untouched, inverted starts. The inversion bound's host code (inversion_bound.cuh)
+// solve leaving x untouched, inverted starts. The inversion bound's host code (forward/kernels/inversion_bound.hpp)
 // is checked against the CPU's inversion_free_step without a GPU; everything else skips without
 // one. DISABLED_TimingsOfA200kTetBeam prints per-phase times (--gtest_also_run_disabled_tests).
 //
@@ -13,8 +13,8 @@
 
 #include "cuda/elastic/device_elastic_mesh.hpp"
 #include "cuda/solver/device_newton.hpp"
-#include "cuda/solver/inversion_bound.cuh"
 #include "forward/fem/fe_space.hpp"
+#include "forward/kernels/inversion_bound.hpp"
 #include "forward/materials/material.hpp"
 #include "forward/mesh/mesh.hpp"
 #include "forward/potentials/elastic_potential.hpp"
@@ -69,13 +69,6 @@ struct Case {
 
     bool dynamic() const { return inertia != nullptr; }
     VectorXd rest() const { return flatten(mesh.rest_positions); }
-    std::vector<int> model_codes() const
-    {
-        std::vector<int> codes;
-        for (MaterialModel m : models)
-            codes.push_back(int(m));
-        return codes;
-    }
     /// #dofs lumped masses (empty when static).
     std::vector<double> dof_masses() const
     {
@@ -232,12 +225,12 @@ std::unique_ptr<GpuSolver> make_gpu(const Case& c)
     const Mesh& m = c.mesh;
     s->mesh.upload(m.dim,
         std::vector<double>(m.rest_positions.data(), m.rest_positions.data() + m.rest_positions.size()),
-        std::vector<int>(m.elements.data(), m.elements.data() + m.elements.size()), c.model_codes(), to_std(c.mu),
+        std::vector<int>(m.elements.data(), m.elements.data() + m.elements.size()), c.models, to_std(c.mu),
         to_std(c.lambda));
     s->newton = std::make_unique<gpu::DeviceNewton>(s->mesh, c.dof_masses());
     s->newton->set_constrained(c.constrained);
     s->newton->set_force_reference(to_std(c.rest()));
-    s->newton->set_material_scale(c.model_codes(), to_std(c.mu));
+    s->newton->set_material_scale(c.models, to_std(c.mu));
     return s;
 }
 
@@ -660,7 +653,7 @@ TEST(DeviceNewton, AdjointMultigridOnSeveralLevelsEqualsBlockJacobi)
     const test::ElasticBox box
         = test::make_elastic_box(dim, { 14, 6, 6 }, int(MaterialModel::NEO_HOOKEAN), 0.05, 0.05, 19);
     gpu::DeviceElasticMesh mesh;
-    mesh.upload(dim, box.rest_flat(), box.elements_flat(), box.model_codes(), box.mu_vector(), box.lambda_vector());
+    mesh.upload(dim, box.rest_flat(), box.elements_flat(), box.models, box.mu_vector(), box.lambda_vector());
     const Index nv = box.mesh.num_vertices();
     const double x_max = box.mesh.rest_positions.col(0).maxCoeff();
     std::vector<char> fixed(size_t(nv * dim), 0);

@@ -1,22 +1,22 @@
 #pragma once
-/// @file inversion_bound.cuh
-/// The inversion bound of a Newton step for one P1 element, on the host and the device: the port of
-/// forward/fem/fe_space.cpp's volume_polynomial, first_crossing and the per-element rule of
-/// inversion_free_step (same formulas, same root bracketing and bisection), so that the GPU line
-/// search starts from the CPU's step length. Compiles with nvcc and with a plain C++ compiler
-/// (DIFFIPC_HD, as cuda/common/vec3.cuh), so the CPU tests call the very functions the kernels run.
+/// @file inversion_bound.hpp
+/// The inversion bound of a Newton step for one P1 element, on the host and the device: the signed
+/// volume along x + t p as a polynomial in t, and the first t at which it falls to a fraction of
+/// its start (root bracketing between the critical points, then bisection). The CPU's
+/// inversion_free_step (forward/fem/fe_space.cpp) and the GPU's line search
+/// (cuda/solver/device_newton.cu) take the minimum of element_step_bound over the elements, so
+/// both start their line search from the same step length. A bound, not differentiated: written
+/// on doubles.
 ///
 /// Layouts: xe and pe are an element's (dim+1) vertex positions and step components, flattened
 /// vertex-major (xe[a dim + i], a the element's local vertex, i the axis), in metres.
 
-#include "cuda/elastic/small_matrix.cuh"
+#include "forward/kernels/small_matrix.hpp"
 
-#include <cmath>
-
-namespace diffipc::gpu {
+namespace diffipc::kernels {
 
 /// @brief The t-coefficient of det(P + t Q) for row-major 3x3 P, Q: the sum over columns k of
-/// Q_k . (P_{k+1} x P_{k+2}) (volume_polynomial's `mixed`, Eigen's cross and dot orders).
+/// Q_k . (P_{k+1} x P_{k+2}) (in Eigen's cross and dot orders, as the CPU's code had it).
 DIFFIPC_HD inline double mixed_coefficient(const double* P, const double* Q)
 {
     double s = 0;
@@ -31,8 +31,7 @@ DIFFIPC_HD inline double mixed_coefficient(const double* P, const double* Q)
 }
 
 /// @brief Coefficients c0..c3 of det[Ds(x + t p)] (dim! times the signed volume) as a polynomial in t:
-/// quadratic in 2D (c3 = 0), cubic in 3D. volume_polynomial's formulas (Eigen's determinant and
-/// cross-product orders).
+/// quadratic in 2D (c3 = 0), cubic in 3D.
 template <int dim> DIFFIPC_HD inline void volume_polynomial(const double* xe, const double* pe, double* c)
 {
     if constexpr (dim == 2) {
@@ -65,8 +64,9 @@ template <int dim> DIFFIPC_HD inline void volume_polynomial(const double* xe, co
 /// ((c3 t + c2) t + c1) t + c0
 DIFFIPC_HD inline double eval_cubic(const double* c, double t) { return ((c[3] * t + c[2]) * t + c[1]) * t + c[0]; }
 
-/// @brief First t in (0, 1] where c(t) - target <= 0, or 1 if none; returns a t at which
-/// c(t) - target > 0 (first_crossing's bracketing between the critical points, then bisection).
+/// @brief First t in (0, 1] where q(t) = c(t) - target <= 0, or 1 if none; returns a t at which
+/// q(t) > 0. The critical points of q (roots of q'(t) = q1 + 2 q2 t + 3 q3 t^2 in (0, 1)) split
+/// [0, 1] into monotone pieces; the first piece that ends with q <= 0 is bisected.
 DIFFIPC_HD inline double first_crossing(const double* c, double target)
 {
     const double q[4] = { c[0] - target, c[1], c[2], c[3] };
@@ -91,7 +91,7 @@ DIFFIPC_HD inline double first_crossing(const double* c, double target)
         if (r > 0 && r < 1)
             breaks[nb++] = r;
     }
-    // breaks[1..nb) is already increasing (lo before hi); the CPU sorts the same values.
+    // breaks[1..nb) is already increasing (lo before hi).
     breaks[nb++] = 1.0;
     for (int k = 1; k < nb; ++k) {
         double lo = breaks[k - 1], hi = breaks[k];
@@ -111,7 +111,7 @@ DIFFIPC_HD inline double first_crossing(const double* c, double target)
 
 /// @brief Largest t in (0, 1] such that the element keeps more than `keep` times its volume at x along
 /// x + s p for all s in [0, t]: 0 if its volume at x is not positive, 1 if it never decreases
-/// (inversion_free_step's rule for one element; the mesh's bound is the minimum over elements).
+/// (the mesh's bound is the minimum over its elements).
 template <int dim> DIFFIPC_HD inline double element_step_bound(const double* xe, const double* pe, double keep)
 {
     double c[4];
@@ -123,4 +123,4 @@ template <int dim> DIFFIPC_HD inline double element_step_bound(const double* xe,
     return first_crossing(c, keep * c[0]);
 }
 
-} // namespace diffipc::gpu
+} // namespace diffipc::kernels

@@ -1,37 +1,44 @@
 #pragma once
-/// @file material.cuh
-/// Hyperelastic energy densities Psi(F; mu, lambda), first Piola-Kirchhoff stress
-/// P = dPsi/dF and its derivative dP/dF for the GPU, callable on the host and the device.
-/// The same four models and formulas as forward/materials/material.cpp (read it for the
-/// references); 2D is plane strain (the same formulas with d = 2).
+/// @file material.hpp
+/// Hyperelastic energy densities Psi(F; mu, lambda), first Piola-Kirchhoff stress P = dPsi/dF and
+/// its derivative dP/dF, written once for the CPU path (forward/materials/material.cpp wraps
+/// them for Eigen) and the GPU path (cuda/elastic/). 2D is plane strain (the same formulas with
+/// d = 2). References: docs/math.md "Materials"; stable neo-Hookean after Smith, de Goes and Kim
+/// 2018, in the rest-stable form of Kim and Eberle's course notes.
 ///
-/// Layouts: F and P are dim by dim row-major, F[i * dim + j]; dP/dF is dim^2 by dim^2
-/// row-major with row index(i, j) = i * dim + j and column index(k, l), i.e.
-/// A[(i * dim + j) * dim * dim + k * dim + l] = dP_ij / dF_kl (the CPU's flattening).
+/// Layouts: F and P are dim by dim row-major, F[i * dim + j]; dP/dF is dim^2 by dim^2 row-major
+/// with row index(i, j) = i * dim + j and column index(k, l), i.e.
+/// A[(i * dim + j) * dim * dim + k * dim + l] = dP_ij / dF_kl.
+///
+/// Every law here is linear in (mu, lambda) for a fixed F: forward/potentials/elastic_potential.cpp
+/// takes dP/dmu and dP/dlambda as the stress at (mu, lambda) = (1, 0) and (0, 1). A law that is
+/// not linear in them must change that too.
+///
+/// Adding a law: its enumerator and name (material_model.hpp), a case in the three functions
+/// below, its closed-form eigensystem for the GPU's PSD projection (cuda/elastic/analytic_eigensystem.cuh)
+/// and tests/forward/materials/test_material.cpp; docs/scene_format.md lists the names.
 
-#include "cuda/elastic/small_matrix.cuh"
+#include "forward/kernels/material/material_model.hpp"
+#include "forward/kernels/small_matrix.hpp"
 
-namespace diffipc::gpu {
+namespace diffipc::kernels {
 
-/// Material model codes; the values equal those of diffipc::MaterialModel.
-enum class MaterialModel : int { LINEAR = 0, STVK = 1, NEO_HOOKEAN = 2, STABLE_NEO_HOOKEAN = 3 };
+namespace material_detail {
 
-namespace detail {
-
-    template <int dim> DIFFIPC_HD inline double squared_norm(const double* M)
+    template <int dim, class T> DIFFIPC_HD inline T squared_norm(const T* M)
     {
-        double s = 0;
+        T s = 0;
         for (int k = 0; k < dim * dim; ++k)
             s += M[k] * M[k];
         return s;
     }
 
     /// E = (F^T F - I) / 2 (StVK's Green strain), row-major.
-    template <int dim> DIFFIPC_HD inline void green_strain(const double* F, double* E)
+    template <int dim, class T> DIFFIPC_HD inline void green_strain(const T* F, T* E)
     {
         for (int i = 0; i < dim; ++i)
             for (int j = 0; j < dim; ++j) {
-                double s = 0;
+                T s = 0;
                 for (int m = 0; m < dim; ++m)
                     s += F[m * dim + i] * F[m * dim + j];
                 E[i * dim + j] = 0.5 * (s - (i == j ? 1.0 : 0.0));
@@ -41,21 +48,21 @@ namespace detail {
     /// Levi-Civita symbol for indices in {0, 1, 2}.
     DIFFIPC_HD inline double levi_civita(int a, int b, int c) { return double((a - b) * (b - c) * (c - a)) / 2.0; }
 
-} // namespace detail
+} // namespace material_detail
 
 /// @brief Energy density Psi(F) (J/m^3); +inf for the neo-Hookean model where J = det F <= 0.
 /// @param F dim by dim row-major deformation gradient
 /// @param mu, lambda Lame parameters (Pa)
-template <int dim>
-DIFFIPC_HD inline double energy_density(MaterialModel model, const double* F, double mu, double lambda)
+template <int dim, class T>
+DIFFIPC_HD inline T energy_density(MaterialModel model, const T* F, non_deduced<T> mu, non_deduced<T> lambda)
 {
     switch (model) {
     case MaterialModel::LINEAR: {
         // Psi = mu eps:eps + lambda/2 tr(eps)^2, eps = sym(F) - I
-        double sq = 0, tr = 0;
+        T sq = 0, tr = 0;
         for (int i = 0; i < dim; ++i)
             for (int j = 0; j < dim; ++j) {
-                const double eps = 0.5 * (F[i * dim + j] + F[j * dim + i]) - (i == j ? 1.0 : 0.0);
+                const T eps = 0.5 * (F[i * dim + j] + F[j * dim + i]) - (i == j ? 1.0 : 0.0);
                 sq += eps * eps;
                 if (i == j)
                     tr += eps;
@@ -63,51 +70,51 @@ DIFFIPC_HD inline double energy_density(MaterialModel model, const double* F, do
         return mu * sq + 0.5 * lambda * tr * tr;
     }
     case MaterialModel::STVK: {
-        double E[dim * dim];
-        detail::green_strain<dim>(F, E);
-        double tr = 0;
+        T E[dim * dim];
+        material_detail::green_strain<dim>(F, E);
+        T tr = 0;
         for (int i = 0; i < dim; ++i)
             tr += E[i * dim + i];
-        return mu * detail::squared_norm<dim>(E) + 0.5 * lambda * tr * tr;
+        return mu * material_detail::squared_norm<dim>(E) + 0.5 * lambda * tr * tr;
     }
     case MaterialModel::NEO_HOOKEAN: {
-        const double J = determinant<dim>(F);
+        const T J = determinant<dim>(F);
         if (!(J > 0))
-            return HUGE_VAL;
-        const double lnJ = log(J);
-        return 0.5 * mu * (detail::squared_norm<dim>(F) - dim) - mu * lnJ + 0.5 * lambda * lnJ * lnJ;
+            return infinity<T>();
+        const T lnJ = log(J);
+        return 0.5 * mu * (material_detail::squared_norm<dim>(F) - dim) - mu * lnJ + 0.5 * lambda * lnJ * lnJ;
     }
     case MaterialModel::STABLE_NEO_HOOKEAN: {
-        const double J = determinant<dim>(F), lp = lambda + mu;
-        return 0.5 * mu * (detail::squared_norm<dim>(F) - dim) - mu * (J - 1) + 0.5 * lp * (J - 1) * (J - 1);
+        const T J = determinant<dim>(F), lp = lambda + mu;
+        return 0.5 * mu * (material_detail::squared_norm<dim>(F) - dim) - mu * (J - 1) + 0.5 * lp * (J - 1) * (J - 1);
     }
     }
-    return NAN;
+    return T(NAN);
 }
 
 /// @brief First Piola-Kirchhoff stress P = dPsi/dF (Pa), dim by dim row-major. Not finite for
 /// the neo-Hookean model where J <= 0 (as on the CPU).
-template <int dim>
-DIFFIPC_HD inline void stress(MaterialModel model, const double* F, double mu, double lambda, double* P)
+template <int dim, class T>
+DIFFIPC_HD inline void stress(MaterialModel model, const T* F, non_deduced<T> mu, non_deduced<T> lambda, T* P)
 {
     switch (model) {
     case MaterialModel::LINEAR: {
         // P = 2 mu eps + lambda tr(eps) I
-        double tr = 0;
+        T tr = 0;
         for (int i = 0; i < dim; ++i)
             tr += F[i * dim + i] - 1.0;
         for (int i = 0; i < dim; ++i)
             for (int j = 0; j < dim; ++j) {
-                const double eps = 0.5 * (F[i * dim + j] + F[j * dim + i]) - (i == j ? 1.0 : 0.0);
+                const T eps = 0.5 * (F[i * dim + j] + F[j * dim + i]) - (i == j ? 1.0 : 0.0);
                 P[i * dim + j] = 2.0 * mu * eps + (i == j ? lambda * tr : 0.0);
             }
         return;
     }
     case MaterialModel::STVK: {
         // P = F S, S = 2 mu E + lambda tr(E) I
-        double S[dim * dim];
-        detail::green_strain<dim>(F, S);
-        double tr = 0;
+        T S[dim * dim];
+        material_detail::green_strain<dim>(F, S);
+        T tr = 0;
         for (int i = 0; i < dim; ++i)
             tr += S[i * dim + i];
         for (int i = 0; i < dim; ++i)
@@ -115,7 +122,7 @@ DIFFIPC_HD inline void stress(MaterialModel model, const double* F, double mu, d
                 S[i * dim + j] = 2.0 * mu * S[i * dim + j] + (i == j ? lambda * tr : 0.0);
         for (int i = 0; i < dim; ++i)
             for (int j = 0; j < dim; ++j) {
-                double s = 0;
+                T s = 0;
                 for (int m = 0; m < dim; ++m)
                     s += F[i * dim + m] * S[m * dim + j];
                 P[i * dim + j] = s;
@@ -124,9 +131,9 @@ DIFFIPC_HD inline void stress(MaterialModel model, const double* F, double mu, d
     }
     case MaterialModel::NEO_HOOKEAN: {
         // P = mu (F - F^{-T}) + lambda ln J F^{-T},  F^{-T} = cof(F) / J
-        double G[dim * dim];
+        T G[dim * dim];
         cofactor<dim>(F, G);
-        const double J = determinant<dim>(F), lnJ = log(J);
+        const T J = determinant<dim>(F), lnJ = log(J);
         for (int k = 0; k < dim * dim; ++k) {
             G[k] /= J;
             P[k] = mu * (F[k] - G[k]) + lambda * lnJ * G[k];
@@ -135,9 +142,9 @@ DIFFIPC_HD inline void stress(MaterialModel model, const double* F, double mu, d
     }
     case MaterialModel::STABLE_NEO_HOOKEAN: {
         // P = mu F + (lambda' (J - 1) - mu) cof(F),  lambda' = lambda + mu
-        double C[dim * dim];
+        T C[dim * dim];
         cofactor<dim>(F, C);
-        const double J = determinant<dim>(F), lp = lambda + mu;
+        const T J = determinant<dim>(F), lp = lambda + mu;
         for (int k = 0; k < dim * dim; ++k)
             P[k] = mu * F[k] + (lp * (J - 1) - mu) * C[k];
         return;
@@ -147,8 +154,9 @@ DIFFIPC_HD inline void stress(MaterialModel model, const double* F, double mu, d
 
 /// @brief dP/dF (dim^2 by dim^2, row-major, layout in the file comment). Not finite for the
 /// neo-Hookean model where J <= 0.
-template <int dim>
-DIFFIPC_HD inline void stress_derivative(MaterialModel model, const double* F, double mu, double lambda, double* A)
+template <int dim, class T>
+DIFFIPC_HD inline void stress_derivative(
+    MaterialModel model, const T* F, non_deduced<T> mu, non_deduced<T> lambda, T* A)
 {
     constexpr int n = dim * dim;
     switch (model) {
@@ -167,15 +175,15 @@ DIFFIPC_HD inline void stress_derivative(MaterialModel model, const double* F, d
     }
     case MaterialModel::STVK: {
         // dP_ij/dF_kl = d_ik S_lj + mu F_il F_kj + mu (F F^T)_ik d_jl + lambda F_ij F_kl
-        double S[n], FFt[n];
-        detail::green_strain<dim>(F, S);
-        double tr = 0;
+        T S[n], FFt[n];
+        material_detail::green_strain<dim>(F, S);
+        T tr = 0;
         for (int i = 0; i < dim; ++i)
             tr += S[i * dim + i];
         for (int i = 0; i < dim; ++i)
             for (int j = 0; j < dim; ++j) {
                 S[i * dim + j] = 2.0 * mu * S[i * dim + j] + (i == j ? lambda * tr : 0.0);
-                double s = 0;
+                T s = 0;
                 for (int m = 0; m < dim; ++m)
                     s += F[i * dim + m] * F[j * dim + m];
                 FFt[i * dim + j] = s;
@@ -191,9 +199,9 @@ DIFFIPC_HD inline void stress_derivative(MaterialModel model, const double* F, d
     }
     case MaterialModel::NEO_HOOKEAN: {
         // dP_ij/dF_kl = mu d_ik d_jl + (mu - lambda ln J) G_il G_kj + lambda G_ij G_kl,  G = F^{-T}
-        double G[n];
+        T G[n];
         cofactor<dim>(F, G);
-        const double J = determinant<dim>(F), lnJ = log(J);
+        const T J = determinant<dim>(F), lnJ = log(J);
         for (int k = 0; k < n; ++k)
             G[k] /= J;
         for (int i = 0; i < dim; ++i)
@@ -207,9 +215,9 @@ DIFFIPC_HD inline void stress_derivative(MaterialModel model, const double* F, d
     }
     case MaterialModel::STABLE_NEO_HOOKEAN: {
         // mu I + lambda' c c^T + (lambda' (J - 1) - mu) d cof(F)/dF,  c = vec cof(F)
-        double C[n];
+        T C[n];
         cofactor<dim>(F, C);
-        const double J = determinant<dim>(F), lp = lambda + mu, s = lp * (J - 1) - mu;
+        const T J = determinant<dim>(F), lp = lambda + mu, s = lp * (J - 1) - mu;
         for (int r = 0; r < n; ++r)
             for (int c = 0; c < n; ++c)
                 A[r * n + c] = (r == c ? mu : 0.0) + lp * C[r] * C[c];
@@ -228,7 +236,8 @@ DIFFIPC_HD inline void stress_derivative(MaterialModel model, const double* F, d
                             if (i == k || j == l)
                                 continue;
                             const int m = 3 - i - k, q = 3 - j - l;
-                            const double d = detail::levi_civita(i, k, m) * detail::levi_civita(j, l, q) * F[m * 3 + q];
+                            const T d = material_detail::levi_civita(i, k, m) * material_detail::levi_civita(j, l, q)
+                                * F[m * 3 + q];
                             A[(i * 3 + j) * n + k * 3 + l] += s * d;
                         }
         }
@@ -237,4 +246,4 @@ DIFFIPC_HD inline void stress_derivative(MaterialModel model, const double* F, d
     }
 }
 
-} // namespace diffipc::gpu
+} // namespace diffipc::kernels

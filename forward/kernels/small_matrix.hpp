@@ -1,25 +1,17 @@
 #pragma once
-/// @file small_matrix.cuh
+/// @file small_matrix.hpp
 /// Fixed-size dense helpers on raw row-major arrays, callable on the host and the device
-/// (no Eigen: this header is compiled by nvcc for the GPU and by the host compiler for tests).
+/// (no Eigen: this header is compiled by nvcc for the GPU and by the host compiler for the CPU).
 /// A dim by dim matrix M is stored as M[i * dim + j]; dim is 2 or 3.
 /// The formulas are those Eigen uses for fixed 2x2 and 3x3 matrices, so that the GPU path
 /// rounds like the CPU path as far as possible.
 
-#include <cmath>
+#include "forward/kernels/host_device.hpp"
 
-#ifndef DIFFIPC_HD // also defined by cuda/common/vec3.cuh
-#if defined(__CUDACC__)
-#define DIFFIPC_HD __host__ __device__
-#else
-#define DIFFIPC_HD
-#endif
-#endif
-
-namespace diffipc::gpu {
+namespace diffipc::kernels {
 
 /// @brief det M of a dim by dim row-major matrix (Eigen's expansion along the first column).
-template <int dim> DIFFIPC_HD inline double determinant(const double* M)
+template <int dim, class T> DIFFIPC_HD inline T determinant(const T* M)
 {
     if constexpr (dim == 2) {
         return M[0] * M[3] - M[2] * M[1];
@@ -33,7 +25,7 @@ template <int dim> DIFFIPC_HD inline double determinant(const double* M)
 
 /// @brief Cofactor matrix cof(M) = det(M) M^{-T} (dim by dim, row-major out).
 /// 2D: [[M11, -M10], [-M01, M00]]; 3D: columns cof_{:,0} = M_{:,1} x M_{:,2} and cyclic.
-template <int dim> DIFFIPC_HD inline void cofactor(const double* M, double* C)
+template <int dim, class T> DIFFIPC_HD inline void cofactor(const T* M, T* C)
 {
     if constexpr (dim == 2) {
         C[0] = M[3];
@@ -53,16 +45,16 @@ template <int dim> DIFFIPC_HD inline void cofactor(const double* M, double* C)
 
 /// @brief M^{-1} (dim by dim, row-major out) as cof(M)^T / det M; returns det M (the inverse is
 /// not finite where it is 0).
-template <int dim> DIFFIPC_HD inline double inverse(const double* M, double* Minv)
+template <int dim, class T> DIFFIPC_HD inline T inverse(const T* M, T* Minv)
 {
-    double C[dim * dim];
+    T C[dim * dim];
     cofactor<dim>(M, C);
-    const double det = determinant<dim>(M);
-    const double inv = 1.0 / det;
+    const T det = determinant<dim>(M);
+    const T inv = 1.0 / det;
     for (int i = 0; i < dim; ++i)
         for (int j = 0; j < dim; ++j)
             Minv[i * dim + j] = C[j * dim + i] * inv;
     return det;
 }
 
-} // namespace diffipc::gpu
+} // namespace diffipc::kernels
