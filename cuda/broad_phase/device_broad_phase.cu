@@ -3,9 +3,10 @@
 
 #include "cuda/broad_phase/candidate_filter.cuh"
 #include "cuda/broad_phase/lbvh.cuh"
-#include "cuda/broad_phase/primitive_box.cuh"
 #include "cuda/common/device.hpp"
+#include "cuda/common/kernels.cuh"
 #include "forward/common/error.hpp" // header-only, standard library only: format_number
+#include "forward/kernels/primitive_box.hpp"
 
 #include <cub/device/device_radix_sort.cuh>
 #include <cuda_runtime.h>
@@ -36,7 +37,7 @@ namespace {
         NUM_STATUS
     };
 
-    enum PairKind : int { VERTEX_EDGE = 0, VERTEX_FACE = 1, EDGE_EDGE = 2 };
+    enum ContactKind : int { VERTEX_EDGE = 0, VERTEX_FACE = 1, EDGE_EDGE = 2 };
 
     unsigned blocks_for(std::size_t n) { return unsigned((n + THREADS - 1) / THREADS); }
 

@@ -3,8 +3,8 @@
 /// Contact broad phase on the GPU: the primitive pairs of a collision mesh whose swept, inflated boxes overlap
 /// during x(t) = (1 - t) x_t0 + t x_t1 (x_t1 = x_t0 for a static query), exactly the pairs of the CPU's
 /// broad_phase_candidates (forward/contact/broad_phase/broad_phase.hpp): the same boxes bit for bit
-/// (primitive_box.cuh), the same closed-box overlap test and the same exclusion rules (candidate_filter.cuh).
-/// 2D: vertex-edge pairs; 3D: vertex-face and edge-edge pairs.
+/// (forward/kernels/primitive_box.hpp), the same closed-box overlap test and the same exclusion rules
+/// (candidate_filter.cuh). 2D: vertex-edge pairs; 3D: vertex-face and edge-edge pairs.
 ///
 /// Method: a linear BVH (Karras 2012, "Maximizing parallelism in the construction of BVHs, octrees, and k-d
 /// trees") rebuilt per call over the target primitives (edges, faces): 63-bit Morton codes of the box centres,

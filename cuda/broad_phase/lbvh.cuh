@@ -15,7 +15,8 @@
 /// the depth is at most 63 + 32 + 1 < STACK_SIZE, and a depth-first traversal holds at most one pending node per
 /// level.
 
-#include "cuda/broad_phase/primitive_box.cuh"
+#include "cuda/common/kernels.cuh"
+#include "forward/kernels/primitive_box.hpp"
 
 #include <cstdint>
 

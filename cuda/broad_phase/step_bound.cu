@@ -107,7 +107,7 @@ namespace {
             atomicOr(&outcome->exhausted, 1ull);
     }
 
-    enum PairKind : int { VERTEX_EDGE = 0, VERTEX_FACE = 1, EDGE_EDGE = 2 };
+    enum ContactKind : int { VERTEX_EDGE = 0, VERTEX_FACE = 1, EDGE_EDGE = 2 };
 
     /// One thread per candidate pair of one kind (the kind a template parameter, so each kernel keeps only its own
     /// CCD's code and registers).

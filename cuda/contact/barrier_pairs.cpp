@@ -29,10 +29,10 @@ void check_barrier_pair(int dim, int num_vertices, int num_planes, const Barrier
 {
     if (c.kind < 0 || c.kind > 3)
         bad_pair(p, "has kind " + std::to_string(c.kind) + " (expected 0..3, as diffipc::ContactKind)");
-    const PairKind kind = PairKind(c.kind);
-    if (dim == 2 && (kind == PairKind::VERTEX_FACE || kind == PairKind::EDGE_EDGE))
+    const ContactKind kind = ContactKind(c.kind);
+    if (dim == 2 && (kind == ContactKind::VERTEX_FACE || kind == ContactKind::EDGE_EDGE))
         bad_pair(p, "is vertex-face or edge-edge in 2D");
-    const int n = pair_num_vertices(kind);
+    const int n = contact_num_vertices(kind);
     for (int a = 0; a < n; ++a) {
         const int v = c.vertices[a];
         if (v < 0 || v >= num_vertices)
@@ -41,7 +41,7 @@ void check_barrier_pair(int dim, int num_vertices, int num_planes, const Barrier
             if (c.vertices[b] == v)
                 bad_pair(p, "repeats vertex " + std::to_string(v));
     }
-    if (kind == PairKind::VERTEX_PLANE && (c.plane < 0 || c.plane >= num_planes))
+    if (kind == ContactKind::VERTEX_PLANE && (c.plane < 0 || c.plane >= num_planes))
         bad_pair(p, "has plane " + std::to_string(c.plane) + " of " + std::to_string(num_planes));
 }
 
@@ -68,12 +68,12 @@ BarrierPairs prepare_barrier_pairs(
     for (size_t p = 0; p < np; ++p) {
         const BarrierPair& c = pairs[p];
         check_barrier_pair(dim, nv, num_planes, c, p);
-        const PairKind kind = PairKind(c.kind);
-        for (int a = 0; a < pair_num_vertices(kind); ++a)
+        const ContactKind kind = ContactKind(c.kind);
+        for (int a = 0; a < contact_num_vertices(kind); ++a)
             out.vertices[size_t(a) * np + p] = c.vertices[a];
-        if (kind == PairKind::VERTEX_PLANE)
+        if (kind == ContactKind::VERTEX_PLANE)
             out.plane[p] = c.plane;
-        if (kind == PairKind::EDGE_EDGE)
+        if (kind == ContactKind::EDGE_EDGE)
             out.eps_x[p] = edge_edge_mollifier_threshold(rest_point(rest_positions, dim, c.vertices[0]),
                 rest_point(rest_positions, dim, c.vertices[1]), rest_point(rest_positions, dim, c.vertices[2]),
                 rest_point(rest_positions, dim, c.vertices[3]));

@@ -5,8 +5,8 @@
 /// threshold, and the incidence lists that gather per-pair gradients and Hessian blocks in a
 /// fixed order. Built on the host (plain C++) whenever the pair list changes.
 ///
-/// Pair layout (BarrierPair): `kind` is int(PairKind) = int(diffipc::ContactKind); `vertices`
-/// holds pair_num_vertices(kind) full-mesh vertex indices in ContactKind's order (vertex-edge:
+/// Pair layout (BarrierPair): `kind` is int(ContactKind) = int(diffipc::ContactKind); `vertices`
+/// holds contact_num_vertices(kind) full-mesh vertex indices in ContactKind's order (vertex-edge:
 /// v, e0, e1; vertex-face: v, t0, t1, t2; edge-edge: ea0, ea1, eb0, eb1; vertex-plane: v, the
 /// plane's point), the remaining entries -1; `plane` is a vertex-plane pair's index into the
 /// plane normals. A diffipc::Contact maps to it field by field (its distance_type is not needed:

@@ -33,10 +33,10 @@ namespace {
         PairModel model; // the barrier's dmin^2 and shat, or the penalty's dhat
     };
 
-    __device__ PairKind load_pair(const PairArrays& P, int p, const double* x, vec3* points, vec3& normal)
+    __device__ ContactKind load_pair(const PairArrays& P, int p, const double* x, vec3* points, vec3& normal)
     {
-        const PairKind kind = PairKind(P.kind[p]);
-        const int nv = pair_num_vertices(kind);
+        const ContactKind kind = ContactKind(P.kind[p]);
+        const int nv = contact_num_vertices(kind);
         for (int a = 0; a < nv; ++a) {
             const int v = P.vertices[size_t(a) * P.np + p];
             const double* q = x + size_t(v) * P.dim;
@@ -53,8 +53,8 @@ namespace {
         if (p >= P.np)
             return;
         vec3 points[4], normal;
-        const PairKind kind = load_pair(P, p, x, points, normal);
-        out[p] = pair_energy(kind, P.dim, points, normal, P.eps_x[p], P.model, nullptr, nullptr);
+        const ContactKind kind = load_pair(P, p, x, points, normal);
+        out[p] = pair_energy(kind, P.dim, points, normal, P.eps_x[p], -1, P.model, nullptr, nullptr);
     }
 
     /// Local gradient k (= a dim + i) of pair p at k np + p.
@@ -64,10 +64,10 @@ namespace {
         if (p >= P.np)
             return;
         vec3 points[4], normal;
-        const PairKind kind = load_pair(P, p, x, points, normal);
-        double g[PAIR_MAX_DOFS];
-        pair_energy(kind, P.dim, points, normal, P.eps_x[p], P.model, g, nullptr);
-        const int n = pair_num_vertices(kind) * P.dim;
+        const ContactKind kind = load_pair(P, p, x, points, normal);
+        double g[CONTACT_MAX_DOFS];
+        pair_energy(kind, P.dim, points, normal, P.eps_x[p], -1, P.model, g, nullptr);
+        const int n = contact_num_vertices(kind) * P.dim;
         for (int k = 0; k < n; ++k)
             out[size_t(k) * P.np + p] = g[k];
     }
@@ -80,10 +80,10 @@ namespace {
         if (p >= P.np)
             return;
         vec3 points[4], normal;
-        const PairKind kind = load_pair(P, p, x, points, normal);
-        double H[PAIR_MAX_DOFS * PAIR_MAX_DOFS];
+        const ContactKind kind = load_pair(P, p, x, points, normal);
+        double H[CONTACT_MAX_DOFS * CONTACT_MAX_DOFS];
         pair_energy_hessian(kind, P.dim, points, normal, P.eps_x[p], P.model, project, scale, H);
-        const int n = pair_num_vertices(kind) * P.dim, L = 4 * P.dim;
+        const int n = contact_num_vertices(kind) * P.dim, L = 4 * P.dim;
         for (int r = 0; r < n; ++r)
             for (int c = 0; c < n; ++c)
                 out[size_t(r * L + c) * P.np + p] = H[r * n + c];

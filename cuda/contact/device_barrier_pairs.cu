@@ -73,9 +73,10 @@ namespace {
             vertex_keys[size_t(p) * 4 + a] = v[a] >= 0 ? v[a] : nv;
             vertex_codes[size_t(p) * 4 + a] = p * 4 + a;
         }
-        eps_x[p] = PairKind(o[0]) == PairKind::EDGE_EDGE ? edge_edge_mollifier_threshold(rest_point(rest, dim, v[0]),
-                       rest_point(rest, dim, v[1]), rest_point(rest, dim, v[2]), rest_point(rest, dim, v[3]))
-                                                         : 0.0;
+        eps_x[p] = ContactKind(o[0]) == ContactKind::EDGE_EDGE
+            ? edge_edge_mollifier_threshold(rest_point(rest, dim, v[0]), rest_point(rest, dim, v[1]),
+                rest_point(rest, dim, v[2]), rest_point(rest, dim, v[3]))
+            : 0.0;
         const long long invalid = (long long)nv * nv;
         for (int a = 0; a < 4; ++a)
             for (int b = 0; b < 4; ++b) {

@@ -52,7 +52,7 @@ namespace {
     };
 
     struct Candidate {
-        PairKind kind;
+        ContactKind kind;
         int v[4];
         int plane;
     };
@@ -64,7 +64,7 @@ namespace {
         c.v[3] = -1;
         if (k < L.n_ve) {
             const int e = L.ve[2 * k + 1];
-            c.kind = PairKind::VERTEX_EDGE;
+            c.kind = ContactKind::VERTEX_EDGE;
             c.v[0] = L.ve[2 * k];
             c.v[1] = L.edges[2 * e];
             c.v[2] = L.edges[2 * e + 1];
@@ -73,7 +73,7 @@ namespace {
         k -= L.n_ve;
         if (k < L.n_vf) {
             const int f = L.vf[2 * k + 1];
-            c.kind = PairKind::VERTEX_FACE;
+            c.kind = ContactKind::VERTEX_FACE;
             c.v[0] = L.vf[2 * k];
             c.v[1] = L.faces[3 * f];
             c.v[2] = L.faces[3 * f + 1];
@@ -83,7 +83,7 @@ namespace {
         k -= L.n_vf;
         if (k < L.n_ee) {
             const int a = L.ee[2 * k], b = L.ee[2 * k + 1];
-            c.kind = PairKind::EDGE_EDGE;
+            c.kind = ContactKind::EDGE_EDGE;
             c.v[0] = L.edges[2 * a];
             c.v[1] = L.edges[2 * a + 1];
             c.v[2] = L.edges[2 * b];
@@ -91,7 +91,7 @@ namespace {
             return c;
         }
         k -= L.n_ee;
-        c.kind = PairKind::VERTEX_PLANE;
+        c.kind = ContactKind::VERTEX_PLANE;
         c.plane = int(k / size_t(L.num_plane_vertices));
         c.v[0] = L.plane_vertices[k % size_t(L.num_plane_vertices)];
         c.v[1] = L.plane_point[c.plane];
@@ -109,13 +109,13 @@ namespace {
     __device__ void candidate_geometry(
         const CandidateList& L, const Candidate& c, const double* x, vec3* points, vec3& normal, double& eps_x)
     {
-        const int nv = pair_num_vertices(c.kind);
+        const int nv = contact_num_vertices(c.kind);
         for (int a = 0; a < nv; ++a)
             points[a] = point_of(x, c.v[a], L.dim);
         normal = c.plane >= 0 ? vec3::load(L.normals + 3 * size_t(c.plane)) : vec3(0, 0, 0);
-        eps_x = c.kind == PairKind::EDGE_EDGE ? edge_edge_mollifier_threshold(point_of(L.rest, c.v[0], L.dim),
+        eps_x = c.kind == ContactKind::EDGE_EDGE ? edge_edge_mollifier_threshold(point_of(L.rest, c.v[0], L.dim),
                     point_of(L.rest, c.v[1], L.dim), point_of(L.rest, c.v[2], L.dim), point_of(L.rest, c.v[3], L.dim))
-                                              : 0.0;
+                                                 : 0.0;
     }
 
     /// The CPU build_contacts' test with radius r: s < r^2 (s of the classified type), or for a plane
@@ -130,13 +130,13 @@ namespace {
         candidate_geometry(L, c, x, points, normal, eps_x);
         double s;
         bool active;
-        if (c.kind == PairKind::VERTEX_PLANE) {
+        if (c.kind == ContactKind::VERTEX_PLANE) {
             const double h = dot(points[0] - points[1], normal);
             active = h < radius;
             s = h > 0 ? h * h : -1.0;
         } else {
             double m;
-            pair_distance(c.kind, points, normal, eps_x, s, m, nullptr, nullptr, nullptr, nullptr);
+            pair_distance(c.kind, points, normal, eps_x, -1, s, m, nullptr, nullptr, nullptr, nullptr);
             active = s < radius * radius;
         }
         distance = s < 0 ? 0.0 : sqrt(s);
@@ -186,7 +186,7 @@ namespace {
         vec3 points[4], normal;
         double eps_x;
         candidate_geometry(L, c, x, points, normal, eps_x);
-        out[k] = pair_energy(c.kind, L.dim, points, normal, eps_x, model, nullptr, nullptr);
+        out[k] = pair_energy(c.kind, L.dim, points, normal, eps_x, -1, model, nullptr, nullptr);
     }
 
     /// The kept candidates as pairs: kind, 4 vertices (-1 unused), plane.

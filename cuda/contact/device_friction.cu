@@ -60,7 +60,7 @@ namespace {
             return;
         vec3 dx[4];
         load_displacements(P, p, x, dx);
-        double g[PAIR_MAX_DOFS];
+        double g[CONTACT_MAX_DOFS];
         pair_friction(P.dim, P.data[p], dx, P.eps, g, nullptr);
         const int n = P.data[p].num_vertices * P.dim;
         for (int k = 0; k < n; ++k)
@@ -76,7 +76,7 @@ namespace {
             return;
         vec3 dx[4];
         load_displacements(P, p, x, dx);
-        double H[PAIR_MAX_DOFS * PAIR_MAX_DOFS];
+        double H[CONTACT_MAX_DOFS * CONTACT_MAX_DOFS];
         pair_friction(P.dim, P.data[p], dx, P.eps, nullptr, H);
         const int n = P.data[p].num_vertices * P.dim, L = 4 * P.dim;
         for (int r = 0; r < n; ++r)
@@ -122,15 +122,15 @@ void DeviceFriction::set_pairs(const std::vector<BarrierPair>& pairs, const std:
             finite = finite && std::isfinite(v);
         for (double v : f.tangent)
             finite = finite && std::isfinite(v);
-        const PairKind kind = PairKind(pairs[p].kind);
-        if (f.num_vertices != pair_num_vertices(kind) || !finite)
+        const ContactKind kind = ContactKind(pairs[p].kind);
+        if (f.num_vertices != contact_num_vertices(kind) || !finite)
             throw std::invalid_argument("DeviceFriction::set_pairs: friction pair " + std::to_string(p)
                 + " has data that does not fit its kind (vertex count) or is not finite (mu lambda >= 0)");
         int* q = packed.data() + 6 * p;
         q[0] = pairs[p].kind;
         for (int a = 0; a < 4; ++a)
             q[1 + a] = a < f.num_vertices ? pairs[p].vertices[a] : -1;
-        q[5] = kind == PairKind::VERTEX_PLANE ? pairs[p].plane : -1;
+        q[5] = kind == ContactKind::VERTEX_PLANE ? pairs[p].plane : -1;
     }
     m_packed.upload(packed);
     m_layout.set_pairs_device(m_packed.data(), int(pairs.size()));

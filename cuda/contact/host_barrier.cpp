@@ -16,7 +16,7 @@ namespace {
         vec3* points, vec3& normal)
     {
         const int dim = P.dim, np = P.num_pairs;
-        const int nv = pair_num_vertices(PairKind(P.kind[size_t(p)]));
+        const int nv = contact_num_vertices(ContactKind(P.kind[size_t(p)]));
         for (int a = 0; a < nv; ++a) {
             const double* q = x.data() + size_t(P.vertices[size_t(a) * size_t(np) + size_t(p)]) * size_t(dim);
             points[a] = vec3(q[0], q[1], dim == 3 ? q[2] : 0.0);
@@ -61,7 +61,7 @@ double HostBarrier::energy(const std::vector<double>& x) const
     vec3 points[4], normal;
     for (int p = 0; p < m_pairs.num_pairs; ++p) {
         load_pair(m_pairs, m_normals, x, p, points, normal);
-        sum += pair_energy(PairKind(m_pairs.kind[size_t(p)]), m_dim, points, normal, m_pairs.eps_x[size_t(p)],
+        sum += pair_energy(ContactKind(m_pairs.kind[size_t(p)]), m_dim, points, normal, m_pairs.eps_x[size_t(p)], -1,
             pair_model, nullptr, nullptr);
     }
     return std::isfinite(sum) ? m_settings.kappa * sum : std::numeric_limits<double>::infinity();
@@ -77,7 +77,7 @@ std::vector<double> HostBarrier::gradient(const std::vector<double>& x, double w
     vec3 points[4], normal;
     for (int p = 0; p < np; ++p) {
         load_pair(m_pairs, m_normals, x, p, points, normal);
-        pair_energy(PairKind(m_pairs.kind[size_t(p)]), dim, points, normal, m_pairs.eps_x[size_t(p)], pair_model,
+        pair_energy(ContactKind(m_pairs.kind[size_t(p)]), dim, points, normal, m_pairs.eps_x[size_t(p)], -1, pair_model,
             local.data() + size_t(p) * size_t(L), nullptr);
     }
     const double scale = weight * m_settings.kappa;
@@ -103,7 +103,7 @@ HostBsrMatrix HostBarrier::hessian(const std::vector<double>& x, bool project, d
     vec3 points[4], normal;
     for (int p = 0; p < np; ++p) {
         load_pair(m_pairs, m_normals, x, p, points, normal);
-        pair_energy_hessian(PairKind(m_pairs.kind[size_t(p)]), dim, points, normal, m_pairs.eps_x[size_t(p)],
+        pair_energy_hessian(ContactKind(m_pairs.kind[size_t(p)]), dim, points, normal, m_pairs.eps_x[size_t(p)],
             pair_model, project, scale, local.data() + size_t(p) * size_t(L * L));
     }
     HostBsrMatrix H;
@@ -119,7 +119,7 @@ HostBsrMatrix HostBarrier::hessian(const std::vector<double>& x, bool project, d
                 for (int c = m_pairs.slot_offsets[size_t(s)]; c < m_pairs.slot_offsets[size_t(s) + 1]; ++c) {
                     const int code = m_pairs.slot_codes[size_t(c)];
                     const int p = code / 16, a = (code / 4) % 4, b = code % 4;
-                    const int n = pair_num_vertices(PairKind(m_pairs.kind[size_t(p)])) * dim;
+                    const int n = contact_num_vertices(ContactKind(m_pairs.kind[size_t(p)])) * dim;
                     acc += local[size_t(p) * size_t(L * L) + size_t((a * dim + i) * n + b * dim + k)];
                 }
                 H.values[size_t(s) * size_t(dim * dim) + size_t(i * dim + k)] = acc;

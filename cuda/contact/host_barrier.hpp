@@ -13,9 +13,13 @@
 
 #include <vector>
 
+namespace diffipc::kernels {
+struct PairModel; // forward/kernels/contact_pair.hpp
+} // namespace diffipc::kernels
+
 namespace diffipc::gpu {
 
-struct PairModel; // pair_barrier.cuh
+using kernels::PairModel;
 
 class HostBarrier {
 public:

@@ -1,287 +1,15 @@
 #pragma once
 /// @file pair_barrier.cuh
-/// The barrier energy of one contact pair (or the penalty baseline's, PairModel), its gradient and
-/// its (projected) Hessian on the host and the device: the port of ContactPotential::local_distance
-/// and local_barrier
-/// (forward/contact/contact_potential.cpp) and of the per-pair PSD projection of its
-/// add_hessian. Per pair, without kappa:
-///   B_k = m_k b(s_k - dmin^2, shat),  shat = (2 dmin + dhat) dhat,
-/// with s_k the squared distance of the pair's closest-feature type (classified at the positions
-/// it is evaluated at, as the CPU's contact set is rebuilt at every state), m_k the edge-edge
-/// mollifier (1 for other kinds) and, for a vertex-plane pair, s = h^2 with the signed distance
-/// h = (x_v - x_plane) . n (an intersection where h <= 0). There are no per-pair weights (no
-/// area weighting): the CPU sums exactly these terms, and ContactPotential multiplies the sum by
-/// kappa (and the caller's potential weight).
-///
-/// Layouts: a pair has pair_num_vertices(kind) vertices, in ContactKind's order (vertex-edge:
-/// v, e0, e1; vertex-face: v, t0, t1, t2; edge-edge: ea0, ea1, eb0, eb1; vertex-plane: v, the
-/// plane's point); its local dofs are vertex-major, dim per vertex (n = #vertices * dim);
-/// Hessians are n by n, row-major.
+/// The projected Hessian of one contact pair on the host and the device: the pair's energy and true
+/// Hessian from forward/kernels/contact_pair.hpp (the code ContactPotential runs), projected to
+/// positive semi-definite by cyclic Jacobi (cuda/elastic/project_psd.cuh; the CPU uses Eigen's
+/// eigensolver for the same projection) and scaled.
 
 #include "cuda/common/kernels.cuh"
 #include "cuda/elastic/project_psd.cuh"
-#include "forward/kernels/barrier.hpp"
-#include "forward/kernels/distance/edge_edge.hpp"
-#include "forward/kernels/distance/edge_edge_mollifier.hpp"
-#include "forward/kernels/distance/point_edge.hpp"
-#include "forward/kernels/distance/point_triangle.hpp"
+#include "forward/kernels/contact_pair.hpp"
 
 namespace diffipc::gpu {
-
-/// The kinds of contact pairs, with diffipc::ContactKind's values (forward/contact/contact_set.hpp).
-enum class PairKind : int {
-    VERTEX_EDGE = 0, ///< 2D (or 3D): vertices (v, e0, e1)
-    VERTEX_FACE = 1, ///< 3D: vertices (v, t0, t1, t2)
-    EDGE_EDGE = 2, ///< 3D: vertices (ea0, ea1, eb0, eb1), mollified
-    VERTEX_PLANE = 3, ///< vertices (v, plane point); one-sided
-};
-
-/// Vertices of a pair of this kind (as Contact::num_vertices).
-DIFFIPC_HD inline int pair_num_vertices(PairKind kind)
-{
-    return kind == PairKind::VERTEX_EDGE ? 3 : kind == PairKind::VERTEX_PLANE ? 2 : 4;
-}
-
-/// The most local dofs of a pair (4 vertices in 3D).
-constexpr int PAIR_MAX_DOFS = 12;
-
-/// @brief ContactPotential::local_distance: the squared distance s of a pair for its classified
-/// type (0 for a vertex on the wrong side of its plane), the mollifier m (1 unless edge-edge),
-/// and, where the pointers are given, their derivatives in the 3D-padded local layout (3 dofs per
-/// vertex, n3 = 3 #vertices; Hessians n3 by n3 row-major). gm and Hm are written only for an
-/// edge-edge pair.
-/// @param points  the pair's vertices (z = 0 in 2D)
-/// @param normal  VERTEX_PLANE: the plane's unit normal (z = 0 in 2D); unused otherwise
-/// @param eps_x   EDGE_EDGE: the mollifier threshold at rest (edge_edge_mollifier_threshold)
-DIFFIPC_HD inline void pair_distance(PairKind kind, const vec3* points, const vec3& normal, double eps_x, double& s,
-    double& m, double* gs, double* Hs, double* gm, double* Hm)
-{
-    const vec3* p = points;
-    s = 0;
-    m = 1;
-    switch (kind) {
-    case PairKind::VERTEX_PLANE: {
-        const double h = dot(p[0] - p[1], normal);
-        if (!(h > 0))
-            return; // s = 0: intersecting (the caller sees s - dmin^2 <= 0)
-        s = h * h;
-        if (gs) {
-            const vec3 g = 2 * h * normal, minus = -2 * h * normal;
-            store(g, gs);
-            store(minus, gs + 3);
-        }
-        if (Hs)
-            for (int i = 0; i < 3; ++i)
-                for (int j = 0; j < 3; ++j) {
-                    const double nn = (2 * component(normal, i)) * component(normal, j);
-                    Hs[i * 6 + j] = nn;
-                    Hs[i * 6 + 3 + j] = -nn;
-                    Hs[(3 + i) * 6 + j] = -nn;
-                    Hs[(3 + i) * 6 + 3 + j] = nn;
-                }
-        return;
-    }
-    case PairKind::VERTEX_EDGE: {
-        const PointEdgeDistanceType type = point_edge_distance_type(p[0], p[1], p[2]);
-        s = point_edge_distance(p[0], p[1], p[2], type);
-        if (gs)
-            point_edge_distance_gradient(p[0], p[1], p[2], type, gs);
-        if (Hs)
-            point_edge_distance_hessian(p[0], p[1], p[2], type, Hs);
-        return;
-    }
-    case PairKind::VERTEX_FACE: {
-        const PointTriangleDistanceType type = point_triangle_distance_type(p[0], p[1], p[2], p[3]);
-        s = point_triangle_distance(p[0], p[1], p[2], p[3], type);
-        if (gs)
-            point_triangle_distance_gradient(p[0], p[1], p[2], p[3], type, gs);
-        if (Hs)
-            point_triangle_distance_hessian(p[0], p[1], p[2], p[3], type, Hs);
-        return;
-    }
-    case PairKind::EDGE_EDGE: {
-        const EdgeEdgeDistanceType type = edge_edge_distance_type(p[0], p[1], p[2], p[3]);
-        s = edge_edge_distance(p[0], p[1], p[2], p[3], type);
-        m = edge_edge_mollifier(p[0], p[1], p[2], p[3], eps_x);
-        if (gs)
-            edge_edge_distance_gradient(p[0], p[1], p[2], p[3], type, gs);
-        if (Hs)
-            edge_edge_distance_hessian(p[0], p[1], p[2], p[3], type, Hs);
-        if (gm)
-            edge_edge_mollifier_gradient(p[0], p[1], p[2], p[3], eps_x, gm);
-        if (Hm)
-            edge_edge_mollifier_hessian(p[0], p[1], p[2], p[3], eps_x, Hm);
-        return;
-    }
-    }
-}
-
-namespace pair_barrier_detail {
-    /// In place: drops the z rows (and columns) of a 3D-padded gradient (Hessian) of nv vertices,
-    /// as the CPU's compress_2d (each entry moves to a lower index, so the copy runs forward).
-    DIFFIPC_HD inline void compress_2d(int nv, double* g, double* H)
-    {
-        const int n2 = 2 * nv, n3 = 3 * nv;
-        if (g)
-            for (int a = 0; a < n2; ++a)
-                g[a] = g[(a / 2) * 3 + a % 2];
-        if (H)
-            for (int a = 0; a < n2; ++a)
-                for (int b = 0; b < n2; ++b)
-                    H[a * n2 + b] = H[((a / 2) * 3 + a % 2) * n3 + (b / 2) * 3 + b % 2];
-    }
-} // namespace pair_barrier_detail
-
-/// @brief forward/contact/penalty's P(sqrt(s)) = 1/2 (dhat - d)^2 for d < dhat (0 beyond) and its
-/// first two derivatives in s; a distance below 1e-9 dhat is taken as 1e-9 dhat, as on the CPU.
-struct PenaltyTerms {
-    double value = 0, first = 0, second = 0;
-};
-DIFFIPC_HD inline PenaltyTerms penalty_of_squared_distance(double s, double dhat)
-{
-    PenaltyTerms p;
-    if (!(s < dhat * dhat))
-        return p;
-    const double d = fmax(sqrt(fmax(s, 0.0)), 1e-9 * dhat);
-    const double gap = dhat - d;
-    p.value = 0.5 * gap * gap;
-    p.first = -gap / (2 * d);
-    p.second = dhat / (4 * d * d * d);
-    return p;
-}
-
-/// The model of a pair's energy (ContactSettings): IPC's barrier m b(s - dmin^2, shat), or the
-/// penalty baseline (`"model": "penalty"`): m P(s - dmin^2) for the distance pairs and 1/2 (dhat - h)^2
-/// on the signed height h of a vertex-plane pair (it pushes back a vertex that passed the plane).
-struct PairModel {
-    bool penalty = false;
-    double dmin2 = 0; ///< dmin^2 (m^2)
-    double shat = 0; ///< the barrier's barrier_activation(dhat, dmin) (m^2)
-    double dhat = 0; ///< the penalty's activation distance (m)
-};
-
-/// The pair model of the contact settings (dhat, dmin: m; `penalty`: the baseline instead of the barrier).
-DIFFIPC_HD inline PairModel pair_model(bool penalty, double dhat, double dmin)
-{
-    PairModel model;
-    model.penalty = penalty;
-    model.dmin2 = dmin * dmin;
-    model.shat = barrier_activation(dhat, dmin);
-    model.dhat = dhat;
-    return model;
-}
-
-namespace pair_barrier_detail {
-
-    /// grad = m e1 gs (+ e gm), hess = m (e2 gs gs^T + e1 Hs) (+ e1 (gm gs^T + gs gm^T) + e Hm), with
-    /// e, e1, e2 the outer function and its derivatives in s (local dofs, n of them).
-    DIFFIPC_HD inline void chain_rule(int n, bool mollified, double m, double e, double e1, double e2, const double* gs,
-        const double* Hs, const double* gm, const double* Hm, double* grad, double* hess)
-    {
-        if (grad)
-            for (int k = 0; k < n; ++k) {
-                grad[k] = m * e1 * gs[k];
-                if (mollified)
-                    grad[k] += e * gm[k];
-            }
-        if (hess)
-            for (int i = 0; i < n; ++i)
-                for (int j = 0; j < n; ++j) {
-                    double v = m * ((e2 * gs[i]) * gs[j] + e1 * Hs[i * n + j]);
-                    if (mollified)
-                        v += e1 * (gm[i] * gs[j] + gs[i] * gm[j]) + e * Hm[i * n + j];
-                    hess[i * n + j] = v;
-                }
-    }
-
-    /// ContactPotential::plane_penalty: 1/2 (dhat - h)^2 for h < dhat, h = (x_v - x_plane) . n, with
-    /// dh/d(x_v, x_plane) = (n, -n) and the Hessian (dh)(dh)^T inside the layer.
-    DIFFIPC_HD inline double plane_penalty(
-        int dim, const vec3* points, const vec3& normal, double dhat, double* grad, double* hess)
-    {
-        const vec3 d = points[0] - points[1];
-        const double h = d.x * normal.x + d.y * normal.y + (dim == 3 ? d.z * normal.z : 0.0);
-        const double gap = h < dhat ? dhat - h : 0.0;
-        const double nc[3] = { normal.x, normal.y, normal.z };
-        double dh[6];
-        for (int i = 0; i < dim; ++i) {
-            dh[i] = nc[i];
-            dh[dim + i] = -nc[i];
-        }
-        const int n = 2 * dim;
-        for (int k = 0; grad && k < n; ++k)
-            grad[k] = -gap * dh[k];
-        for (int i = 0; hess && i < n; ++i)
-            for (int j = 0; j < n; ++j)
-                hess[i * n + j] = gap > 0 ? dh[i] * dh[j] : 0.0;
-        return 0.5 * gap * gap;
-    }
-
-} // namespace pair_barrier_detail
-
-/// @brief ContactPotential::local_barrier: the energy of one pair without kappa under `model`, and
-/// where the pointers are given its gradient and (true) Hessian in the pair's local dofs
-/// (n = #vertices * dim; Hessian n by n row-major).
-/// @param dim     2 or 3
-/// @param points, normal, eps_x  as in pair_distance
-/// @return the barrier: +inf for an intersecting pair (s - dmin^2 <= 0), grad and hess NaN then;
-///         the penalty is finite everywhere
-DIFFIPC_HD inline double pair_energy(PairKind kind, int dim, const vec3* points, const vec3& normal, double eps_x,
-    const PairModel& model, double* grad, double* hess)
-{
-    if (model.penalty && kind == PairKind::VERTEX_PLANE)
-        return pair_barrier_detail::plane_penalty(dim, points, normal, model.dhat, grad, hess);
-    const int nv = pair_num_vertices(kind), n = nv * dim;
-    const bool mollified = kind == PairKind::EDGE_EDGE;
-    double s = 0, m = 1;
-    double gs[PAIR_MAX_DOFS], gm[PAIR_MAX_DOFS];
-    double Hs[PAIR_MAX_DOFS * PAIR_MAX_DOFS], Hm[PAIR_MAX_DOFS * PAIR_MAX_DOFS];
-    const bool derivatives = grad || hess;
-    pair_distance(kind, points, normal, eps_x, s, m, derivatives ? gs : nullptr, hess ? Hs : nullptr,
-        derivatives && mollified ? gm : nullptr, hess && mollified ? Hm : nullptr);
-    const double z = s - model.dmin2;
-    if (!model.penalty && !(z > 0)) {
-        for (int k = 0; grad && k < n; ++k)
-            grad[k] = NAN;
-        for (int k = 0; hess && k < n * n; ++k)
-            hess[k] = NAN;
-        return INFINITY;
-    }
-    double e, e1 = 0, e2 = 0;
-    if (model.penalty) {
-        const PenaltyTerms p = penalty_of_squared_distance(z, model.dhat);
-        e = p.value;
-        e1 = p.first;
-        e2 = p.second;
-    } else {
-        e = barrier(z, model.shat);
-        if (derivatives)
-            e1 = barrier_first_derivative(z, model.shat);
-        if (hess)
-            e2 = barrier_second_derivative(z, model.shat);
-    }
-    if (!derivatives)
-        return m * e;
-    if (dim == 2) {
-        pair_barrier_detail::compress_2d(nv, gs, hess ? Hs : nullptr);
-        if (mollified)
-            pair_barrier_detail::compress_2d(nv, gm, hess ? Hm : nullptr);
-    }
-    pair_barrier_detail::chain_rule(n, mollified, m, e, e1, e2, gs, Hs, gm, Hm, grad, hess);
-    return m * e;
-}
-
-/// @brief ContactPotential::local_barrier for the barrier model: pair_energy with the barrier
-/// m b(s - dmin^2, shat).
-/// @param dmin2   dmin^2 (m^2), @param shat barrier_activation(dhat, dmin) (m^2)
-DIFFIPC_HD inline double pair_barrier(PairKind kind, int dim, const vec3* points, const vec3& normal, double eps_x,
-    double dmin2, double shat, double* grad, double* hess)
-{
-    PairModel model;
-    model.dmin2 = dmin2;
-    model.shat = shat;
-    return pair_energy(kind, dim, points, normal, eps_x, model, grad, hess);
-}
 
 /// @brief The pair's Hessian as ContactPotential::add_hessian assembles it: pair_energy's
 /// Hessian, projected to positive semi-definite if `project` (the CPU's project_psd: unchanged if
@@ -290,11 +18,11 @@ DIFFIPC_HD inline double pair_barrier(PairKind kind, int dim, const vec3* points
 /// NaN (not projected) for an intersecting pair of the barrier.
 /// @param hess out: n by n row-major (n = #vertices * dim)
 /// @return the pair's energy without kappa (+inf if an intersecting barrier pair)
-DIFFIPC_HD inline double pair_energy_hessian(PairKind kind, int dim, const vec3* points, const vec3& normal,
+DIFFIPC_HD inline double pair_energy_hessian(ContactKind kind, int dim, const vec3* points, const vec3& normal,
     double eps_x, const PairModel& model, bool project, double scale, double* hess)
 {
-    const double e = pair_energy(kind, dim, points, normal, eps_x, model, nullptr, hess);
-    const int n = pair_num_vertices(kind) * dim;
+    const double e = pair_energy(kind, dim, points, normal, eps_x, -1, model, nullptr, hess);
+    const int n = contact_num_vertices(kind) * dim;
     if (project && is_finite(e)) {
         switch (n) {
         case 4:
@@ -319,7 +47,7 @@ DIFFIPC_HD inline double pair_energy_hessian(PairKind kind, int dim, const vec3*
 }
 
 /// @brief pair_energy_hessian with the barrier model.
-DIFFIPC_HD inline double pair_barrier_hessian(PairKind kind, int dim, const vec3* points, const vec3& normal,
+DIFFIPC_HD inline double pair_barrier_hessian(ContactKind kind, int dim, const vec3* points, const vec3& normal,
     double eps_x, double dmin2, double shat, bool project, double scale, double* hess)
 {
     PairModel model;

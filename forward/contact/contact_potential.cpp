@@ -7,6 +7,8 @@
 #include "forward/contact/ccd/ccd.hpp"
 #include "forward/contact/distance/distance.hpp"
 #include "forward/contact/penalty.hpp"
+#include "forward/kernels/contact_pair.hpp"
+#include "forward/kernels/eigen_bridge.hpp"
 #include "forward/materials/material.hpp"
 #include "forward/solver/sparse_assembler.hpp"
 
@@ -30,20 +32,6 @@ namespace {
         Eigen::Vector3d p = Eigen::Vector3d::Zero();
         p.head(X.cols()) = X.row(v).transpose();
         return p;
-    }
-
-    /// Drops the z rows/columns of a 3D-padded derivative for 2D problems.
-    void compress_2d(const Eigen::VectorXd& g3, const Eigen::MatrixXd& H3, Eigen::VectorXd& g, Eigen::MatrixXd& H)
-    {
-        const Index n = g3.size() / 3;
-        g.resize(2 * n);
-        H.resize(2 * n, 2 * n);
-        for (Index a = 0; a < 2 * n; ++a) {
-            const Index ra = (a / 2) * 3 + a % 2;
-            g[a] = g3[ra];
-            for (Index b = 0; b < 2 * n; ++b)
-                H(a, b) = H3(ra, (b / 2) * 3 + b % 2);
-        }
     }
 
 } // namespace
@@ -214,124 +202,66 @@ const ContactSet& ContactPotential::surface_contacts(const VectorXd& x) const
 }
 
 namespace {
-    /// An intersecting pair: infinite energy, NaN derivatives (callers report NON_FINITE).
-    double infinite(const Contact& c, int dim, Eigen::VectorXd* grad, Eigen::MatrixXd* hess)
+
+    /// A contact's vertices at x as the kernels take them (z = 0 in 2D), and its plane's normal.
+    void load_pair(const Contact& c, const VectorXd& x, int dim, const std::vector<ContactPlane>& planes,
+        kernels::vec3* points, kernels::vec3& normal)
     {
-        const int n = c.num_vertices() * dim;
-        if (grad)
-            grad->setConstant(n, std::numeric_limits<double>::quiet_NaN());
-        if (hess)
-            hess->setConstant(n, n, std::numeric_limits<double>::quiet_NaN());
-        return INF;
+        for (int a = 0; a < c.num_vertices(); ++a)
+            points[a] = kernels::to_vec3(vertex_point(x, c.vertices[size_t(a)], dim));
+        normal
+            = c.kind == ContactKind::VERTEX_PLANE ? kernels::to_vec3(planes[size_t(c.plane)].normal) : kernels::vec3();
+        if (dim == 2)
+            normal.z = 0;
     }
+
+    /// A row-major n-vector or n by n matrix of a kernel as Eigen's.
+    Eigen::MatrixXd from_row_major(const double* a, int rows, int cols)
+    {
+        return Eigen::Map<const Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>(a, rows, cols);
+    }
+
 } // namespace
 
 ContactPotential::LocalDistance ContactPotential::local_distance(
     const Contact& c, const VectorXd& x, bool derivatives) const
 {
-    const int dim = m_mesh.dim;
+    const int dim = m_mesh.dim, nv = c.num_vertices(), n = nv * dim;
+    const bool mollified = c.kind == ContactKind::EDGE_EDGE;
+    kernels::vec3 points[4], normal;
+    load_pair(c, x, dim, m_planes, points, normal);
+    double gs[kernels::CONTACT_MAX_DOFS], gm[kernels::CONTACT_MAX_DOFS];
+    double Hs[kernels::CONTACT_MAX_DOFS * kernels::CONTACT_MAX_DOFS];
+    double Hm[kernels::CONTACT_MAX_DOFS * kernels::CONTACT_MAX_DOFS];
     LocalDistance out;
-    double& s = out.s;
-    double& m = out.m;
-    Eigen::VectorXd &gs = out.gs, &gm = out.gm;
-    Eigen::MatrixXd &Hs = out.Hs, &Hm = out.Hm;
-    const auto& v = c.vertices;
-    switch (c.kind) {
-    case ContactKind::VERTEX_PLANE: {
-        const Eigen::Vector3d n = m_planes[size_t(c.plane)].normal;
-        const double h = (vertex_point(x, v[0], dim) - vertex_point(x, v[1], dim)).dot(n);
-        if (!(h > 0))
-            return out; // s = 0: intersecting (the caller sees s - dmin^2 <= 0)
-        s = h * h;
-        if (derivatives) {
-            const Eigen::VectorXd nd = n.head(dim);
-            gs.resize(2 * dim);
-            gs << 2 * h * nd, -2 * h * nd;
-            const Eigen::MatrixXd nn = 2 * nd * nd.transpose();
-            Hs.resize(2 * dim, 2 * dim);
-            Hs << nn, -nn, -nn, nn;
-        }
-        break;
+    kernels::pair_distance(c.kind, points, normal, c.mollifier_threshold,
+        c.kind == ContactKind::VERTEX_PLANE ? -1 : c.distance_type, out.s, out.m, derivatives ? gs : nullptr,
+        derivatives ? Hs : nullptr, derivatives && mollified ? gm : nullptr, derivatives && mollified ? Hm : nullptr);
+    if (!derivatives || (c.kind == ContactKind::VERTEX_PLANE && !(out.s > 0)))
+        return out; // a vertex behind its plane: s = 0 and no derivatives (the caller sees s - dmin^2 <= 0)
+    if (dim == 2) {
+        kernels::pair_barrier_detail::compress_2d(nv, gs, Hs);
+        if (mollified)
+            kernels::pair_barrier_detail::compress_2d(nv, gm, Hm);
     }
-    case ContactKind::VERTEX_EDGE: {
-        const auto type = PointEdgeDistanceType(c.distance_type);
-        const Eigen::Vector3d p = vertex_point(x, v[0], dim), a = vertex_point(x, v[1], dim),
-                              b = vertex_point(x, v[2], dim);
-        s = point_edge_distance(p, a, b, type);
-        if (derivatives) {
-            const Eigen::VectorXd g3 = point_edge_distance_gradient(p, a, b, type);
-            const Eigen::MatrixXd H3 = point_edge_distance_hessian(p, a, b, type);
-            if (dim == 2)
-                compress_2d(g3, H3, gs, Hs);
-            else {
-                gs = g3;
-                Hs = H3;
-            }
-        }
-        break;
-    }
-    case ContactKind::VERTEX_FACE: {
-        const auto type = PointTriangleDistanceType(c.distance_type);
-        const Eigen::Vector3d p = vertex_point(x, v[0], dim), a = vertex_point(x, v[1], dim),
-                              b = vertex_point(x, v[2], dim), d = vertex_point(x, v[3], dim);
-        s = point_triangle_distance(p, a, b, d, type);
-        if (derivatives) {
-            gs = point_triangle_distance_gradient(p, a, b, d, type);
-            Hs = point_triangle_distance_hessian(p, a, b, d, type);
-        }
-        break;
-    }
-    case ContactKind::EDGE_EDGE: {
-        const auto type = EdgeEdgeDistanceType(c.distance_type);
-        const Eigen::Vector3d a0 = vertex_point(x, v[0], dim), a1 = vertex_point(x, v[1], dim),
-                              b0 = vertex_point(x, v[2], dim), b1 = vertex_point(x, v[3], dim);
-        s = edge_edge_distance(a0, a1, b0, b1, type);
-        m = edge_edge_mollifier(a0, a1, b0, b1, c.mollifier_threshold);
-        if (derivatives) {
-            gs = edge_edge_distance_gradient(a0, a1, b0, b1, type);
-            Hs = edge_edge_distance_hessian(a0, a1, b0, b1, type);
-            gm = edge_edge_mollifier_gradient(a0, a1, b0, b1, c.mollifier_threshold);
-            Hm = edge_edge_mollifier_hessian(a0, a1, b0, b1, c.mollifier_threshold);
-        }
-        break;
-    }
+    out.gs = from_row_major(gs, n, 1);
+    out.Hs = from_row_major(Hs, n, n);
+    if (mollified) {
+        out.gm = from_row_major(gm, n, 1);
+        out.Hm = from_row_major(Hm, n, n);
     }
     return out;
 }
 
 ContactPotential::PairEnergy ContactPotential::pair_energy(double z, bool second) const
 {
-    PairEnergy e;
-    if (m_settings.penalty) {
-        const PenaltyValue p = penalty_of_squared_distance(z, m_settings.dhat);
-        e.value = p.value;
-        e.first = p.first;
-        e.second = p.second;
-        return e;
-    }
-    const double shat = barrier_activation(m_settings.dhat, m_settings.min_distance);
-    e.value = barrier(z, shat);
-    e.first = barrier_first_derivative(z, shat);
-    if (second)
-        e.second = barrier_second_derivative(z, shat);
-    return e;
+    const kernels::EnergyTerms e = kernels::pair_outer_energy(pair_model(), z, true, second);
+    return { e.value, e.first, e.second };
 }
 
-double ContactPotential::plane_penalty(
-    const Contact& c, const VectorXd& x, Eigen::VectorXd* grad, Eigen::MatrixXd* hess) const
+kernels::PairModel ContactPotential::pair_model() const
 {
-    const int dim = m_mesh.dim;
-    const Eigen::VectorXd n = m_planes[size_t(c.plane)].normal.head(dim);
-    const double h = (vertex_point(x, c.vertices[0], dim) - vertex_point(x, c.vertices[1], dim)).head(dim).dot(n);
-    const double gap = h < m_settings.dhat ? m_settings.dhat - h : 0.0;
-    // d h / d(x_v, x_plane) = (n, -n); h is linear, so the Hessian is (dh)(dh)^T inside the layer.
-    Eigen::VectorXd dh(2 * dim);
-    dh << n, -n;
-    if (grad)
-        *grad = -gap * dh;
-    if (hess)
-        *hess = gap > 0 ? Eigen::MatrixXd(dh * dh.transpose()) : Eigen::MatrixXd::Zero(2 * dim, 2 * dim);
-    return 0.5 * gap * gap;
+    return kernels::pair_model(m_settings.penalty, m_settings.dhat, m_settings.min_distance);
 }
 
 double ContactPotential::normal_force_per_stiffness(double d) const
@@ -346,36 +276,18 @@ double ContactPotential::normal_force_per_stiffness(double d) const
 double ContactPotential::local_barrier(
     const Contact& c, const VectorXd& x, Eigen::VectorXd* grad, Eigen::MatrixXd* hess) const
 {
-    const int dim = m_mesh.dim;
-    if (m_settings.penalty && c.kind == ContactKind::VERTEX_PLANE)
-        return plane_penalty(c, x, grad, hess);
-    const double dmin2 = m_settings.min_distance * m_settings.min_distance;
-    const bool derivatives = grad || hess;
-    const LocalDistance ld = local_distance(c, x, derivatives);
-    const double s = ld.s, m = ld.m;
-    const Eigen::VectorXd &gs = ld.gs, &gm = ld.gm;
-    const Eigen::MatrixXd &Hs = ld.Hs, &Hm = ld.Hm;
-    const double z = s - dmin2;
-    if (!(z > 0) && !m_settings.penalty)
-        return infinite(c, dim, grad, hess);
-    const PairEnergy e = pair_energy(z, hess != nullptr);
-    const double b = e.value;
-    if (!derivatives)
-        return m * b;
-    const double b1 = e.first;
-    if (grad) {
-        *grad = m * b1 * gs;
-        if (gm.size())
-            *grad += b * gm;
-    }
-    if (hess) {
-        const double b2 = e.second;
-        *hess = m * (b2 * gs * gs.transpose() + b1 * Hs);
-        if (gm.size()) {
-            *hess += b1 * (gm * gs.transpose() + gs * gm.transpose()) + b * Hm;
-        }
-    }
-    return m * b;
+    const int dim = m_mesh.dim, n = c.num_vertices() * dim;
+    kernels::vec3 points[4], normal;
+    load_pair(c, x, dim, m_planes, points, normal);
+    double g[kernels::CONTACT_MAX_DOFS], H[kernels::CONTACT_MAX_DOFS * kernels::CONTACT_MAX_DOFS];
+    const double e = kernels::pair_energy(c.kind, dim, points, normal, c.mollifier_threshold,
+        c.kind == ContactKind::VERTEX_PLANE ? -1 : c.distance_type, pair_model(), grad ? g : nullptr,
+        hess ? H : nullptr);
+    if (grad)
+        *grad = from_row_major(g, n, 1);
+    if (hess)
+        *hess = from_row_major(H, n, n);
+    return std::isfinite(e) ? e : INF;
 }
 
 double ContactPotential::barrier_value(const VectorXd& mesh_x) const

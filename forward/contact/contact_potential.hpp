@@ -12,6 +12,8 @@
 #include "forward/contact/surface_images.hpp"
 #include "forward/potentials/potential.hpp"
 
+#include "forward/kernels/contact_pair.hpp"
+
 #include <functional>
 #include <memory>
 
@@ -158,9 +160,8 @@ private:
         double value = 0, first = 0, second = 0;
     };
     PairEnergy pair_energy(double z, bool second) const;
-    /// A vertex-plane pair of penalty contact, on the signed distance h (negative behind the
-    /// plane): 1/2 (dhat - h)^2 for h < dhat.
-    double plane_penalty(const Contact& c, const VectorXd& x, Eigen::VectorXd* grad, Eigen::MatrixXd* hess) const;
+    /// The settings' pair model for the kernels (forward/kernels/contact_pair.hpp).
+    kernels::PairModel pair_model() const;
 
     CollisionMesh m_mesh;
     Positions m_rest;

@@ -5,6 +5,7 @@
 /// set (the adjoint differentiates the barrier of exactly these pairs).
 
 #include "forward/common/types.hpp"
+#include "forward/kernels/contact_kind.hpp"
 
 #include <array>
 #include <cstdint>
@@ -12,12 +13,8 @@
 
 namespace diffipc {
 
-enum class ContactKind : std::uint8_t {
-    VERTEX_EDGE = 0, ///< 2D: vertices (v, e0, e1)
-    VERTEX_FACE = 1, ///< 3D: vertices (v, t0, t1, t2)
-    EDGE_EDGE = 2, ///< 3D: vertices (ea0, ea1, eb0, eb1), mollified
-    VERTEX_PLANE = 3, ///< vertices (v, plane point); one-sided, signed distance
-};
+// One enum for both paths (forward/kernels/contact_kind.hpp).
+using kernels::ContactKind;
 
 struct Contact {
     ContactKind kind = ContactKind::VERTEX_FACE;
@@ -28,10 +25,7 @@ struct Contact {
     double mollifier_threshold = 0; ///< EDGE_EDGE: eps_x at rest positions
     double distance_squared = 0; ///< at the state the set was built for (m^2)
 
-    int num_vertices() const
-    {
-        return kind == ContactKind::VERTEX_EDGE ? 3 : kind == ContactKind::VERTEX_PLANE ? 2 : 4;
-    }
+    int num_vertices() const { return kernels::contact_num_vertices(kind); }
 };
 
 using ContactSet = std::vector<Contact>;

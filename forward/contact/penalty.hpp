@@ -6,20 +6,15 @@
 /// a linear spring of stiffness k per contact pair inside the layer, force k (dhat - d).
 /// Unlike the barrier it is finite at d = 0 and lets surfaces pass through each other.
 
+#include "forward/kernels/contact_pair.hpp"
+
 namespace diffipc {
 
-/// P and its first two derivatives with respect to the squared distance s = d^2
-/// (the form the contact distances provide): P' = -(dhat - d) / (2 d), P'' = dhat / (4 d^3).
-struct PenaltyValue {
-    double value = 0, first = 0, second = 0;
-};
-
-/// @brief P(sqrt(s)) and its s-derivatives; all 0 for s >= dhat^2. A distance below
-/// 1e-9 dhat is taken as 1e-9 dhat (surfaces that touch exactly: the force's direction is
-/// undefined there, its size is k dhat).
-PenaltyValue penalty_of_squared_distance(double s, double dhat);
-
-/// @brief |dP/dd| = dhat - d for d < dhat, else 0: the normal force of one pair per unit stiffness.
-double penalty_force(double d, double dhat);
+/// P and its first two derivatives with respect to the squared distance s = d^2 (the form the
+/// contact distances provide): P' = -(dhat - d) / (2 d), P'' = dhat / (4 d^3). The functions are
+/// the shared kernels' (forward/kernels/contact_pair.hpp), which both paths evaluate.
+using PenaltyValue = kernels::EnergyTerms;
+using kernels::penalty_force;
+using kernels::penalty_of_squared_distance;
 
 } // namespace diffipc

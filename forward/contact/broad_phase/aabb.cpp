@@ -1,5 +1,7 @@
 #include "forward/contact/broad_phase/aabb.hpp"
 
+#include "forward/kernels/primitive_box.hpp"
+
 #include <tbb/parallel_for.h>
 
 #include <cmath>
@@ -8,46 +10,12 @@ namespace diffipc {
 
 namespace {
 
-    // At least one ulp outward (cheaper than std::nextafter): |v| * 2^-52 >= ulp(v) for normal v, and the smallest
-    // subnormal covers v = 0.
-    inline double round_down(double v)
-    {
-        return v - (std::abs(v) * std::numeric_limits<double>::epsilon() + std::numeric_limits<double>::denorm_min());
-    }
-    inline double round_up(double v)
-    {
-        return v + (std::abs(v) * std::numeric_limits<double>::epsilon() + std::numeric_limits<double>::denorm_min());
-    }
-
-    /// Box of the N vertices `ids` at both ends of the step, grown by `radius` per side and rounded outward by at
-    /// least one ulp.
+    /// The kernel's swept, inflated box of N vertices (forward/kernels/primitive_box.hpp), which the GPU's broad
+    /// phase builds too.
     template <int N, int DIM> AABB primitive_box(const double* x_t0, const double* x_t1, const int* ids, double radius)
     {
-        double lo[3] = { 0, 0, 0 }, hi[3] = { 0, 0, 0 };
-        bool finite = true;
-        for (int k = 0; k < DIM; ++k) {
-            lo[k] = std::numeric_limits<double>::infinity();
-            hi[k] = -lo[k];
-        }
-        for (int a = 0; a < N; ++a) {
-            const double* p0 = x_t0 + size_t(ids[a]) * DIM;
-            const double* p1 = x_t1 + size_t(ids[a]) * DIM;
-            for (int k = 0; k < DIM; ++k) {
-                finite = finite && std::isfinite(p0[k]) && std::isfinite(p1[k]);
-                lo[k] = std::min(lo[k], std::min(p0[k], p1[k]));
-                hi[k] = std::max(hi[k], std::max(p0[k], p1[k]));
-            }
-        }
-        AABB box;
-        for (int k = 0; k < DIM; ++k) {
-            box.min[k] = round_down(lo[k] - radius);
-            box.max[k] = round_up(hi[k] + radius);
-        }
-        for (int k = DIM; k < 3; ++k)
-            box.min[k] = box.max[k] = 0;
-        if (!finite) // std::min/max skip NaN: mark the box so that callers can reject it
-            box.min[0] = std::numeric_limits<double>::quiet_NaN();
-        return box;
+        const kernels::Box b = kernels::primitive_box<N, DIM>(x_t0, x_t1, ids, radius);
+        return { Eigen::Array3d(b.min[0], b.min[1], b.min[2]), Eigen::Array3d(b.max[0], b.max[1], b.max[2]) };
     }
 
     template <int N>

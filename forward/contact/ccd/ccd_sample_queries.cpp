@@ -141,4 +141,16 @@ CCDResult run_ccd_query(const CCDQuery& query, const CCDSettings& settings)
     return point_triangle_ccd(v[0], v[1], v[2], v[3], v[4], v[5], v[6], v[7], settings);
 }
 
+std::vector<std::string> ccd_query_folders(const std::string& root)
+{
+    namespace fs = std::filesystem;
+    std::vector<std::string> folders;
+    for (const auto& entry : fs::directory_iterator(root))
+        if (entry.is_directory()
+            && (fs::is_directory(entry.path() / "vertex-face") || fs::is_directory(entry.path() / "edge-edge")))
+            folders.push_back(entry.path().string());
+    std::sort(folders.begin(), folders.end());
+    return folders;
+}
+
 } // namespace diffipc

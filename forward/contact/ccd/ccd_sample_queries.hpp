@@ -43,6 +43,10 @@ std::vector<CCDQuery> read_ccd_queries(const std::string& path, bool edge_edge, 
 /// @throws InputError if the folder has neither subfolder
 std::vector<CCDQuery> read_ccd_query_folder(const std::string& folder, long* inexact_coordinates = nullptr);
 
+/// @brief The benchmark folders below `root` (those with a vertex-face/ or edge-edge/ subfolder), in
+/// name order.
+std::vector<std::string> ccd_query_folders(const std::string& root);
+
 /// @brief Run the query with point_triangle_ccd or edge_edge_ccd.
 CCDResult run_ccd_query(const CCDQuery& query, const CCDSettings& settings);
 

@@ -7,7 +7,8 @@
 
 #include "cuda/broad_phase/candidate_filter.cuh"
 #include "cuda/broad_phase/lbvh.cuh"
-#include "cuda/broad_phase/primitive_box.cuh"
+#include "cuda/common/kernels.cuh"
+#include "forward/kernels/primitive_box.hpp"
 #include "tests/cuda/broad_phase/broad_phase_test_utils.hpp"
 
 #include "forward/contact/broad_phase/aabb.hpp"

@@ -41,17 +41,7 @@ const char* const kKernelTestNote
             GTEST_SKIP() << gpu::cuda_device_description() << kKernelTestNote;                                         \
     } while (0)
 
-std::vector<std::string> sample_query_folders()
-{
-    namespace fs = std::filesystem;
-    std::vector<std::string> folders;
-    for (const auto& entry : fs::directory_iterator(kSampleQueries))
-        if (entry.is_directory()
-            && (fs::is_directory(entry.path() / "vertex-face") || fs::is_directory(entry.path() / "edge-edge")))
-            folders.push_back(entry.path().string());
-    std::sort(folders.begin(), folders.end());
-    return folders;
-}
+std::vector<std::string> sample_query_folders() { return ccd_query_folders(kSampleQueries); }
 
 std::uint64_t bits(double x)
 {

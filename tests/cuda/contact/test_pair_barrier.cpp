@@ -45,8 +45,8 @@ int compare_local_distances(const test::ContactScene& scene)
         load(scene, c, scene.x, points, normal);
         double s = 0, m = 1, gs[12], Hs[144], gm[12], Hm[144];
         const bool ee = c.kind == ContactKind::EDGE_EDGE;
-        gpu::pair_distance(gpu::PairKind(int(c.kind)), points, normal, eps_x(scene, c), s, m, gs, Hs, ee ? gm : nullptr,
-            ee ? Hm : nullptr);
+        gpu::pair_distance(gpu::ContactKind(int(c.kind)), points, normal, eps_x(scene, c), -1, s, m, gs, Hs,
+            ee ? gm : nullptr, ee ? Hm : nullptr);
         if (dim == 2)
             gpu::pair_barrier_detail::compress_2d(c.num_vertices(), gs, Hs);
         t.add(s, ld.s);
@@ -101,7 +101,7 @@ TEST(GpuPairBarrier, ProjectionMatchesCpuAndDerivativesMatchFiniteDifferences)
             double worst_projection = 0, worst_gradient = 0, worst_hessian = 0, worst_eigenvalue = 0;
             int count = 0;
             for (const Contact& c : scene.contact().contacts(scene.x)) {
-                const gpu::PairKind kind = gpu::PairKind(int(c.kind));
+                const gpu::ContactKind kind = gpu::ContactKind(int(c.kind));
                 const int n = c.num_vertices() * dim;
                 const double eps = eps_x(scene, c);
                 gpu::vec3 points[4], normal;
@@ -162,12 +162,12 @@ TEST(GpuPairBarrier, IntersectingPairIsInfinite)
     const gpu::vec3 plane_pair[2] = { gpu::vec3(0, -1e-3, 0), gpu::vec3(0, 0, 0) };
     double g[6], H[36];
     EXPECT_TRUE(std::isinf(
-        gpu::pair_barrier(gpu::PairKind::VERTEX_PLANE, 3, plane_pair, gpu::vec3(0, 1, 0), 0, 0, 1e-6, g, H)));
+        gpu::pair_barrier(gpu::ContactKind::VERTEX_PLANE, 3, plane_pair, gpu::vec3(0, 1, 0), 0, 0, 1e-6, g, H)));
     EXPECT_TRUE(std::isnan(g[0]) && std::isnan(H[35]));
     const gpu::vec3 face_pair[4]
         = { gpu::vec3(0.2, 1e-4, 0.2), gpu::vec3(0, 0, 0), gpu::vec3(1, 0, 0), gpu::vec3(0, 0, 1) };
-    EXPECT_TRUE(std::isinf(gpu::pair_barrier(gpu::PairKind::VERTEX_FACE, 3, face_pair, gpu::vec3(), 0, 4e-8,
+    EXPECT_TRUE(std::isinf(gpu::pair_barrier(gpu::ContactKind::VERTEX_FACE, 3, face_pair, gpu::vec3(), 0, 4e-8,
         gpu::barrier_activation(1e-3, 2e-4), nullptr, nullptr)));
-    EXPECT_TRUE(std::isfinite(gpu::pair_barrier(gpu::PairKind::VERTEX_FACE, 3, face_pair, gpu::vec3(), 0, 0,
+    EXPECT_TRUE(std::isfinite(gpu::pair_barrier(gpu::ContactKind::VERTEX_FACE, 3, face_pair, gpu::vec3(), 0, 0,
         gpu::barrier_activation(1e-3, 0.0), nullptr, nullptr)));
 }

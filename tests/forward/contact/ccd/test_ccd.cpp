@@ -145,17 +145,7 @@ void expect_no_collision(const Trajectory& q, const CCDSettings& s, const std::s
 // Unit triangle in z = 0 and the corresponding static trajectory pieces.
 const V T0(0, 0, 0), T1(1, 0, 0), T2(0, 1, 0);
 
-std::vector<std::string> sample_query_folders()
-{
-    namespace fs = std::filesystem;
-    std::vector<std::string> folders;
-    for (const auto& entry : fs::directory_iterator(kSampleQueries))
-        if (entry.is_directory()
-            && (fs::is_directory(entry.path() / "vertex-face") || fs::is_directory(entry.path() / "edge-edge")))
-            folders.push_back(entry.path().string());
-    std::sort(folders.begin(), folders.end());
-    return folders;
-}
+std::vector<std::string> sample_query_folders() { return ccd_query_folders(kSampleQueries); }
 
 } // namespace
 
