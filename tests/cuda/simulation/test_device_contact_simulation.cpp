@@ -16,6 +16,8 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
+
 #include <cmath>
 #include <cstdio>
 #include <cstring>
@@ -33,6 +35,7 @@ struct ContactComparison {
     double worst_step = 0; ///< the same for each GPU step against a CPU step from the GPU's previous state
                            ///< (over the steps where both end with the same kappa)
     int worst_step_index = 0;
+    double branching_step = 0; ///< the same over the steps given as branching (printed, not asserted)
     double cpu_residual = 0; ///< max over steps of the CPU's residual of the step's problem at the GPU's state
     int steps = 0, cpu_iterations = 0, gpu_iterations = 0, max_active = 0;
     double max_kappa = 0; ///< the CPU run's largest kappa
@@ -54,9 +57,11 @@ struct ContactComparison {
 /// (the CPU's residual vouches for the GPU's), the differences are printed, not asserted.
 /// `along_run` false: the trajectory passes a bifurcation where states within the solvers' tolerance
 /// end on different branches (measured on the CPU alone, per scene): only the steps from the same
-/// start are asserted, the trajectory's difference is printed.
+/// start are asserted, the trajectory's difference is printed. `branching`: steps whose problem has
+/// several equilibria from the same start (measured on the CPU alone, per scene): their difference from
+/// the same start is printed, not asserted.
 ContactComparison run_both(json s, const std::string& name, double tolerance, const std::string& directory = ".",
-    bool expect_contact = true, bool along_run = true)
+    bool expect_contact = true, bool along_run = true, const std::vector<int>& branching = {})
 {
     s.erase("output");
     const double residual_tolerance = s["solver"].value("residual_tolerance", 1e-8);
@@ -148,6 +153,10 @@ ContactComparison run_both(json s, const std::string& name, double tolerance, co
         if (one.contact()->kappa() != b.step(k).kappa)
             continue;
         const double d = (one.positions() - b.step(k).positions).lpNorm<Eigen::Infinity>() / size;
+        if (std::find(branching.begin(), branching.end(), k) != branching.end()) {
+            c.branching_step = std::max(c.branching_step, d);
+            continue;
+        }
         if (d > c.worst_step) {
             c.worst_step = d;
             c.worst_step_index = k;
@@ -160,6 +169,8 @@ ContactComparison run_both(json s, const std::string& name, double tolerance, co
                 "iterations CPU %d, GPU %d (%ld PCG); kappa differs in %d steps\n",
         name.c_str(), c.steps, c.max_active, c.worst, size, c.worst_step, c.worst_step_index, c.cpu_residual,
         c.cpu_iterations, c.gpu_iterations, gpu.device_solver()->total_pcg_iterations(), c.kappa_differs);
+    if (!branching.empty())
+        std::printf("    at the branching steps, per step from the same start %.2e (not asserted)\n", c.branching_step);
     if (penalty)
         std::printf("    states with intersecting surfaces: CPU %d, GPU %d of %d\n", c.intersecting[0],
             c.intersecting[1], c.steps);
@@ -203,18 +214,20 @@ json study_scene(const std::string& folder, int steps)
 /// stiffness on both paths (the trajectory asserted to the tolerance only if the kappas agree in
 /// every step, each step from the same start always); then with kappa fixed at the largest value the
 /// CPU's adaptive run reached.
-void run_adaptive_then_fixed(
-    json s, const std::string& name, double tolerance, const std::string& directory = ".", bool along_run = true)
+void run_adaptive_then_fixed(json s, const std::string& name, double tolerance, const std::string& directory = ".",
+    bool along_run = true, const std::vector<int>& branching = {})
 {
-    const ContactComparison adaptive = run_both(s, name + ", adaptive kappa", tolerance, directory, true, along_run);
+    const ContactComparison adaptive
+        = run_both(s, name + ", adaptive kappa", tolerance, directory, true, along_run, branching);
     s["contact"]["kappa"] = adaptive.max_kappa;
-    run_both(s, name + ", fixed kappa", tolerance, directory, true, along_run);
+    run_both(s, name + ", fixed kappa", tolerance, directory, true, along_run, branching);
 }
 
 /// run_adaptive_then_fixed on a contact study's scene.
-void run_study(const std::string& folder, int steps, const std::string& name, double tolerance, bool along_run = true)
+void run_study(const std::string& folder, int steps, const std::string& name, double tolerance, bool along_run = true,
+    const std::vector<int>& branching = {})
 {
-    run_adaptive_then_fixed(study_scene(folder, steps), name, tolerance, study_folder(folder), along_run);
+    run_adaptive_then_fixed(study_scene(folder, steps), name, tolerance, study_folder(folder), along_run, branching);
 }
 
 // Tolerance of the comparisons: both paths stop at the scene's residual tolerance, the GPU's Newton
@@ -254,8 +267,11 @@ TEST(DeviceContactSimulation, ContactStudies)
     // instead of "adaptive", is 1.7e-9 of the size from its default run after step 3 and 3.2e-4 after step
     // 4, while tightening its tolerance to 1e-11 moves it by at most 7.6e-11 (measured with diffipc
     // simulate). The GPU's Newton (other search matrices) lands on either branch, so the steps from the
-    // same start are asserted and the trajectory printed.
-    run_study("202_boxes_head_on", 20, "202 boxes head on (3D)", 1e-6, false);
+    // same start are asserted and the trajectory printed. Step 3 (the impact) branches from the same start
+    // too: with kappa fixed at 1.12e12 and tolerance 1e-8 the CPU alone ends it 3.24e-4 of the size away
+    // from its default run with hessian_projection "always" (the same with the CPU code of a306850; 4
+    // steps, diffipc simulate, 2026-12-02), so its difference is printed, not asserted.
+    run_study("202_boxes_head_on", 20, "202 boxes head on (3D)", 1e-6, false, { 3 });
     run_study("203_box_squeeze", 10, "203 box squeeze (3D, moving planes)", 1e-6);
     // The thin plate wrinkles on the sphere: its steps have several equilibria (the GPU's step 7 ends
     // 1.3 mm from the CPU's from the same start, both at the CPU's residual tolerance; the CPU's own
