@@ -1,6 +1,6 @@
 #pragma once
 /// @file analytic_eigensystem.cuh
-/// Closed-form eigensystems of dP/dF for the four material models of material.cuh, and the
+/// Closed-form eigensystems of dP/dF for the four material models of forward/kernels/material/material.hpp, and the
 /// positive semi-definite projection of dP/dF built from them (host and device).
 ///
 /// The isotropic models (StVK, neo-Hookean, stable neo-Hookean) are functions Psi(s) of the
@@ -16,7 +16,7 @@
 /// Linear elasticity, not a function of the singular values, has the eigenvalues 0
 /// (skew-symmetric modes), 2 mu (symmetric traceless) and 2 mu + dim lambda (vec I).
 ///
-/// Layouts as in material.cuh: F, U, V dim by dim row-major (U[a * dim + k] = component a of the
+/// Layouts as in forward/kernels/material/material.hpp: F, U, V dim by dim row-major (U[a * dim + k] = component a of the
 /// k-th singular vector); dP/dF dim^2 by dim^2 row-major, row index i * dim + j for F_ij.
 
 #include "cuda/common/kernels.cuh"

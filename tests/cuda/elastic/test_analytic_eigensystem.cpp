@@ -1,6 +1,6 @@
 // The closed-form eigensystems of dP/dF (cuda/elastic/analytic_eigensystem.cuh), run here on the
 // CPU: the signed SVD against its definition, the eigensystem against the GPU's own dP/dF formulas
-// (material.cuh, themselves tested against the CPU's materials in test_element.cpp), and the
+// (forward/kernels/material/material.hpp, which the CPU runs too), and the
 // projection against the CPU's numerical project_psd (Eigen's SelfAdjointEigenSolver). No GPU needed.
 
 #include "cuda/elastic/analytic_eigensystem.cuh"
