@@ -250,19 +250,6 @@ void FrictionPotential::lag(const ContactPotential& contact, const ContactSet& s
     });
 }
 
-Eigen::Vector2d FrictionPotential::tangential_displacement(const FrictionContact& c, const VectorXd& x) const
-{
-    Eigen::Vector3d dx = Eigen::Vector3d::Zero();
-    for (int i = 0; i < c.num_vertices; ++i) {
-        const Index v = c.vertices[size_t(i)];
-        dx.head(m_dim) += c.weights[size_t(i)] * (x.segment(v * m_dim, m_dim) - m_x_start.segment(v * m_dim, m_dim));
-    }
-    Eigen::Vector2d u = c.tangent.transpose() * dx;
-    if (m_dim == 2)
-        u[1] = 0;
-    return u;
-}
-
 double FrictionPotential::pair(const FrictionContact& c, const VectorXd& x, double* gradient, double* hessian) const
 {
     kernels::vec3 dx[4];

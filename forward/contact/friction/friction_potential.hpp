@@ -95,8 +95,6 @@ public:
 private:
     /// x, or T x (in `storage`) with images.
     const VectorXd& surface(const VectorXd& x, VectorXd& storage) const { return m_images.surface(x, storage); }
-    /// u = T^T sum_i gamma_i (x_i - x0_i) (first dim-1 entries used; x on the surface).
-    Eigen::Vector2d tangential_displacement(const FrictionContact& c, const VectorXd& x) const;
     /// One pair's energy, gradient (n) and Hessian (n by n, row-major; n = #vertices * dim) at the
     /// surface positions x (forward/kernels/friction_pair.hpp); either pointer may be null.
     double pair(const FrictionContact& c, const VectorXd& x, double* gradient, double* hessian) const;
