@@ -195,14 +195,14 @@ Evaluation evaluate_without_gil(const ReducedFunctional& rf, const VectorXd& p, 
     return rf.evaluate(p, gradient, constraints);
 }
 
-} // namespace
-
-PYBIND11_MODULE(_diffipc, m)
+void bind_errors(py::module_& m)
 {
-    m.doc() = "diffipc: differentiable IPC elastodynamics (forward solver)";
     py::register_exception<InputError>(m, "InputError", PyExc_ValueError);
     py::register_exception<AdjointError>(m, "AdjointError", PyExc_RuntimeError);
+}
 
+void bind_scene(py::module_& m)
+{
     py::class_<Scene>(m, "Scene", "A validated scene (see docs/scene_format.md)")
         .def_readonly("dimension", &Scene::dim)
         .def_property_readonly("num_vertices", [](const Scene& s) { return s.mesh.num_vertices(); })
@@ -215,7 +215,10 @@ PYBIND11_MODULE(_diffipc, m)
         .def_property_readonly("steps", [](const Scene& s) { return s.time.steps; })
         .def_property_readonly("dt", [](const Scene& s) { return s.time.dt; })
         .def_property_readonly("integrator", [](const Scene& s) { return to_string(s.time.integrator); });
+}
 
+void bind_threads(py::module_& m)
+{
     m.def(
         "set_threads",
         [](int count) { return to_json(set_threads(count, ThreadSource::EXPLICIT, "diffipc.set_threads")).dump(); },
@@ -229,10 +232,17 @@ PYBIND11_MODULE(_diffipc, m)
             return to_json(thread_config()).dump();
         },
         "The effective thread configuration as JSON text.");
+}
+
+void bind_scene_loading(py::module_& m)
+{
     m.def("load_scene", static_cast<Scene (*)(const std::string&)>(&load_scene), py::arg("path"),
         "Read and validate a JSON scene file.");
     m.def("_scene_from_json_text", &scene_from_json_text, py::arg("text"), py::arg("base_directory"));
+}
 
+void bind_simulator(py::module_& m)
+{
     py::class_<Simulator>(m, "Simulator", "Transactional time stepping of a scene.")
         .def(py::init<Scene>(), py::arg("scene"))
         .def(
@@ -339,7 +349,10 @@ PYBIND11_MODULE(_diffipc, m)
             const Exclusive exclusive(s);
             return summary_json(s).dump();
         });
+}
 
+void bind_elastic_elements(py::module_& m)
+{
     auto model = [](const std::string& name) { return parse_material_model(name, "model"); };
     m.def(
         "lame_parameters",
@@ -370,7 +383,10 @@ PYBIND11_MODULE(_diffipc, m)
         py::arg("model"), py::arg("rest"), py::arg("deformed"), py::arg("mu"), py::arg("lam"),
         py::arg("project_to_psd") = false,
         "Hessian w.r.t. deformed positions flattened vertex-major (optionally PSD-projected).");
+}
 
+void bind_evaluation(py::module_& m)
+{
     py::class_<Evaluation>(m, "Evaluation", "One evaluation of a reduced functional.")
         .def_readonly("value", &Evaluation::value, "J")
         .def_property_readonly(
@@ -426,7 +442,10 @@ PYBIND11_MODULE(_diffipc, m)
             "checkpoints, peak_stored_states, peak_stored_bytes, bound_stored_states, recomputed_steps, "
             "forward_time, recompute_time, adjoint_time, cost_ratio, objective_stored_states, "
             "objective_stored_bytes); else an empty list.");
+}
 
+void bind_reduced_functional(py::module_& m)
+{
     py::class_<ReducedFunctional>(
         m, "ReducedFunctional", "p -> J(p) and its adjoint gradient dJ/dp for a problem file (docs/problem_format.md).")
         .def(py::init([](const std::filesystem::path& path, const std::string& device) {
@@ -562,24 +581,33 @@ PYBIND11_MODULE(_diffipc, m)
             },
             py::arg("p"), py::arg("gradient") = true,
             "(J, dJ/dp) with dJ/dp a numpy array, or None if gradient=False; raises like evaluation().");
-    {
-        void bind_minimize(py::module_&);
-        bind_minimize(m);
-    } // _minimize (minimize_bindings.cpp)
-    {
-        void bind_microstructure(py::module_&);
-        bind_microstructure(m);
-    } // CellFamily, CellDesign (microstructure_bindings.cpp)
-    {
-        void bind_distribution(py::module_&);
-        bind_distribution(m);
-    } // Communicator, _distribute (distribution_bindings.cpp)
-    {
-        void bind_gradient_check(py::module_&);
-        bind_gradient_check(m);
-    } // _check_direction, _richardson_one_sided (gradient_check_bindings.cpp)
-    {
-        void bind_stress(py::module_&);
-        bind_stress(m);
-    } // Simulator.element_von_mises, young_poisson_of_lame (stress_bindings.cpp)
+}
+
+} // namespace
+
+// Defined in the other *_bindings.cpp files of this module.
+void bind_minimize(py::module_&); // _minimize (minimize_bindings.cpp)
+void bind_microstructure(py::module_&); // CellFamily, CellDesign (microstructure_bindings.cpp)
+void bind_distribution(py::module_&); // Communicator, _distribute (distribution_bindings.cpp)
+void bind_gradient_check(py::module_&); // _check_direction, _richardson_one_sided (gradient_check_bindings.cpp)
+void bind_stress(py::module_&); // Simulator.element_von_mises, young_poisson_of_lame (stress_bindings.cpp)
+
+PYBIND11_MODULE(_diffipc, m)
+{
+    m.doc() = "diffipc: differentiable IPC elastodynamics (forward solver)";
+    // In this order: a class is registered before any later signature or default argument names it,
+    // and bind_stress adds a method to Simulator.
+    bind_errors(m);
+    bind_scene(m);
+    bind_threads(m);
+    bind_scene_loading(m);
+    bind_simulator(m);
+    bind_elastic_elements(m);
+    bind_evaluation(m);
+    bind_reduced_functional(m);
+    bind_minimize(m);
+    bind_microstructure(m);
+    bind_distribution(m);
+    bind_gradient_check(m);
+    bind_stress(m);
 }

@@ -2,19 +2,19 @@
 /// @file pair_barrier.cuh
 /// The projected Hessian of one contact pair on the host and the device: the pair's energy and true
 /// Hessian from forward/kernels/contact_pair.hpp (the code ContactPotential runs), projected to
-/// positive semi-definite by cyclic Jacobi (cuda/elastic/project_psd.cuh; the CPU uses Eigen's
-/// eigensolver for the same projection) and scaled.
+/// positive semi-definite by cyclic Jacobi (forward/kernels/project_psd.hpp; the CPU uses Eigen's
+/// eigensolver for the same projection, twice as fast there: bench/psd_projection.cpp) and scaled.
 
 #include "cuda/common/kernels.cuh"
-#include "cuda/elastic/project_psd.cuh"
 #include "forward/kernels/contact_pair.hpp"
+#include "forward/kernels/project_psd.hpp"
 
 namespace diffipc::gpu {
 
 /// @brief The pair's Hessian as ContactPotential::add_hessian assembles it: pair_energy's
 /// Hessian, projected to positive semi-definite if `project` (the CPU's project_psd: unchanged if
 /// it has a Cholesky factorization, else V max(D, 0) V^T, here by cyclic Jacobi,
-/// cuda/elastic/project_psd.cuh), then times `scale` (kappa times the potential weight).
+/// forward/kernels/project_psd.hpp), then times `scale` (kappa times the potential weight).
 /// NaN (not projected) for an intersecting pair of the barrier.
 /// @param hess out: n by n row-major (n = #vertices * dim)
 /// @return the pair's energy without kappa (+inf if an intersecting barrier pair)

@@ -1,8 +1,9 @@
 #include "cuda/elastic/device_elastic_mesh.hpp"
 
 #include "cuda/common/device.hpp"
-#include "cuda/elastic/element.cuh"
+#include "cuda/common/kernels.cuh"
 #include "cuda/linalg/reduction.hpp"
+#include "forward/kernels/element.hpp"
 
 #include <cuda_runtime.h>
 

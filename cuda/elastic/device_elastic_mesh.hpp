@@ -2,7 +2,7 @@
 /// @file device_elastic_mesh.hpp
 /// The elastic potential Psi(x) = sum_e |e| psi_e(F_e(x)) of a P1 mesh held on the GPU: the
 /// device twin of ElasticPotential (forward/potentials/elastic_potential.hpp), with the same
-/// element formulas (element.cuh) and per-element models and Lame parameters. Host API in
+/// element kernels (forward/kernels/element.hpp) and per-element models and Lame parameters. Host API in
 /// plain C++ (no CUDA or Eigen types).
 ///
 /// Layouts:

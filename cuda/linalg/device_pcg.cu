@@ -2,9 +2,9 @@
 
 #include "cuda/common/device.hpp"
 #include "cuda/common/kernels.cuh"
-#include "cuda/elastic/project_psd.cuh"
 #include "cuda/linalg/block_diagonal.cuh"
 #include "cuda/linalg/reduction.hpp"
+#include "forward/kernels/project_psd.hpp"
 #include "forward/kernels/small_matrix.hpp"
 
 #include <cuda_runtime.h>

@@ -19,6 +19,7 @@
 #include <cstdlib>
 #include <limits>
 #include <memory>
+#include <optional>
 #include <stdexcept>
 #include <string>
 #include <utility>
@@ -765,6 +766,8 @@ struct DeviceNewton::Impl {
             partials.data(), scalars.data() + S_DIRECTION);
         detail::copy_device_to_host(out, scalars.data() + S_DIRECTION, 5 * sizeof(double));
     }
+
+    struct NewtonLoop; // iterate()'s steps and the state they share (below)
 };
 
 void DeviceNewton::Impl::make_trial(double alpha, DeviceArray<double>& into_u, DeviceArray<double>& into_x)
@@ -1145,48 +1148,109 @@ DeviceNewtonResult DeviceNewton::solve_periodic(std::vector<double>& q_host, con
     return result;
 }
 
-DeviceNewtonResult DeviceNewton::iterate(const std::vector<double>& inertial_target, double weight,
-    const std::vector<double>& force, double force_scale, double step_scale, const DeviceNewtonSettings& settings)
-{
-    Impl& m = *m_impl;
-    const size_t n = m.n;
-    const double w = weight;
-    m.take_terms(m_contact, inertial_target, weight, force);
-    m.bind_unknowns(m_contact);
+/// iterate()'s Newton loop: the state its iterations share, and one member function per step of an
+/// iteration, in the order iterate() takes them. A step that ends the solve returns its status.
+struct DeviceNewton::Impl::NewtonLoop {
+    /// One iteration's quantities, from the gradient at its iterate to its accepted step.
+    struct Iteration {
+        int index = 0; // of the iteration, from 0
+        double gap = 0; // under load control: level - a^T x
+        double gmax = 0, gnorm = 0; // max |g_free|, |g_free|_2
+        bool lifting = false; // constrained dofs (or the control's level) not yet reached
+        double forcing = 0; // PCG's relative tolerance
+        bool try_true = false; // the true Hessian first (adaptive_projection)
+        double ds[5] = {}; // direction_scalars() of the step
+        double slope = 0, pmax = 0; // g^T p (full_slope), |p|_inf
+        double length = 0; // |p_free|_inf
+        double alpha = 0; // the step length: bounded, then halved by the line search
+        Clock::time_point t_ls; // the start of the line-search phase
+        double new_energy = 0; // E at the accepted trial
+        double roundoff = 0; // of the energy differences
+        bool unresolvable = false; // the full step's predicted decrease is below the energy's resolution
+        bool active_at_trial = false; // the active set was built at the accepted trial
+    };
+
+    NewtonLoop(Impl& impl, const DeviceElasticMesh& elastic_mesh, DeviceContact* with_contact,
+        const std::function<bool()>& end_iteration_hook, double weight, double residual_scale, double newton_scale,
+        const DeviceNewtonSettings& newton_settings)
+        : m(impl)
+        , mesh(elastic_mesh)
+        , contact(with_contact)
+        , hook(end_iteration_hook)
+        , settings(newton_settings)
+        , w(weight)
+        , force_scale(residual_scale)
+        , step_scale(newton_scale)
+        , control(impl.control)
+        , nu(impl.nu())
+        , Gu(grid(nu))
+        , fixed(impl.u_fixed())
+        , trace(trace_requested())
+    {
+    }
+
+    /// E at the start x and its magnitude (the round-off allowance's).
+    std::optional<DeviceStepStatus> evaluate_start();
+    /// The gradient at x, the residual and the convergence test; pD the lifting step (plus p0 under control).
+    std::optional<DeviceStepStatus> evaluate_residual(Iteration& iter);
+    /// PCG's relative tolerance (DeviceNewtonSettings::forcing_max).
+    void choose_forcing(Iteration& iter);
+    /// Whether the true Hessian is tried before the projected one.
+    void choose_matrix(Iteration& iter);
+    /// The Newton direction p in the unknowns, from the true or the projected search matrix.
+    std::optional<DeviceStepStatus> solve_direction(Iteration& iter);
+    /// The search matrix M + w (H_Psi + H_B) and the right-hand side -(g + H pD).
+    void assemble_system(const Iteration& iter, bool project);
+    /// PCG on the assembled system into p, with the prescribed (and the control's) part of the step.
+    PcgResult solve_system(const Iteration& iter);
+    /// The step is within round-off of x (roundoff_step() takes it instead of the line search).
+    bool below_roundoff(const Iteration& iter) const;
+    std::optional<DeviceStepStatus> roundoff_step(Iteration& iter);
+    /// The negative gradient in place of a direction that does not descend.
+    void ensure_descent(Iteration& iter);
+    /// The largest step length the inversion and the CCD bounds (and max_displacement) admit.
+    std::optional<DeviceStepStatus> bound_step(Iteration& iter);
+    /// Armijo backtracking from the bounded step; trial then holds the accepted state.
+    std::optional<DeviceStepStatus> line_search(Iteration& iter);
+    /// Lengthens an accepted full step (DeviceNewtonSettings::step_extension).
+    void extend_step(Iteration& iter);
+    /// The accepted trial becomes the iterate.
+    void commit(const Iteration& iter);
+    void snap_lifted(const Iteration& iter);
+    /// [max |g_free|, g not finite] at the trial, with the active set built there.
+    void residual_at_trial(double* rs);
+    /// After each accepted iterate: the hook (adaptive kappa) sees the active set at the new x.
+    void end_iteration();
+    void trace_iteration(const Iteration& iter) const;
+    /// The slope g^T p of the energy the line search tests, from direction_scalars' (g - lambda a)^T p:
+    /// under load control a Newton step has a^T p = gap, so g^T p adds lambda gap (the CPU's slope).
+    double full_slope(const Iteration& iter, double carried_free) const
+    {
+        return control ? carried_free + control->multiplier * iter.gap : carried_free;
+    }
+    // DIFFIPC_NEWTON_TRACE=1: one line per iteration on stderr (a diagnostic for failing steps).
+    static bool trace_requested()
+    {
+        static const bool requested = std::getenv("DIFFIPC_NEWTON_TRACE") != nullptr;
+        return requested;
+    }
+
+    Impl& m;
+    const DeviceElasticMesh& mesh;
+    DeviceContact* const contact;
+    const std::function<bool()>& hook; // set_end_iteration's
+    const DeviceNewtonSettings& settings;
+    const double w, force_scale, step_scale;
+    DeviceLoadControl* const control;
     // The unknowns: the positions, or a periodic cell's q (Impl's u_ accessors).
-    const size_t nu = m.nu();
-    const int Gu = grid(nu);
-    const unsigned char* fixed = m.u_fixed();
+    const size_t nu;
+    const int Gu;
+    const unsigned char* const fixed;
+    const bool trace;
 
     DeviceNewtonResult result;
-    auto finish = [&](DeviceStepStatus status) {
-        result.status = status;
-        return result;
-    };
-
-    Impl::Energy start_energy;
-    {
-        const auto t = Clock::now();
-        start_energy = m.energy(m_mesh, m.x.data(), w);
-        phase_end(t, result.line_search_time);
-    }
-    double energy = start_energy.total;
-    if (!std::isfinite(energy))
-        return finish(DeviceStepStatus::INVALID_INITIAL_STATE);
-    // Round-off of energy differences scales with the terms, not with their (possibly cancelling) sum.
-    const double magnitude = (m.dynamic ? std::abs(start_energy.inertia) : 0.0)
-        + w * (std::abs(start_energy.elastic) + m.material_scale) + w * std::abs(start_energy.contact)
-        + w * std::abs(start_energy.work) + w * std::abs(start_energy.friction);
-    // After each accepted iterate: the hook (adaptive kappa) sees the active set at the new x.
-    const auto end_iteration = [&]() {
-        if (!m_contact || !m_end_iteration)
-            return;
-        m.activate_at_x();
-        if (m_end_iteration()) {
-            ++result.kappa_updates;
-            energy = m.energy(m_mesh, m.x.data(), w).total;
-        }
-    };
+    double energy = 0; // E at x
+    double magnitude = 0; // the start's energy magnitude (file comment)
     double reference_gradient_norm = 0; // |g_free,0|_2 of the forcing (DeviceNewtonSettings)
     bool full_step_taken = false;
     int true_hessian_pause = 0;
@@ -1194,289 +1258,402 @@ DeviceNewtonResult DeviceNewton::iterate(const std::vector<double>& inertial_tar
     // near a bifurcation (two boxes meeting face to face) the true Hessian's step can jump between two
     // states of equal energy, each step accepted within the energy's round-off. After STALLS such steps in
     // a row the projected matrix is used for stall_pause iterations, doubled at each recurrence.
-    constexpr int STALLS = 3;
+    static constexpr int STALLS = 3;
     bool last_true = false;
     double last_gmax = INFINITY, last_drop = INFINITY, last_roundoff = 0;
     int stalls = 0, stall_pause = 2;
-    // DIFFIPC_NEWTON_TRACE=1: one line per iteration on stderr (a diagnostic for failing steps).
-    static const bool trace = std::getenv("DIFFIPC_NEWTON_TRACE") != nullptr;
+};
 
-    DeviceLoadControl* const control = m.control;
+DeviceNewtonResult DeviceNewton::iterate(const std::vector<double>& inertial_target, double weight,
+    const std::vector<double>& force, double force_scale, double step_scale, const DeviceNewtonSettings& settings)
+{
+    Impl& m = *m_impl;
+    m.take_terms(m_contact, inertial_target, weight, force);
+    m.bind_unknowns(m_contact);
+    Impl::NewtonLoop loop(m, m_mesh, m_contact, m_end_iteration, weight, force_scale, step_scale, settings);
+    auto finish = [&](DeviceStepStatus status) {
+        loop.result.status = status;
+        return loop.result;
+    };
+    if (const auto end = loop.evaluate_start())
+        return finish(*end);
     for (int it = 0;; ++it) {
-        double gs[4];
-        double gap = 0; // under load control: level - a^T x
-        {
-            const auto t = Clock::now();
-            m.activate_at_x();
-            m.gradient(m_mesh, m.x.data(), w, m.g.data());
-            m.gradient_to_unknowns(m.g, m.u_g());
-            if (control) {
-                double ax = 0;
-                control->multiplier = m.remove_carried(m.g.data(), &ax);
-                gap = control->level - ax;
-            }
-            reduce<4>(GradientTerm { m.u_g().data(), m.u().data(), m.u_target().data(), fixed, m.u_pD().data() }, nu,
-                GRADIENT_OPS, m.partials.data(), m.scalars.data() + S_GRADIENT);
-            // Under load control, pD also holds p0 = gap a / a^T a on the free dofs (file comment).
-            if (control) {
-                add_scaled<<<Gu, THREADS>>>(nu, gap / m.control_aa, m.control_a.data(), m.u_pD().data());
-                check_launch("launch of the control's lift");
-            }
-            detail::copy_device_to_host(gs, m.scalars.data() + S_GRADIENT, sizeof(gs));
-            phase_end(t, result.assembly_time);
-        }
-        if (gs[3] != 0)
-            return finish(DeviceStepStatus::NON_FINITE);
-        const double gmax = gs[0], gnorm = std::sqrt(gs[1]), dmax = gs[2];
-        const bool lifting = dmax > 0 || (control && std::abs(gap) > control->tolerance);
-        // The slope g^T p of the energy the line search tests, from direction_scalars' (g - lambda a)^T p:
-        // under load control a Newton step has a^T p = gap, so g^T p adds lambda gap (the CPU's slope).
-        auto full_slope
-            = [&](double carried_free) { return control ? carried_free + control->multiplier * gap : carried_free; };
-        result.residual = gmax / force_scale;
-        if (!std::isfinite(result.residual))
-            return finish(DeviceStepStatus::NON_FINITE);
-        if (!lifting && result.residual <= settings.residual_tolerance)
-            return finish(DeviceStepStatus::CONVERGED);
-        if (it >= settings.max_iterations)
-            return finish(DeviceStepStatus::NEWTON_EXHAUSTED);
-
-        // Inexact Newton (Eisenstat-Walker): the linear solve is as accurate as the progress so far warrants.
-        reference_gradient_norm = std::max(reference_gradient_norm, gnorm);
-        double forcing = settings.forcing_max;
-        if (reference_gradient_norm > 0 && std::isfinite(gnorm))
-            forcing = std::min(forcing, std::sqrt(gnorm / reference_gradient_norm));
-        if (settings.terminal_factor > 0 && result.residual > 0
-            && result.residual <= settings.terminal_window * settings.residual_tolerance)
-            forcing = std::min(forcing, settings.terminal_factor * settings.residual_tolerance / result.residual);
-        if (lifting)
-            forcing = std::min(forcing, settings.lifting_forcing_max);
-        forcing = std::max(forcing, settings.forcing_min);
-        // Projected Newton converges linearly where elements (or contact pairs) are strongly compressed;
-        // once a full step has been accepted, the true Hessian is tried (NewtonSolver's adaptive
-        // projection): kept if PCG meets no negative curvature and its step descends, otherwise the
-        // projected matrix is used and the true one skipped for the next two iterations.
-        stalls = last_true && gmax > 0.9 * last_gmax && last_drop <= last_roundoff ? stalls + 1 : 0;
-        if (stalls >= STALLS) {
-            true_hessian_pause = std::max(true_hessian_pause, stall_pause);
-            stall_pause *= 2;
-            stalls = 0;
-        }
-        last_gmax = gmax;
-        last_true = false;
-        const bool try_true = settings.adaptive_projection && full_step_taken && !lifting && true_hessian_pause == 0;
-        if (true_hessian_pause > 0)
-            --true_hessian_pause;
-        double ds[5];
-        for (int attempt = try_true ? 0 : 1; attempt < 2; ++attempt) {
-            const bool project = attempt == 1;
-            // The search matrix M + w (H_Psi + H_B) and the right-hand side -(g + H pD).
-            {
-                const auto t = Clock::now();
-                m.H.set_zero();
-                m_mesh.add_hessian_device(m.x.data(), w, project, m.H);
-                m.add_mass(m.H);
-                if (m_contact)
-                    m.assemble_contact(w, project);
-                const bool coupled = lifting || control; // pD (and p0) not zero
-                if (coupled)
-                    m.u_system(m_contact).multiply(m.u_pD().data(), m.u_coupling().data(), nullptr);
-                newton_rhs<<<Gu, THREADS>>>(
-                    nu, m.u_g().data(), coupled ? m.u_coupling().data() : nullptr, m.u_rhs().data());
-                check_launch("launch of the Newton right-hand side");
-                phase_end(t, result.assembly_time);
-            }
-            PcgResult pcg;
-            {
-                const auto t = Clock::now();
-                m.u_pcg().settings() = PcgSettings { forcing, settings.pcg_max_iterations };
-                pcg = m.u_pcg().solve_device(m.u_system(m_contact), m.u_rhs().data(), m.u_p().data());
-                result.pcg_iterations += pcg.iterations;
-                result.pcg_capped += !pcg.converged && !pcg.breakdown;
-                set_prescribed<<<Gu, THREADS>>>(nu, fixed, m.u_pD().data(), m.u_p().data());
-                check_launch("launch of the prescribed step");
-                if (control) { // p = p0 + d, d on the hyperplane: a^T p = gap
-                    add_scaled<<<Gu, THREADS>>>(nu, gap / m.control_aa, m.control_a.data(), m.u_p().data());
-                    check_launch("launch of the control's step");
-                }
-                phase_end(t, result.solve_time);
-            }
-            if (!project) {
-                // The true Hessian: kept only without negative curvature and with a finite descent step.
-                bool kept = !pcg.breakdown;
-                if (kept) {
-                    m.direction_scalars(ds);
-                    kept = ds[4] == 0 && full_slope(ds[0]) < 0;
-                }
-                if (kept) {
-                    ++result.true_hessian_steps;
-                    last_true = true;
-                    break;
-                }
-                true_hessian_pause = 2;
-                continue;
-            }
-            if (pcg.breakdown && pcg.iterations == 0)
-                return finish(DeviceStepStatus::LINEAR_BREAKDOWN);
-            m.direction_scalars(ds);
-        }
-        if (ds[4] != 0)
-            return finish(DeviceStepStatus::LINEAR_BREAKDOWN);
-        double slope = full_slope(ds[0]), pmax = ds[1];
-
-        if (!lifting && pmax <= ROUNDOFF_STEP * ds[3]) {
-            // The remaining correction is within a few hundred ulps of the largest position, below what
-            // the energy resolves: still taken while it halves the residual (NewtonSolver's rule).
-            const auto t = Clock::now();
-            m.step_to_positions();
-            m.make_trial(1.0, m.u_trial(), m.trial);
-            bool unresolved = false;
-            bool improves = m.max_step(1.0, settings.inversion_keep, unresolved) >= 1.0;
-            const double trial_energy = improves ? m.energy(m_mesh, m.trial.data(), w, true).total : INFINITY;
-            improves = improves && std::isfinite(trial_energy);
-            double rs[2] = { 0, 0 };
-            if (improves) {
-                if (m_contact) {
-                    m_contact->update_active(m.contact_positions(m.trial.data()));
-                    m.active_current = false;
-                }
-                m.gradient(m_mesh, m.trial.data(), w, m.g_trial.data());
-                m.residual_of_trial(rs);
-                improves = rs[1] == 0 && rs[0] < 0.5 * gmax;
-            }
-            phase_end(t, result.line_search_time);
-            if (!improves) {
-                result.roundoff_limited = true;
-                return finish(DeviceStepStatus::CONVERGED);
-            }
-            m.accept_trial();
-            m.active_current = m_contact != nullptr; // built at the trial, now x
-            energy = trial_energy;
-            result.newton_step = pmax / step_scale;
-            end_iteration();
-            result.iterations = it + 1;
-            if (result.iterations >= settings.max_iterations && rs[0] / force_scale > settings.residual_tolerance) {
-                // Out of iterations inside the round-off regime: converged as far as it gets.
-                result.residual = rs[0] / force_scale;
-                result.roundoff_limited = true;
-                return finish(DeviceStepStatus::CONVERGED);
-            }
+        Impl::NewtonLoop::Iteration iter;
+        iter.index = it;
+        if (const auto end = loop.evaluate_residual(iter))
+            return finish(*end);
+        loop.choose_forcing(iter);
+        loop.choose_matrix(iter);
+        if (const auto end = loop.solve_direction(iter))
+            return finish(*end);
+        if (loop.below_roundoff(iter)) {
+            if (const auto end = loop.roundoff_step(iter))
+                return finish(*end);
             continue;
         }
-        if (!lifting && !(slope < 0)) {
-            // Not a descent direction (PCG on a nearly singular matrix): the negative gradient, scaled to
-            // the rejected step's length (under load control g - lambda a, orthogonal to a: the step stays
-            // on the hyperplane, and its slope is g's).
-            const double scale = gmax > 0 && pmax > 0 ? pmax / gmax : 1.0;
-            gradient_direction<<<Gu, THREADS>>>(nu, fixed, m.u_g().data(), scale, m.u_p().data());
-            check_launch("launch of the gradient direction");
-            m.direction_scalars(ds);
-            slope = ds[0];
-            pmax = ds[1];
-            ++result.gradient_steps;
-        }
+        loop.ensure_descent(iter);
+        if (const auto end = loop.bound_step(iter))
+            return finish(*end);
+        if (const auto end = loop.line_search(iter))
+            return finish(*end);
+        loop.extend_step(iter);
+        loop.commit(iter);
+    }
+}
 
-        m.step_to_positions();
-        const auto t_ls = Clock::now();
-        double alpha;
-        bool unresolved = false;
-        const double length = ds[2]; // of the free dofs' step: lifting moves prescribed dofs as far as it must
-        if (settings.max_displacement > 0 && length > settings.max_displacement) {
-            const double cap = settings.max_displacement / length;
-            alpha = cap * m.max_step(cap, settings.inversion_keep, unresolved); // from the capped step
-        } else {
-            alpha = m.max_step(1.0, settings.inversion_keep, unresolved);
+std::optional<DeviceStepStatus> DeviceNewton::Impl::NewtonLoop::evaluate_start()
+{
+    Impl::Energy start_energy;
+    {
+        const auto t = Clock::now();
+        start_energy = m.energy(mesh, m.x.data(), w);
+        phase_end(t, result.line_search_time);
+    }
+    energy = start_energy.total;
+    if (!std::isfinite(energy))
+        return DeviceStepStatus::INVALID_INITIAL_STATE;
+    // Round-off of energy differences scales with the terms, not with their (possibly cancelling) sum.
+    magnitude = (m.dynamic ? std::abs(start_energy.inertia) : 0.0)
+        + w * (std::abs(start_energy.elastic) + m.material_scale) + w * std::abs(start_energy.contact)
+        + w * std::abs(start_energy.work) + w * std::abs(start_energy.friction);
+    return std::nullopt;
+}
+
+std::optional<DeviceStepStatus> DeviceNewton::Impl::NewtonLoop::evaluate_residual(Iteration& iter)
+{
+    double gs[4];
+    {
+        const auto t = Clock::now();
+        m.activate_at_x();
+        m.gradient(mesh, m.x.data(), w, m.g.data());
+        m.gradient_to_unknowns(m.g, m.u_g());
+        if (control) {
+            double ax = 0;
+            control->multiplier = m.remove_carried(m.g.data(), &ax);
+            iter.gap = control->level - ax;
         }
-        if (!(alpha > 0) && unresolved) {
-            phase_end(t_ls, result.line_search_time);
-            return finish(DeviceStepStatus::CCD_UNRESOLVED);
+        reduce<4>(GradientTerm { m.u_g().data(), m.u().data(), m.u_target().data(), fixed, m.u_pD().data() }, nu,
+            GRADIENT_OPS, m.partials.data(), m.scalars.data() + S_GRADIENT);
+        // Under load control, pD also holds p0 = gap a / a^T a on the free dofs (file comment).
+        if (control) {
+            add_scaled<<<Gu, THREADS>>>(nu, iter.gap / m.control_aa, m.control_a.data(), m.u_pD().data());
+            check_launch("launch of the control's lift");
         }
-        bool accepted = false;
-        bool active_at_trial = false; // the active set was built at the accepted trial
-        double new_energy = energy;
-        // Differences below this are round-off in the energy sum.
-        const double roundoff = std::max(1e-13 * std::abs(energy), 16 * EPS * magnitude);
-        // Near the solution the predicted decrease can drop below what the energy sum resolves; there a
-        // full step is judged by the free-dof gradient instead.
-        const bool unresolvable = !lifting
-            && std::abs(alpha * slope) < std::max(ENERGY_RESOLUTION * std::abs(energy), 1e3 * EPS * magnitude);
-        for (int h = 0; h <= settings.line_search_max_halvings && alpha > 0; ++h, alpha *= 0.5) {
-            m.make_trial(alpha, m.u_trial(), m.trial);
-            new_energy = m.energy(m_mesh, m.trial.data(), w, true).total;
-            if (!std::isfinite(new_energy))
-                continue;
-            if (lifting || new_energy <= energy + settings.armijo * alpha * slope + roundoff) {
-                accepted = true;
-                result.line_search_cuts += h;
+        detail::copy_device_to_host(gs, m.scalars.data() + S_GRADIENT, sizeof(gs));
+        phase_end(t, result.assembly_time);
+    }
+    if (gs[3] != 0)
+        return DeviceStepStatus::NON_FINITE;
+    iter.gmax = gs[0];
+    iter.gnorm = std::sqrt(gs[1]);
+    const double dmax = gs[2];
+    iter.lifting = dmax > 0 || (control && std::abs(iter.gap) > control->tolerance);
+    result.residual = iter.gmax / force_scale;
+    if (!std::isfinite(result.residual))
+        return DeviceStepStatus::NON_FINITE;
+    if (!iter.lifting && result.residual <= settings.residual_tolerance)
+        return DeviceStepStatus::CONVERGED;
+    if (iter.index >= settings.max_iterations)
+        return DeviceStepStatus::NEWTON_EXHAUSTED;
+    return std::nullopt;
+}
+
+void DeviceNewton::Impl::NewtonLoop::choose_forcing(Iteration& iter)
+{
+    // Inexact Newton (Eisenstat-Walker): the linear solve is as accurate as the progress so far warrants.
+    reference_gradient_norm = std::max(reference_gradient_norm, iter.gnorm);
+    double forcing = settings.forcing_max;
+    if (reference_gradient_norm > 0 && std::isfinite(iter.gnorm))
+        forcing = std::min(forcing, std::sqrt(iter.gnorm / reference_gradient_norm));
+    if (settings.terminal_factor > 0 && result.residual > 0
+        && result.residual <= settings.terminal_window * settings.residual_tolerance)
+        forcing = std::min(forcing, settings.terminal_factor * settings.residual_tolerance / result.residual);
+    if (iter.lifting)
+        forcing = std::min(forcing, settings.lifting_forcing_max);
+    iter.forcing = std::max(forcing, settings.forcing_min);
+}
+
+void DeviceNewton::Impl::NewtonLoop::choose_matrix(Iteration& iter)
+{
+    // Projected Newton converges linearly where elements (or contact pairs) are strongly compressed;
+    // once a full step has been accepted, the true Hessian is tried (NewtonSolver's adaptive
+    // projection): kept if PCG meets no negative curvature and its step descends, otherwise the
+    // projected matrix is used and the true one skipped for the next two iterations.
+    stalls = last_true && iter.gmax > 0.9 * last_gmax && last_drop <= last_roundoff ? stalls + 1 : 0;
+    if (stalls >= STALLS) {
+        true_hessian_pause = std::max(true_hessian_pause, stall_pause);
+        stall_pause *= 2;
+        stalls = 0;
+    }
+    last_gmax = iter.gmax;
+    last_true = false;
+    iter.try_true = settings.adaptive_projection && full_step_taken && !iter.lifting && true_hessian_pause == 0;
+    if (true_hessian_pause > 0)
+        --true_hessian_pause;
+}
+
+std::optional<DeviceStepStatus> DeviceNewton::Impl::NewtonLoop::solve_direction(Iteration& iter)
+{
+    for (int attempt = iter.try_true ? 0 : 1; attempt < 2; ++attempt) {
+        const bool project = attempt == 1;
+        assemble_system(iter, project);
+        const PcgResult pcg = solve_system(iter);
+        if (!project) {
+            // The true Hessian: kept only without negative curvature and with a finite descent step.
+            bool kept = !pcg.breakdown;
+            if (kept) {
+                m.direction_scalars(iter.ds);
+                kept = iter.ds[4] == 0 && full_slope(iter, iter.ds[0]) < 0;
+            }
+            if (kept) {
+                ++result.true_hessian_steps;
+                last_true = true;
                 break;
             }
-            if (unresolvable && h == 0) {
-                if (m_contact) {
-                    m_contact->update_active(m.contact_positions(m.trial.data()));
-                    m.active_current = false;
-                }
-                m.gradient(m_mesh, m.trial.data(), w, m.g_trial.data());
-                double rs[2];
-                m.residual_of_trial(rs);
-                if (rs[1] == 0 && rs[0] < 0.5 * gmax) {
-                    accepted = true;
-                    active_at_trial = m_contact != nullptr;
-                    result.line_search_cuts += h;
-                    result.roundoff_limited = true;
-                    break;
-                }
-            }
+            true_hessian_pause = 2;
+            continue;
         }
-        if (!accepted) {
-            phase_end(t_ls, result.line_search_time);
-            return finish(DeviceStepStatus::LINE_SEARCH_EXHAUSTED);
-        }
-        // NewtonSolver's rule. It compares the energy's decrease with -g.p, which equals p^T A p for the
-        // exact step of the search matrix A; PCG's inexact step, started from zero, keeps that identity (its
-        // residual is orthogonal to the Krylov space that holds p). Not where the predicted decrease is below
-        // the energy's resolution: there the decrease is round-off (a last step of the 2D falling box in
-        // AdaptiveTimeSteppingOfDynamicScenes was extended 4x on such noise).
-        if (settings.step_extension && alpha == 1.0 && !lifting && !control && !unresolvable && !result.roundoff_limited
-            && energy - new_energy > EXTENSION_RATIO * -slope)
-            alpha = m.extend(m_mesh, w, length, settings, energy, slope, new_energy, result);
-        full_step_taken = alpha >= 1.0;
-        result.newton_step = alpha * pmax / step_scale;
-        last_drop = energy - new_energy;
-        last_roundoff = roundoff;
-        m.accept_trial(); // x = the accepted trial; trial = the old x, no longer needed
-        m.active_current = active_at_trial;
-        if (lifting && alpha >= 1.0) {
-            // x_D + (target - x_D) need not round to target: snap so lifting ends exactly, unless the
-            // snapped state is invalid (then the rounding stays for one more iteration).
-            detail::copy_device_to_device(m.trial.data(), m.x.data(), n * sizeof(double));
-            if (m.periodic)
-                detail::copy_device_to_device(m.trial_q.data(), m.q.data(), nu * sizeof(double));
-            if (m.surface)
-                detail::copy_device_to_device(m.ys_trial.data(), m.ys.data(), m.ys.size() * sizeof(double));
-            snap_to_target<<<Gu, THREADS>>>(nu, fixed, m.u_target().data(), m.u().data());
-            check_launch("launch of the lifting snap");
-            if (m.periodic)
-                m.expand_state(m.q, m.x);
-            m.active_current = false;
-            energy = m.energy(m_mesh, m.x.data(), w).total;
-            if (!std::isfinite(energy)) {
-                m.accept_trial(); // back to the unsnapped state
-                energy = new_energy;
-            }
-        } else {
-            energy = new_energy;
-        }
-        end_iteration();
-        phase_end(t_ls, result.line_search_time);
-        result.iterations = it + 1;
-        if (trace)
-            std::fprintf(stderr,
-                "  device newton %3d: residual %.3e forcing %.1e alpha %.3e energy %.15e step %.2e; totals: pcg %d, "
-                "true-Hessian steps %d, cuts %d, kappa updates %d%s\n",
-                it, gmax / force_scale, forcing, alpha, energy, result.newton_step, result.pcg_iterations,
-                result.true_hessian_steps, result.line_search_cuts, result.kappa_updates,
-                last_true ? ", true Hessian" : "");
+        if (pcg.breakdown && pcg.iterations == 0)
+            return DeviceStepStatus::LINEAR_BREAKDOWN;
+        m.direction_scalars(iter.ds);
     }
+    if (iter.ds[4] != 0)
+        return DeviceStepStatus::LINEAR_BREAKDOWN;
+    iter.slope = full_slope(iter, iter.ds[0]);
+    iter.pmax = iter.ds[1];
+    return std::nullopt;
+}
+
+void DeviceNewton::Impl::NewtonLoop::assemble_system(const Iteration& iter, bool project)
+{
+    const auto t = Clock::now();
+    m.H.set_zero();
+    mesh.add_hessian_device(m.x.data(), w, project, m.H);
+    m.add_mass(m.H);
+    if (contact)
+        m.assemble_contact(w, project);
+    const bool coupled = iter.lifting || control; // pD (and p0) not zero
+    if (coupled)
+        m.u_system(contact).multiply(m.u_pD().data(), m.u_coupling().data(), nullptr);
+    newton_rhs<<<Gu, THREADS>>>(nu, m.u_g().data(), coupled ? m.u_coupling().data() : nullptr, m.u_rhs().data());
+    check_launch("launch of the Newton right-hand side");
+    phase_end(t, result.assembly_time);
+}
+
+PcgResult DeviceNewton::Impl::NewtonLoop::solve_system(const Iteration& iter)
+{
+    const auto t = Clock::now();
+    m.u_pcg().settings() = PcgSettings { iter.forcing, settings.pcg_max_iterations };
+    const PcgResult pcg = m.u_pcg().solve_device(m.u_system(contact), m.u_rhs().data(), m.u_p().data());
+    result.pcg_iterations += pcg.iterations;
+    result.pcg_capped += !pcg.converged && !pcg.breakdown;
+    set_prescribed<<<Gu, THREADS>>>(nu, fixed, m.u_pD().data(), m.u_p().data());
+    check_launch("launch of the prescribed step");
+    if (control) { // p = p0 + d, d on the hyperplane: a^T p = gap
+        add_scaled<<<Gu, THREADS>>>(nu, iter.gap / m.control_aa, m.control_a.data(), m.u_p().data());
+        check_launch("launch of the control's step");
+    }
+    phase_end(t, result.solve_time);
+    return pcg;
+}
+
+bool DeviceNewton::Impl::NewtonLoop::below_roundoff(const Iteration& iter) const
+{
+    return !iter.lifting && iter.pmax <= ROUNDOFF_STEP * iter.ds[3];
+}
+
+std::optional<DeviceStepStatus> DeviceNewton::Impl::NewtonLoop::roundoff_step(Iteration& iter)
+{
+    // The remaining correction is within a few hundred ulps of the largest position, below what
+    // the energy resolves: still taken while it halves the residual (NewtonSolver's rule).
+    const auto t = Clock::now();
+    m.step_to_positions();
+    m.make_trial(1.0, m.u_trial(), m.trial);
+    bool unresolved = false;
+    bool improves = m.max_step(1.0, settings.inversion_keep, unresolved) >= 1.0;
+    const double trial_energy = improves ? m.energy(mesh, m.trial.data(), w, true).total : INFINITY;
+    improves = improves && std::isfinite(trial_energy);
+    double rs[2] = { 0, 0 };
+    if (improves) {
+        residual_at_trial(rs);
+        improves = rs[1] == 0 && rs[0] < 0.5 * iter.gmax;
+    }
+    phase_end(t, result.line_search_time);
+    if (!improves) {
+        result.roundoff_limited = true;
+        return DeviceStepStatus::CONVERGED;
+    }
+    m.accept_trial();
+    m.active_current = contact != nullptr; // built at the trial, now x
+    energy = trial_energy;
+    result.newton_step = iter.pmax / step_scale;
+    end_iteration();
+    result.iterations = iter.index + 1;
+    if (result.iterations >= settings.max_iterations && rs[0] / force_scale > settings.residual_tolerance) {
+        // Out of iterations inside the round-off regime: converged as far as it gets.
+        result.residual = rs[0] / force_scale;
+        result.roundoff_limited = true;
+        return DeviceStepStatus::CONVERGED;
+    }
+    return std::nullopt;
+}
+
+void DeviceNewton::Impl::NewtonLoop::ensure_descent(Iteration& iter)
+{
+    if (!iter.lifting && !(iter.slope < 0)) {
+        // Not a descent direction (PCG on a nearly singular matrix): the negative gradient, scaled to
+        // the rejected step's length (under load control g - lambda a, orthogonal to a: the step stays
+        // on the hyperplane, and its slope is g's).
+        const double scale = iter.gmax > 0 && iter.pmax > 0 ? iter.pmax / iter.gmax : 1.0;
+        gradient_direction<<<Gu, THREADS>>>(nu, fixed, m.u_g().data(), scale, m.u_p().data());
+        check_launch("launch of the gradient direction");
+        m.direction_scalars(iter.ds);
+        iter.slope = iter.ds[0];
+        iter.pmax = iter.ds[1];
+        ++result.gradient_steps;
+    }
+}
+
+std::optional<DeviceStepStatus> DeviceNewton::Impl::NewtonLoop::bound_step(Iteration& iter)
+{
+    m.step_to_positions();
+    iter.t_ls = Clock::now();
+    bool unresolved = false;
+    iter.length = iter.ds[2]; // of the free dofs' step: lifting moves prescribed dofs as far as it must
+    if (settings.max_displacement > 0 && iter.length > settings.max_displacement) {
+        const double cap = settings.max_displacement / iter.length;
+        iter.alpha = cap * m.max_step(cap, settings.inversion_keep, unresolved); // from the capped step
+    } else {
+        iter.alpha = m.max_step(1.0, settings.inversion_keep, unresolved);
+    }
+    if (!(iter.alpha > 0) && unresolved) {
+        phase_end(iter.t_ls, result.line_search_time);
+        return DeviceStepStatus::CCD_UNRESOLVED;
+    }
+    return std::nullopt;
+}
+
+std::optional<DeviceStepStatus> DeviceNewton::Impl::NewtonLoop::line_search(Iteration& iter)
+{
+    bool accepted = false;
+    iter.active_at_trial = false;
+    iter.new_energy = energy;
+    // Differences below this are round-off in the energy sum.
+    iter.roundoff = std::max(1e-13 * std::abs(energy), 16 * EPS * magnitude);
+    // Near the solution the predicted decrease can drop below what the energy sum resolves; there a
+    // full step is judged by the free-dof gradient instead.
+    iter.unresolvable = !iter.lifting
+        && std::abs(iter.alpha * iter.slope) < std::max(ENERGY_RESOLUTION * std::abs(energy), 1e3 * EPS * magnitude);
+    for (int h = 0; h <= settings.line_search_max_halvings && iter.alpha > 0; ++h, iter.alpha *= 0.5) {
+        m.make_trial(iter.alpha, m.u_trial(), m.trial);
+        iter.new_energy = m.energy(mesh, m.trial.data(), w, true).total;
+        if (!std::isfinite(iter.new_energy))
+            continue;
+        if (iter.lifting || iter.new_energy <= energy + settings.armijo * iter.alpha * iter.slope + iter.roundoff) {
+            accepted = true;
+            result.line_search_cuts += h;
+            break;
+        }
+        if (iter.unresolvable && h == 0) {
+            double rs[2];
+            residual_at_trial(rs);
+            if (rs[1] == 0 && rs[0] < 0.5 * iter.gmax) {
+                accepted = true;
+                iter.active_at_trial = contact != nullptr;
+                result.line_search_cuts += h;
+                result.roundoff_limited = true;
+                break;
+            }
+        }
+    }
+    if (!accepted) {
+        phase_end(iter.t_ls, result.line_search_time);
+        return DeviceStepStatus::LINE_SEARCH_EXHAUSTED;
+    }
+    return std::nullopt;
+}
+
+void DeviceNewton::Impl::NewtonLoop::extend_step(Iteration& iter)
+{
+    // NewtonSolver's rule. It compares the energy's decrease with -g.p, which equals p^T A p for the
+    // exact step of the search matrix A; PCG's inexact step, started from zero, keeps that identity (its
+    // residual is orthogonal to the Krylov space that holds p). Not where the predicted decrease is below
+    // the energy's resolution: there the decrease is round-off (a last step of the 2D falling box in
+    // AdaptiveTimeSteppingOfDynamicScenes was extended 4x on such noise).
+    if (settings.step_extension && iter.alpha == 1.0 && !iter.lifting && !control && !iter.unresolvable
+        && !result.roundoff_limited && energy - iter.new_energy > EXTENSION_RATIO * -iter.slope)
+        iter.alpha = m.extend(mesh, w, iter.length, settings, energy, iter.slope, iter.new_energy, result);
+}
+
+void DeviceNewton::Impl::NewtonLoop::commit(const Iteration& iter)
+{
+    full_step_taken = iter.alpha >= 1.0;
+    result.newton_step = iter.alpha * iter.pmax / step_scale;
+    last_drop = energy - iter.new_energy;
+    last_roundoff = iter.roundoff;
+    m.accept_trial(); // x = the accepted trial; trial = the old x, no longer needed
+    m.active_current = iter.active_at_trial;
+    if (iter.lifting && iter.alpha >= 1.0)
+        snap_lifted(iter);
+    else
+        energy = iter.new_energy;
+    end_iteration();
+    phase_end(iter.t_ls, result.line_search_time);
+    result.iterations = iter.index + 1;
+    trace_iteration(iter);
+}
+
+void DeviceNewton::Impl::NewtonLoop::snap_lifted(const Iteration& iter)
+{
+    // x_D + (target - x_D) need not round to target: snap so lifting ends exactly, unless the
+    // snapped state is invalid (then the rounding stays for one more iteration).
+    detail::copy_device_to_device(m.trial.data(), m.x.data(), m.n * sizeof(double));
+    if (m.periodic)
+        detail::copy_device_to_device(m.trial_q.data(), m.q.data(), nu * sizeof(double));
+    if (m.surface)
+        detail::copy_device_to_device(m.ys_trial.data(), m.ys.data(), m.ys.size() * sizeof(double));
+    snap_to_target<<<Gu, THREADS>>>(nu, fixed, m.u_target().data(), m.u().data());
+    check_launch("launch of the lifting snap");
+    if (m.periodic)
+        m.expand_state(m.q, m.x);
+    m.active_current = false;
+    energy = m.energy(mesh, m.x.data(), w).total;
+    if (!std::isfinite(energy)) {
+        m.accept_trial(); // back to the unsnapped state
+        energy = iter.new_energy;
+    }
+}
+
+void DeviceNewton::Impl::NewtonLoop::residual_at_trial(double* rs)
+{
+    if (contact) {
+        contact->update_active(m.contact_positions(m.trial.data()));
+        m.active_current = false;
+    }
+    m.gradient(mesh, m.trial.data(), w, m.g_trial.data());
+    m.residual_of_trial(rs);
+}
+
+void DeviceNewton::Impl::NewtonLoop::end_iteration()
+{
+    if (!contact || !hook)
+        return;
+    m.activate_at_x();
+    if (hook()) {
+        ++result.kappa_updates;
+        energy = m.energy(mesh, m.x.data(), w).total;
+    }
+}
+
+void DeviceNewton::Impl::NewtonLoop::trace_iteration(const Iteration& iter) const
+{
+    if (trace)
+        std::fprintf(stderr,
+            "  device newton %3d: residual %.3e forcing %.1e alpha %.3e energy %.15e step %.2e; totals: pcg %d, "
+            "true-Hessian steps %d, cuts %d, kappa updates %d%s\n",
+            iter.index, iter.gmax / force_scale, iter.forcing, iter.alpha, energy, result.newton_step,
+            result.pcg_iterations, result.true_hessian_steps, result.line_search_cuts, result.kappa_updates,
+            last_true ? ", true Hessian" : "");
 }
 
 } // namespace diffipc::gpu

@@ -33,6 +33,10 @@ template <class T> struct NonDeduced {
 };
 template <class T> using non_deduced = typename NonDeduced<T>::type;
 
+/// Whether T is double: what only the plain evaluation does (a PSD projection) is skipped for other scalars.
+template <class T> inline constexpr bool is_double = false;
+template <> inline constexpr bool is_double<double> = true;
+
 /// +infinity of T (HUGE_VAL is a constant expression on both sides).
 template <class T> DIFFIPC_HD inline T infinity() { return T(HUGE_VAL); }
 

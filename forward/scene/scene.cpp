@@ -606,6 +606,295 @@ namespace {
             scene.contact.enabled = true; // obstacles imply contact unless it is switched off explicitly
     }
 
+    /// The document's keys; "description" is free text, only checked to be a string.
+    void check_top_level(const JsonField& root)
+    {
+        root.require_object({ "dimension", "bodies", "gravity", "dirichlet", "neumann", "time", "mass", "solver",
+            "output", "description", "contact", "obstacles", "friction", "periodic", "device" });
+        if (root.has("description"))
+            root["description"].string();
+    }
+
+    int parse_dimension(const JsonField& f)
+    {
+        const int dim = f.integer(2);
+        if (dim != 2 && dim != 3)
+            f.fail("must be 2 or 3");
+        return dim;
+    }
+
+    /// A body's "scale", "rotation" and `translation` applied to its mesh, in that order, each
+    /// about the mesh's origin; refuses a placement that round-off would spoil.
+    void place_body_mesh(const JsonField& bf, const VectorXd& translation, int dim, Mesh& mesh)
+    {
+        if (bf.has("scale")) {
+            // The mesh file's units to metres, about the mesh's origin (before rotation and translation).
+            mesh.rest_positions *= bf["scale"].positive();
+            validate_mesh(mesh, bf["scale"].path());
+        }
+        const MatrixXd unplaced = mesh.rest_positions;
+        if (bf.has("rotation")) {
+            // Degrees; 2D: one angle; 3D: about x, then y, then z (R = Rz Ry Rx), about the mesh origin.
+            const VectorXd angles = bf["rotation"].vector(dim == 2 ? 1 : 3) * (M_PI / 180.0);
+            Eigen::Matrix3d R = Eigen::Matrix3d::Identity();
+            if (dim == 2)
+                R = Eigen::AngleAxisd(angles[0], Eigen::Vector3d::UnitZ()).toRotationMatrix();
+            else
+                R = (Eigen::AngleAxisd(angles[2], Eigen::Vector3d::UnitZ())
+                    * Eigen::AngleAxisd(angles[1], Eigen::Vector3d::UnitY())
+                    * Eigen::AngleAxisd(angles[0], Eigen::Vector3d::UnitX()))
+                        .toRotationMatrix();
+            const Eigen::MatrixXd Rd = R.topLeftCorner(dim, dim);
+            mesh.rest_positions = (mesh.rest_positions * Rd.transpose()).eval();
+        }
+        mesh.rest_positions.rowwise() += translation.transpose();
+        check_placed_coordinates(mesh.rest_positions, bf);
+        check_placement_keeps_cells(unplaced, mesh.rest_positions, mesh.elements, bf);
+    }
+
+    /// bodies[b]: appends its placed mesh (contact group b) and its BodySpec to `scene`.
+    /// @return its "self_contact" if given: the default comes from the "contact" block, which
+    /// is read after the bodies (its default dhat depends on their extent).
+    std::optional<bool> parse_body(const JsonField& bf, size_t b, const std::string& base_directory, Scene& scene)
+    {
+        const int dim = scene.dim;
+        bf.require_object({ "name", "mesh", "material", "initial_velocity", "scale", "translation", "rotation",
+            "self_contact", "friction" });
+        BodySpec body;
+        body.name = bf.has("name") ? bf["name"].string() : "body" + std::to_string(b);
+        for (const auto& other : scene.bodies)
+            if (other.name == body.name)
+                bf["name"].fail("duplicate body name '" + body.name + "'");
+        body.material = parse_material(bf["material"], dim);
+        body.initial_velocity = bf.has("initial_velocity") ? bf["initial_velocity"].vector(dim) : VectorXd::Zero(dim);
+        body.translation = bf.has("translation") ? bf["translation"].vector(dim) : VectorXd::Zero(dim);
+        if (bf.has("friction"))
+            body.friction_coefficient = parse_local_friction(bf["friction"]);
+        const std::optional<bool> self_contact
+            = bf.has("self_contact") ? std::optional<bool>(bf["self_contact"].boolean()) : std::nullopt;
+        Mesh mesh = parse_mesh(bf["mesh"], dim, base_directory, body.mesh_source, double(scene.mesh.num_elements()));
+        place_body_mesh(bf, body.translation, dim, mesh);
+        append_mesh(scene.mesh, mesh, int(b));
+        scene.bodies.push_back(std::move(body));
+        return self_contact;
+    }
+
+    /// "bodies": fills scene.bodies, the bodies' part of scene.mesh and scene.body_vertices.
+    /// @return each body's "self_contact", if given (see parse_body).
+    std::vector<std::optional<bool>> parse_bodies(
+        const JsonField& list, const std::string& base_directory, Scene& scene)
+    {
+        list.require_array(1);
+        std::vector<std::optional<bool>> self_contact_fields;
+        scene.mesh.dim = scene.dim;
+        for (size_t b = 0; b < list.size(); ++b)
+            self_contact_fields.push_back(parse_body(list.at(b), b, base_directory, scene));
+        scene.body_vertices = scene.mesh.num_vertices();
+        return self_contact_fields;
+    }
+
+    /// A body without its own "self_contact" takes the "contact" block's.
+    void set_self_contact(const std::vector<std::optional<bool>>& self_contact_fields, Scene& scene)
+    {
+        for (size_t b = 0; b < scene.bodies.size(); ++b)
+            scene.bodies[b].self_contact = self_contact_fields[b].value_or(scene.contact.self_contact);
+    }
+
+    /// Tolerance of the Dirichlet and Neumann region tests: 1e-9 of the extent of the bodies
+    /// (obstacles left out).
+    double region_tolerance(const Scene& scene)
+    {
+        const auto body_rows = scene.mesh.rest_positions.topRows(scene.body_vertices);
+        const Eigen::RowVectorXd extent = body_rows.colwise().maxCoeff() - body_rows.colwise().minCoeff();
+        return 1e-9 * extent.norm();
+    }
+
+    void parse_dirichlet(const JsonField& root, double tolerance, Scene& scene)
+    {
+        if (!root.has("dirichlet"))
+            return;
+        const int dim = scene.dim;
+        const JsonField list = root["dirichlet"];
+        list.require_array();
+        for (size_t i = 0; i < list.size(); ++i) {
+            const JsonField f = list.at(i);
+            f.require_object({ "body", "region", "displacement" });
+            DirichletSpec d;
+            d.field = f.path();
+            d.body = parse_body_reference(f["body"], scene.bodies);
+            d.region = parse_region(f["region"], dim);
+            const JsonField disp = f["displacement"];
+            d.displacement = parse_components(disp, dim, true);
+            bool any = false;
+            for (const auto& c : d.displacement)
+                any = any || c.has_value();
+            if (!any)
+                disp.fail("all components are null: nothing is prescribed");
+            bool selected = false;
+            for (Index v = 0; v < scene.mesh.num_vertices() && !selected; ++v)
+                selected = scene.mesh.vertex_body[v] == d.body
+                    && d.region.contains(scene.mesh.rest_positions.row(v).transpose(), tolerance);
+            if (!selected)
+                f["region"].fail("selects no vertex of body '" + scene.bodies[size_t(d.body)].name + "'");
+            scene.dirichlet.push_back(std::move(d));
+        }
+    }
+
+    void parse_neumann(const JsonField& root, double tolerance, Scene& scene)
+    {
+        if (!root.has("neumann"))
+            return;
+        const int dim = scene.dim;
+        const JsonField list = root["neumann"];
+        list.require_array();
+        for (size_t i = 0; i < list.size(); ++i) {
+            const JsonField f = list.at(i);
+            f.require_object({ "body", "region", "traction" });
+            NeumannSpec n;
+            n.field = f.path();
+            n.body = parse_body_reference(f["body"], scene.bodies);
+            n.region = parse_region(f["region"], dim);
+            for (auto& c : parse_components(f["traction"], dim, false))
+                n.traction.push_back(std::move(*c));
+            bool selected = false;
+            for (Index fc = 0; fc < scene.mesh.boundary_facets.rows() && !selected; ++fc) {
+                if (scene.mesh.facet_body[fc] != n.body)
+                    continue;
+                bool inside = true;
+                for (int a = 0; a < dim; ++a)
+                    inside = inside
+                        && n.region.contains(
+                            scene.mesh.rest_positions.row(scene.mesh.boundary_facets(fc, a)).transpose(), tolerance);
+                selected = inside;
+            }
+            if (!selected)
+                f["region"].fail("selects no boundary facet of body '" + scene.bodies[size_t(n.body)].name + "'");
+            scene.neumann.push_back(std::move(n));
+        }
+    }
+
+    IntegratorType parse_integrator(const JsonField& f)
+    {
+        const std::string name = f.string();
+        if (name == "static")
+            return IntegratorType::STATIC;
+        if (name == "implicit_euler")
+            return IntegratorType::IMPLICIT_EULER;
+        if (name == "bdf2")
+            return IntegratorType::BDF2;
+        if (name == "newmark")
+            return IntegratorType::NEWMARK;
+        f.fail("unknown integrator '" + name + "' (expected static, implicit_euler, bdf2 or newmark)");
+    }
+
+    void parse_time(const JsonField& time, Scene& scene)
+    {
+        time.require_object({ "integrator", "dt", "steps", "adaptive" });
+        scene.time.integrator = parse_integrator(time["integrator"]);
+        scene.time.dt = time["dt"].positive();
+        if (scene.time.dt < MIN_TIME_STEP)
+            time["dt"].fail(
+                "time step below 1e-12 s: the implicit schemes weight the elastic forces by dt^2, which then "
+                "vanish in round-off against inertia");
+        scene.time.steps = time["steps"].integer(1);
+        if (time.has("adaptive"))
+            scene.time.adaptive = parse_adaptive(time["adaptive"], scene.time);
+    }
+
+    void parse_mass(const JsonField& root, Scene& scene)
+    {
+        if (!root.has("mass"))
+            return;
+        const std::string m = root["mass"].string();
+        if (m == "lumped")
+            scene.mass = MassType::LUMPED;
+        else if (m == "consistent")
+            scene.mass = MassType::CONSISTENT;
+        else
+            root["mass"].fail("expected \"lumped\" or \"consistent\"");
+    }
+
+    void parse_solver(const JsonField& root, Scene& scene)
+    {
+        if (!root.has("solver"))
+            return;
+        const JsonField s = root["solver"];
+        s.require_object(
+            { "residual_tolerance", "step_tolerance", "max_iterations", "linear_solver", "line_search_max_halvings",
+                "armijo", "hessian_projection", "step_extension", "threads", "gpu_adjoint_preconditioner" });
+        SolverSpec& solver = scene.solver;
+        if (s.has("threads"))
+            solver.threads = s["threads"].integer(1);
+        if (s.has("hessian_projection")) {
+            const std::string h = s["hessian_projection"].string();
+            if (h != "adaptive" && h != "always")
+                s["hessian_projection"].fail("expected \"adaptive\" or \"always\"");
+            solver.adaptive_projection = h == "adaptive";
+        }
+        if (s.has("step_extension"))
+            solver.step_extension = s["step_extension"].boolean();
+        if (s.has("residual_tolerance"))
+            solver.residual_tolerance = s["residual_tolerance"].positive();
+        if (s.has("step_tolerance")) {
+            solver.step_tolerance = s["step_tolerance"].number();
+            if (solver.step_tolerance < 0)
+                s["step_tolerance"].fail("must be >= 0 (0 disables the step criterion)");
+        }
+        if (s.has("max_iterations"))
+            solver.max_iterations = s["max_iterations"].integer(1);
+        if (s.has("line_search_max_halvings"))
+            solver.line_search_max_halvings = s["line_search_max_halvings"].integer(1);
+        if (s.has("armijo")) {
+            solver.armijo = s["armijo"].number();
+            if (!(solver.armijo > 0 && solver.armijo < 0.5))
+                s["armijo"].fail("must lie in (0, 0.5)");
+        }
+        if (s.has("linear_solver")) {
+            const std::string l = s["linear_solver"].string();
+            if (l == "cholmod")
+                solver.linear_solver = LinearSolverType::CHOLMOD;
+            else if (l == "ldlt")
+                solver.linear_solver = LinearSolverType::LDLT;
+            else
+                s["linear_solver"].fail("expected \"cholmod\" or \"ldlt\"");
+        }
+        if (s.has("gpu_adjoint_preconditioner")) {
+            const std::string p = s["gpu_adjoint_preconditioner"].string();
+            if (p != "multigrid" && p != "block_jacobi")
+                s["gpu_adjoint_preconditioner"].fail("expected \"block_jacobi\" or \"multigrid\"");
+            solver.gpu_adjoint_multigrid = p == "multigrid";
+        }
+    }
+
+    void parse_output(const JsonField& root, Scene& scene)
+    {
+        if (!root.has("output"))
+            return;
+        const JsonField o = root["output"];
+        o.require_object({ "directory", "vtu_every", "vtu_encoding", "hdf5", "flush_interval" });
+        OutputSpec& output = scene.output;
+        if (o.has("directory")) {
+            output.directory = o["directory"].string();
+            if (output.directory.empty())
+                o["directory"].fail("an empty path (give a directory, e.g. \"output\", or leave the key out)");
+        }
+        if (o.has("vtu_every"))
+            output.vtu_every = o["vtu_every"].integer(0);
+        if (o.has("hdf5"))
+            output.hdf5 = o["hdf5"].boolean();
+        if (o.has("flush_interval"))
+            output.flush_interval = o["flush_interval"].positive();
+        if (o.has("vtu_encoding")) {
+            const std::string encoding = o["vtu_encoding"].string();
+            if (encoding == "binary")
+                output.vtu_encoding = VtuEncoding::BINARY;
+            else if (encoding == "ascii")
+                output.vtu_encoding = VtuEncoding::ASCII;
+            else
+                o["vtu_encoding"].fail("expected \"binary\" or \"ascii\", got \"" + encoding + "\"");
+        }
+    }
+
 } // namespace
 
 void select_device(Scene& scene, const std::string& name, const std::string& field)
@@ -641,243 +930,21 @@ Scene parse_scene(const nlohmann::json& document, const std::string& base_direct
     Scene scene;
     scene.source = source;
     const JsonField root(document, "");
-    root.require_object({ "dimension", "bodies", "gravity", "dirichlet", "neumann", "time", "mass", "solver", "output",
-        "description", "contact", "obstacles", "friction", "periodic", "device" });
-    if (root.has("description"))
-        root["description"].string();
-
-    const JsonField dim_field = root["dimension"];
-    scene.dim = dim_field.integer(2);
-    if (scene.dim != 2 && scene.dim != 3)
-        dim_field.fail("must be 2 or 3");
-    const int dim = scene.dim;
-
-    const JsonField bodies = root["bodies"];
-    bodies.require_array(1);
-    std::vector<std::optional<bool>> self_contact_fields;
-    scene.mesh.dim = dim;
-    for (size_t b = 0; b < bodies.size(); ++b) {
-        const JsonField bf = bodies.at(b);
-        bf.require_object({ "name", "mesh", "material", "initial_velocity", "scale", "translation", "rotation",
-            "self_contact", "friction" });
-        BodySpec body;
-        body.name = bf.has("name") ? bf["name"].string() : "body" + std::to_string(b);
-        for (const auto& other : scene.bodies)
-            if (other.name == body.name)
-                bf["name"].fail("duplicate body name '" + body.name + "'");
-        body.material = parse_material(bf["material"], dim);
-        body.initial_velocity = bf.has("initial_velocity") ? bf["initial_velocity"].vector(dim) : VectorXd::Zero(dim);
-        body.translation = bf.has("translation") ? bf["translation"].vector(dim) : VectorXd::Zero(dim);
-        if (bf.has("friction"))
-            body.friction_coefficient = parse_local_friction(bf["friction"]);
-        self_contact_fields.push_back(
-            bf.has("self_contact") ? std::optional<bool>(bf["self_contact"].boolean()) : std::nullopt);
-        Mesh mesh = parse_mesh(bf["mesh"], dim, base_directory, body.mesh_source, double(scene.mesh.num_elements()));
-        if (bf.has("scale")) {
-            // The mesh file's units to metres, about the mesh's origin (before rotation and translation).
-            mesh.rest_positions *= bf["scale"].positive();
-            validate_mesh(mesh, bf["scale"].path());
-        }
-        const MatrixXd unplaced = mesh.rest_positions;
-        if (bf.has("rotation")) {
-            // Degrees; 2D: one angle; 3D: about x, then y, then z (R = Rz Ry Rx), about the mesh origin.
-            const VectorXd angles = bf["rotation"].vector(dim == 2 ? 1 : 3) * (M_PI / 180.0);
-            Eigen::Matrix3d R = Eigen::Matrix3d::Identity();
-            if (dim == 2)
-                R = Eigen::AngleAxisd(angles[0], Eigen::Vector3d::UnitZ()).toRotationMatrix();
-            else
-                R = (Eigen::AngleAxisd(angles[2], Eigen::Vector3d::UnitZ())
-                    * Eigen::AngleAxisd(angles[1], Eigen::Vector3d::UnitY())
-                    * Eigen::AngleAxisd(angles[0], Eigen::Vector3d::UnitX()))
-                        .toRotationMatrix();
-            const Eigen::MatrixXd Rd = R.topLeftCorner(dim, dim);
-            mesh.rest_positions = (mesh.rest_positions * Rd.transpose()).eval();
-        }
-        mesh.rest_positions.rowwise() += body.translation.transpose();
-        check_placed_coordinates(mesh.rest_positions, bf);
-        check_placement_keeps_cells(unplaced, mesh.rest_positions, mesh.elements, bf);
-        append_mesh(scene.mesh, mesh, int(b));
-        scene.bodies.push_back(std::move(body));
-    }
-
-    scene.body_vertices = scene.mesh.num_vertices();
+    check_top_level(root);
+    scene.dim = parse_dimension(root["dimension"]);
+    const std::vector<std::optional<bool>> self_contact_fields = parse_bodies(root["bodies"], base_directory, scene);
     parse_contact(root, scene);
-    for (size_t b = 0; b < scene.bodies.size(); ++b)
-        scene.bodies[b].self_contact = self_contact_fields[b].value_or(scene.contact.self_contact);
+    set_self_contact(self_contact_fields, scene);
     parse_obstacles(root, base_directory, scene);
     parse_friction(root, scene);
-
-    scene.gravity = root.has("gravity") ? root["gravity"].vector(dim) : VectorXd::Zero(dim);
-
-    const auto body_rows = scene.mesh.rest_positions.topRows(scene.body_vertices);
-    const Eigen::RowVectorXd extent = body_rows.colwise().maxCoeff() - body_rows.colwise().minCoeff();
-    const double region_tolerance = 1e-9 * extent.norm();
-
-    if (root.has("dirichlet")) {
-        const JsonField list = root["dirichlet"];
-        list.require_array();
-        for (size_t i = 0; i < list.size(); ++i) {
-            const JsonField f = list.at(i);
-            f.require_object({ "body", "region", "displacement" });
-            DirichletSpec d;
-            d.field = f.path();
-            d.body = parse_body_reference(f["body"], scene.bodies);
-            d.region = parse_region(f["region"], dim);
-            const JsonField disp = f["displacement"];
-            d.displacement = parse_components(disp, dim, true);
-            bool any = false;
-            for (const auto& c : d.displacement)
-                any = any || c.has_value();
-            if (!any)
-                disp.fail("all components are null: nothing is prescribed");
-            bool selected = false;
-            for (Index v = 0; v < scene.mesh.num_vertices() && !selected; ++v)
-                selected = scene.mesh.vertex_body[v] == d.body
-                    && d.region.contains(scene.mesh.rest_positions.row(v).transpose(), region_tolerance);
-            if (!selected)
-                f["region"].fail("selects no vertex of body '" + scene.bodies[size_t(d.body)].name + "'");
-            scene.dirichlet.push_back(std::move(d));
-        }
-    }
-
-    if (root.has("neumann")) {
-        const JsonField list = root["neumann"];
-        list.require_array();
-        for (size_t i = 0; i < list.size(); ++i) {
-            const JsonField f = list.at(i);
-            f.require_object({ "body", "region", "traction" });
-            NeumannSpec n;
-            n.field = f.path();
-            n.body = parse_body_reference(f["body"], scene.bodies);
-            n.region = parse_region(f["region"], dim);
-            for (auto& c : parse_components(f["traction"], dim, false))
-                n.traction.push_back(std::move(*c));
-            bool selected = false;
-            for (Index fc = 0; fc < scene.mesh.boundary_facets.rows() && !selected; ++fc) {
-                if (scene.mesh.facet_body[fc] != n.body)
-                    continue;
-                bool inside = true;
-                for (int a = 0; a < dim; ++a)
-                    inside = inside
-                        && n.region.contains(
-                            scene.mesh.rest_positions.row(scene.mesh.boundary_facets(fc, a)).transpose(),
-                            region_tolerance);
-                selected = inside;
-            }
-            if (!selected)
-                f["region"].fail("selects no boundary facet of body '" + scene.bodies[size_t(n.body)].name + "'");
-            scene.neumann.push_back(std::move(n));
-        }
-    }
-
-    const JsonField time = root["time"];
-    time.require_object({ "integrator", "dt", "steps", "adaptive" });
-    {
-        const std::string name = time["integrator"].string();
-        if (name == "static")
-            scene.time.integrator = IntegratorType::STATIC;
-        else if (name == "implicit_euler")
-            scene.time.integrator = IntegratorType::IMPLICIT_EULER;
-        else if (name == "bdf2")
-            scene.time.integrator = IntegratorType::BDF2;
-        else if (name == "newmark")
-            scene.time.integrator = IntegratorType::NEWMARK;
-        else
-            time["integrator"].fail(
-                "unknown integrator '" + name + "' (expected static, implicit_euler, bdf2 or newmark)");
-        scene.time.dt = time["dt"].positive();
-        if (scene.time.dt < MIN_TIME_STEP)
-            time["dt"].fail(
-                "time step below 1e-12 s: the implicit schemes weight the elastic forces by dt^2, which then "
-                "vanish in round-off against inertia");
-        scene.time.steps = time["steps"].integer(1);
-        if (time.has("adaptive")) {
-            scene.time.adaptive = parse_adaptive(time["adaptive"], scene.time);
-        }
-    }
-
-    if (root.has("mass")) {
-        const std::string m = root["mass"].string();
-        if (m == "lumped")
-            scene.mass = MassType::LUMPED;
-        else if (m == "consistent")
-            scene.mass = MassType::CONSISTENT;
-        else
-            root["mass"].fail("expected \"lumped\" or \"consistent\"");
-    }
-
-    if (root.has("solver")) {
-        const JsonField s = root["solver"];
-        s.require_object(
-            { "residual_tolerance", "step_tolerance", "max_iterations", "linear_solver", "line_search_max_halvings",
-                "armijo", "hessian_projection", "step_extension", "threads", "gpu_adjoint_preconditioner" });
-        if (s.has("threads"))
-            scene.solver.threads = s["threads"].integer(1);
-        if (s.has("hessian_projection")) {
-            const std::string h = s["hessian_projection"].string();
-            if (h != "adaptive" && h != "always")
-                s["hessian_projection"].fail("expected \"adaptive\" or \"always\"");
-            scene.solver.adaptive_projection = h == "adaptive";
-        }
-        if (s.has("step_extension"))
-            scene.solver.step_extension = s["step_extension"].boolean();
-        if (s.has("residual_tolerance"))
-            scene.solver.residual_tolerance = s["residual_tolerance"].positive();
-        if (s.has("step_tolerance")) {
-            scene.solver.step_tolerance = s["step_tolerance"].number();
-            if (scene.solver.step_tolerance < 0)
-                s["step_tolerance"].fail("must be >= 0 (0 disables the step criterion)");
-        }
-        if (s.has("max_iterations"))
-            scene.solver.max_iterations = s["max_iterations"].integer(1);
-        if (s.has("line_search_max_halvings"))
-            scene.solver.line_search_max_halvings = s["line_search_max_halvings"].integer(1);
-        if (s.has("armijo")) {
-            scene.solver.armijo = s["armijo"].number();
-            if (!(scene.solver.armijo > 0 && scene.solver.armijo < 0.5))
-                s["armijo"].fail("must lie in (0, 0.5)");
-        }
-        if (s.has("linear_solver")) {
-            const std::string l = s["linear_solver"].string();
-            if (l == "cholmod")
-                scene.solver.linear_solver = LinearSolverType::CHOLMOD;
-            else if (l == "ldlt")
-                scene.solver.linear_solver = LinearSolverType::LDLT;
-            else
-                s["linear_solver"].fail("expected \"cholmod\" or \"ldlt\"");
-        }
-        if (s.has("gpu_adjoint_preconditioner")) {
-            const std::string p = s["gpu_adjoint_preconditioner"].string();
-            if (p != "multigrid" && p != "block_jacobi")
-                s["gpu_adjoint_preconditioner"].fail("expected \"block_jacobi\" or \"multigrid\"");
-            scene.solver.gpu_adjoint_multigrid = p == "multigrid";
-        }
-    }
-
-    if (root.has("output")) {
-        const JsonField o = root["output"];
-        o.require_object({ "directory", "vtu_every", "vtu_encoding", "hdf5", "flush_interval" });
-        if (o.has("directory")) {
-            scene.output.directory = o["directory"].string();
-            if (scene.output.directory.empty())
-                o["directory"].fail("an empty path (give a directory, e.g. \"output\", or leave the key out)");
-        }
-        if (o.has("vtu_every"))
-            scene.output.vtu_every = o["vtu_every"].integer(0);
-        if (o.has("hdf5"))
-            scene.output.hdf5 = o["hdf5"].boolean();
-        if (o.has("flush_interval"))
-            scene.output.flush_interval = o["flush_interval"].positive();
-        if (o.has("vtu_encoding")) {
-            const std::string encoding = o["vtu_encoding"].string();
-            if (encoding == "binary")
-                scene.output.vtu_encoding = VtuEncoding::BINARY;
-            else if (encoding == "ascii")
-                scene.output.vtu_encoding = VtuEncoding::ASCII;
-            else
-                o["vtu_encoding"].fail("expected \"binary\" or \"ascii\", got \"" + encoding + "\"");
-        }
-    }
+    scene.gravity = root.has("gravity") ? root["gravity"].vector(scene.dim) : VectorXd::Zero(scene.dim);
+    const double tolerance = region_tolerance(scene);
+    parse_dirichlet(root, tolerance, scene);
+    parse_neumann(root, tolerance, scene);
+    parse_time(root["time"], scene);
+    parse_mass(root, scene);
+    parse_solver(root, scene);
+    parse_output(root, scene);
     if (root.has("periodic"))
         parse_periodic(root["periodic"], scene);
     if (root.has("device"))

@@ -34,12 +34,75 @@ namespace {
             throw InputError(field, "non-finite value");
     }
 
+    /// The sizes and values of the parameter overrides that do not depend on the built problem.
+    void check_parameters(const SimulationParameters& P, Index n, Index ne, int groups)
+    {
+        check_size(P.rest_positions, n, "rest_positions", "#V*dim");
+        check_size(P.mu, ne, "mu", "one per element");
+        check_size(P.lambda, ne, "lambda", "one per element");
+        check_size(P.youngs_modulus, ne, "E", "one per element");
+        check_size(P.poisson_ratio, ne, "nu", "one per element");
+        check_size(P.density, ne, "density", "one per element");
+        check_size(P.friction, Index(groups), "friction", "one per body and obstacle");
+        check_size(P.initial_displacement, n, "initial_displacement", "#V*dim");
+        check_size(P.initial_velocity, n, "initial_velocity", "#V*dim");
+        if (!P.prescribed.allFinite())
+            throw InputError("prescribed", "non-finite value");
+        if (!(P.kappa >= 0) || !std::isfinite(P.kappa))
+            throw InputError("kappa", "must be a positive finite barrier stiffness (or 0 for the scene's)");
+    }
+
     double element_det(const Positions& X, const MatrixXi& elements, Index e, int d)
     {
         Eigen::MatrixXd Dm(d, d);
         for (int a = 0; a < d; ++a)
             Dm.col(a) = (X.row(elements(e, a + 1)) - X.row(elements(e, 0))).transpose();
         return Dm.determinant();
+    }
+
+    /// Each element's law and parameters: its body's material, or the overrides where given.
+    struct ElementMaterials {
+        std::vector<MaterialModel> models;
+        std::vector<char> plane_stress;
+        VectorXd mu, lambda, density;
+        double mean_youngs_modulus = 0;
+    };
+
+    ElementMaterials element_materials(const Scene& scene, const SimulationParameters& P)
+    {
+        const Mesh& mesh = scene.mesh;
+        const int d = mesh.dim;
+        const Index ne = mesh.num_elements();
+        ElementMaterials out;
+        out.models.resize(size_t(ne));
+        out.plane_stress.assign(size_t(ne), 0);
+        out.mu.resize(ne);
+        out.lambda.resize(ne);
+        out.density.resize(ne);
+        VectorXd &mu = out.mu, &lambda = out.lambda, &density = out.density;
+        for (Index e = 0; e < ne; ++e) {
+            const MaterialSpec& m = scene.bodies[size_t(mesh.element_body[e])].material;
+            out.models[size_t(e)] = m.model;
+            out.plane_stress[size_t(e)] = m.plane_stress;
+            const double E = P.youngs_modulus.size() ? P.youngs_modulus[e] : m.youngs_modulus;
+            const double nu = P.poisson_ratio.size() ? P.poisson_ratio[e] : m.poisson_ratio;
+            if (!(E > 0))
+                throw InputError("E[" + std::to_string(e) + "]", "Young's modulus must be positive");
+            if (!(nu > -1 && nu < 0.5))
+                throw InputError("nu[" + std::to_string(e) + "]", "Poisson's ratio must lie in (-1, 0.5)");
+            mu[e] = P.mu.size() ? P.mu[e] : lame_mu(E, nu);
+            lambda[e] = P.lambda.size() ? P.lambda[e] : lame_lambda(E, nu, m.plane_stress);
+            if (!(mu[e] > 0))
+                throw InputError("mu[" + std::to_string(e) + "]", "the shear modulus must be positive");
+            if (!(lambda[e] > -2.0 / d * mu[e]))
+                throw InputError(
+                    "lambda[" + std::to_string(e) + "]", "the bulk modulus lambda + 2 mu / dim must be positive");
+            density[e] = P.density.size() ? P.density[e] : m.density;
+            if (!(density[e] > 0))
+                throw InputError("density[" + std::to_string(e) + "]", "must be positive");
+            out.mean_youngs_modulus += E / double(ne);
+        }
+        return out;
     }
 
 } // namespace
@@ -51,85 +114,16 @@ Simulator::Simulator(Scene scene, const SimulationParameters& parameters)
     ensure_threads_configured();
     if (m_scene.solver.threads > 0)
         set_threads(m_scene.solver.threads, ThreadSource::SCENE_FILE, "solver.threads of " + m_scene.source);
-    const Mesh& mesh = m_scene.mesh;
-    const int d = mesh.dim;
-    const Index ne = mesh.num_elements(), n = mesh.num_dofs();
-    const SimulationParameters& P = m_overrides;
-    check_size(P.rest_positions, n, "rest_positions", "#V*dim");
-    check_size(P.mu, ne, "mu", "one per element");
-    check_size(P.lambda, ne, "lambda", "one per element");
-    check_size(P.youngs_modulus, ne, "E", "one per element");
-    check_size(P.poisson_ratio, ne, "nu", "one per element");
-    check_size(P.density, ne, "density", "one per element");
-    check_size(P.friction, Index(num_groups()), "friction", "one per body and obstacle");
-    check_size(P.initial_displacement, n, "initial_displacement", "#V*dim");
-    check_size(P.initial_velocity, n, "initial_velocity", "#V*dim");
-    if (!P.prescribed.allFinite())
-        throw InputError("prescribed", "non-finite value");
-    if (!(P.kappa >= 0) || !std::isfinite(P.kappa))
-        throw InputError("kappa", "must be a positive finite barrier stiffness (or 0 for the scene's)");
+    check_parameters(m_overrides, m_scene.mesh.num_dofs(), m_scene.mesh.num_elements(), num_groups());
     // Regions and boundary expressions stay tied to the scene's own rest positions.
-    const Positions reference = mesh.rest_positions;
-    if (P.rest_positions.size()) {
-        const Positions X = unflatten(P.rest_positions, d);
-        for (Index e = 0; e < ne; ++e) {
-            const double before = element_det(reference, mesh.elements, e, d),
-                         after = element_det(X, mesh.elements, e, d);
-            if (!(after * before > 0) || !(std::abs(after) > 1e-12 * std::abs(before)))
-                throw InputError("rest_positions", "element " + std::to_string(e) + " degenerates or inverts");
-        }
-        m_scene.mesh.rest_positions = X;
-    }
-    if (P.kappa > 0 && m_scene.contact.enabled) {
-        m_scene.contact.kappa = P.kappa;
+    const Positions reference = m_scene.mesh.rest_positions;
+    apply_rest_positions(reference);
+    if (m_overrides.kappa > 0 && m_scene.contact.enabled) {
+        m_scene.contact.kappa = m_overrides.kappa;
         m_scene.contact.adaptive_kappa = false;
     }
-    m_space = std::make_unique<FESpace>(mesh);
-
-    std::vector<MaterialModel> models(static_cast<size_t>(ne));
-    m_plane_stress.assign(static_cast<size_t>(ne), 0);
-    VectorXd mu(ne), lambda(ne), density(ne);
-    double mean_E = 0;
-    for (Index e = 0; e < ne; ++e) {
-        const MaterialSpec& m = m_scene.bodies[size_t(mesh.element_body[e])].material;
-        models[size_t(e)] = m.model;
-        m_plane_stress[size_t(e)] = m.plane_stress;
-        const double E = P.youngs_modulus.size() ? P.youngs_modulus[e] : m.youngs_modulus;
-        const double nu = P.poisson_ratio.size() ? P.poisson_ratio[e] : m.poisson_ratio;
-        if (!(E > 0))
-            throw InputError("E[" + std::to_string(e) + "]", "Young's modulus must be positive");
-        if (!(nu > -1 && nu < 0.5))
-            throw InputError("nu[" + std::to_string(e) + "]", "Poisson's ratio must lie in (-1, 0.5)");
-        mu[e] = P.mu.size() ? P.mu[e] : lame_mu(E, nu);
-        lambda[e] = P.lambda.size() ? P.lambda[e] : lame_lambda(E, nu, m.plane_stress);
-        if (!(mu[e] > 0))
-            throw InputError("mu[" + std::to_string(e) + "]", "the shear modulus must be positive");
-        if (!(lambda[e] > -2.0 / d * mu[e]))
-            throw InputError(
-                "lambda[" + std::to_string(e) + "]", "the bulk modulus lambda + 2 mu / dim must be positive");
-        density[e] = P.density.size() ? P.density[e] : m.density;
-        if (!(density[e] > 0))
-            throw InputError("density[" + std::to_string(e) + "]", "must be positive");
-        mean_E += E / double(ne);
-    }
-    double mean_volume = 0;
-    for (double v : m_space->rest_volumes())
-        mean_volume += v / double(ne);
-    m_force_scale = mean_E * std::pow(mean_volume, double(d - 1) / d);
-    // The bodies' bounding box: obstacles (a plane's point, a large floor) must not change the scales.
-    const auto bodies = mesh.rest_positions.topRows(m_scene.body_vertices);
-    const Eigen::RowVectorXd extent = bodies.colwise().maxCoeff() - bodies.colwise().minCoeff();
-    m_bbox_diagonal = extent.norm();
-    m_elastic = std::make_unique<ElasticPotential>(*m_space, models, mu, lambda);
-    m_inertia = std::make_unique<InertiaPotential>(*m_space, density, m_scene.mass == MassType::CONSISTENT);
-    m_external = std::make_unique<ExternalForcePotential>(flatten(mesh.rest_positions));
-    m_integrator = TimeIntegrator::create(m_scene.time.integrator, m_scene.time.dt);
-    const double w = m_integrator->potential_weight();
-    if (m_integrator->dynamic())
-        m_problem.add(m_inertia.get(), 1.0);
-    m_problem.add(m_elastic.get(), w);
-    m_problem.add(m_external.get(), w);
-    m_assembler.build(d, mesh.num_vertices(), mesh.elements);
+    m_space = std::make_unique<FESpace>(m_scene.mesh);
+    setup_potentials();
     if (m_scene.contact.enabled) {
         setup_contact();
         setup_friction();
@@ -138,12 +132,67 @@ Simulator::Simulator(Scene scene, const SimulationParameters& parameters)
     if (m_scene.periodic.enabled) {
         // forward/periodic/periodic_cell.hpp: each step solves for the fluctuation and G.
         m_periodic = std::make_unique<PeriodicCell>(m_scene, m_problem, m_assembler);
-        m_macro = VectorXd::Zero(d * d);
-        m_trajectory.macro_dim = d;
+        m_macro = VectorXd::Zero(m_scene.dim * m_scene.dim);
+        m_trajectory.macro_dim = m_scene.dim;
     }
-
-    // Dirichlet dofs: later entries override earlier ones on the same dof.
     const double tol = 1e-9 * m_bbox_diagonal;
+    setup_dirichlet(reference, tol);
+    setup_obstacle_motion(reference);
+    setup_neumann(reference, tol);
+    setup_gravity();
+    setup_initial_state();
+    if (m_scene.device == DeviceType::GPU)
+        setup_device();
+}
+
+void Simulator::apply_rest_positions(const Positions& reference)
+{
+    if (!m_overrides.rest_positions.size())
+        return;
+    const Mesh& mesh = m_scene.mesh;
+    const Positions X = unflatten(m_overrides.rest_positions, mesh.dim);
+    for (Index e = 0; e < mesh.num_elements(); ++e) {
+        const double before = element_det(reference, mesh.elements, e, mesh.dim),
+                     after = element_det(X, mesh.elements, e, mesh.dim);
+        if (!(after * before > 0) || !(std::abs(after) > 1e-12 * std::abs(before)))
+            throw InputError("rest_positions", "element " + std::to_string(e) + " degenerates or inverts");
+    }
+    m_scene.mesh.rest_positions = X;
+}
+
+void Simulator::setup_potentials()
+{
+    const Mesh& mesh = m_scene.mesh;
+    const int d = mesh.dim;
+    const Index ne = mesh.num_elements();
+    const ElementMaterials materials = element_materials(m_scene, m_overrides);
+    m_plane_stress = materials.plane_stress;
+    double mean_volume = 0;
+    for (double v : m_space->rest_volumes())
+        mean_volume += v / double(ne);
+    m_force_scale = materials.mean_youngs_modulus * std::pow(mean_volume, double(d - 1) / d);
+    // The bodies' bounding box: obstacles (a plane's point, a large floor) must not change the scales.
+    const auto bodies = mesh.rest_positions.topRows(m_scene.body_vertices);
+    const Eigen::RowVectorXd extent = bodies.colwise().maxCoeff() - bodies.colwise().minCoeff();
+    m_bbox_diagonal = extent.norm();
+    m_elastic = std::make_unique<ElasticPotential>(*m_space, materials.models, materials.mu, materials.lambda);
+    m_inertia = std::make_unique<InertiaPotential>(*m_space, materials.density, m_scene.mass == MassType::CONSISTENT);
+    m_external = std::make_unique<ExternalForcePotential>(flatten(mesh.rest_positions));
+    m_integrator = TimeIntegrator::create(m_scene.time.integrator, m_scene.time.dt);
+    const double w = m_integrator->potential_weight();
+    if (m_integrator->dynamic())
+        m_problem.add(m_inertia.get(), 1.0);
+    m_problem.add(m_elastic.get(), w);
+    m_problem.add(m_external.get(), w);
+    m_assembler.build(d, mesh.num_vertices(), mesh.elements);
+}
+
+void Simulator::setup_dirichlet(const Positions& reference, double tol)
+{
+    const Mesh& mesh = m_scene.mesh;
+    const int d = mesh.dim;
+    const Index n = mesh.num_dofs();
+    // Later entries override earlier ones on the same dof.
     std::vector<int> owner(size_t(n), -1);
     for (size_t k = 0; k < m_scene.dirichlet.size(); ++k) {
         const DirichletSpec& spec = m_scene.dirichlet[k];
@@ -167,7 +216,12 @@ Simulator::Simulator(Scene scene, const SimulationParameters& parameters)
         m_dirichlet.push_back(
             { i, &*m_scene.dirichlet[size_t(owner[size_t(i)])].displacement[size_t(i % d)], rest, ref });
     }
-    // Obstacle vertices are prescribed dofs that follow the obstacle's motion.
+}
+
+void Simulator::setup_obstacle_motion(const Positions& reference)
+{
+    const Mesh& mesh = m_scene.mesh;
+    const int d = mesh.dim;
     for (size_t k = 0; k < m_scene.obstacles.size(); ++k) {
         const ObstacleSpec& o = m_scene.obstacles[k];
         for (Index v = o.first_vertex; v < o.first_vertex + o.num_vertices; ++v)
@@ -181,8 +235,12 @@ Simulator::Simulator(Scene scene, const SimulationParameters& parameters)
                 m_dirichlet.push_back({ i, &o.motion[size_t(a)], rest, ref });
             }
     }
+}
 
-    // Neumann: boundary facets whose vertices all lie in the region.
+void Simulator::setup_neumann(const Positions& reference, double tol)
+{
+    const Mesh& mesh = m_scene.mesh;
+    const int d = mesh.dim;
     for (size_t k = 0; k < m_scene.neumann.size(); ++k) {
         const NeumannSpec& spec = m_scene.neumann[k];
         for (Index f = 0; f < mesh.boundary_facets.rows(); ++f) {
@@ -207,30 +265,48 @@ Simulator::Simulator(Scene scene, const SimulationParameters& parameters)
             m_loaded_facets.push_back({ f, int(k), area, centroid });
         }
     }
+}
 
-    m_gravity_forces = VectorXd::Zero(n);
+void Simulator::setup_gravity()
+{
+    const Mesh& mesh = m_scene.mesh;
+    const int d = mesh.dim;
+    m_gravity_forces = VectorXd::Zero(mesh.num_dofs());
     const VectorXd& masses = m_inertia->lumped_masses();
     for (Index v = 0; v < mesh.num_vertices(); ++v)
         for (int a = 0; a < d; ++a)
             m_gravity_forces[v * d + a] = masses[v] * m_scene.gravity[a];
+}
 
-    // Initial state: rest positions with Dirichlet values at t = 0; body
-    // velocities, with the prescribed rate on Dirichlet dofs.
-    VectorXd x0 = flatten(mesh.rest_positions);
+void Simulator::setup_initial_state()
+{
+    const VectorXd x0 = initial_positions();
+    check_step_parameters();
+    const VectorXd v0 = initial_velocities(x0);
+    const VectorXd a0 = initial_accelerations(x0);
+    m_integrator->initialize(x0, v0, a0);
+    m_trajectory.initial_time = 0;
+    m_trajectory.initial_positions = x0;
+    m_trajectory.initial_velocities = v0;
+    m_trajectory.initial_accelerations = a0;
+}
+
+VectorXd Simulator::initial_positions() const
+{
+    const SimulationParameters& P = m_overrides;
+    VectorXd x0 = flatten(m_scene.mesh.rest_positions);
     if (P.initial_displacement.size() && m_periodic && !P.initial_displacement.isZero(0.0))
         throw InputError("initial_displacement", "a periodic cell starts from its rest positions (G = 0, w = 0)");
     if (P.initial_displacement.size())
         x0 += P.initial_displacement;
     dirichlet_targets(0.0, x0);
-    VectorXd v0(n);
-    for (Index v = 0; v < mesh.num_vertices(); ++v)
-        v0.segment(v * d, d) = v < m_scene.body_vertices
-            ? VectorXd(m_scene.bodies[size_t(mesh.vertex_body[v])].initial_velocity)
-            : VectorXd::Zero(d);
-    if (P.initial_velocity.size())
-        for (Index i = 0; i < n; ++i)
-            if (!m_constrained[size_t(i)])
-                v0[i] = P.initial_velocity[i];
+    return x0;
+}
+
+void Simulator::check_step_parameters() const
+{
+    const SimulationParameters& P = m_overrides;
+    const int d = m_scene.dim;
     if (P.prescribed.size()
         && (P.prescribed.rows() != m_scene.time.steps || P.prescribed.cols() != Index(m_dirichlet.size())))
         throw InputError("prescribed",
@@ -246,54 +322,73 @@ Simulator::Simulator(Scene scene, const SimulationParameters& parameters)
                        : std::string("only a periodic cell has a macro gradient"));
     if (m_periodic && !P.substeps.empty())
         throw InputError("substeps", "a periodic cell's steps cannot be given sub-steps (not built yet)");
-    {
-        const double dt = m_scene.time.dt * 1e-3;
-        VectorXd x1 = x0;
-        dirichlet_targets(dt, x1);
-        for (const auto& dd : m_dirichlet)
-            v0[dd.dof] = (x1[dd.dof] - x0[dd.dof]) / dt;
-    }
+}
+
+VectorXd Simulator::initial_velocities(const VectorXd& x0) const
+{
+    // Body velocities, with the prescribed rate on Dirichlet dofs.
+    const Mesh& mesh = m_scene.mesh;
+    const int d = mesh.dim;
+    const Index n = mesh.num_dofs();
+    VectorXd v0(n);
+    for (Index v = 0; v < mesh.num_vertices(); ++v)
+        v0.segment(v * d, d) = v < m_scene.body_vertices
+            ? VectorXd(m_scene.bodies[size_t(mesh.vertex_body[v])].initial_velocity)
+            : VectorXd::Zero(d);
+    if (m_overrides.initial_velocity.size())
+        for (Index i = 0; i < n; ++i)
+            if (!m_constrained[size_t(i)])
+                v0[i] = m_overrides.initial_velocity[i];
+    const double dt = m_scene.time.dt * 1e-3;
+    VectorXd x1 = x0;
+    dirichlet_targets(dt, x1);
+    for (const auto& dd : m_dirichlet)
+        v0[dd.dof] = (x1[dd.dof] - x0[dd.dof]) / dt;
+    return v0;
+}
+
+VectorXd Simulator::initial_accelerations(const VectorXd& x0) const
+{
+    const Index n = m_scene.mesh.num_dofs();
     VectorXd a0 = VectorXd::Zero(n);
-    if (m_scene.time.integrator == IntegratorType::NEWMARK && std::isfinite(m_elastic->value(x0))) {
-        // a0 = M^-1 (f_ext(0) - grad Psi(x0)) on free dofs, 0 on Dirichlet dofs.
-        VectorXd f = external_forces(0.0);
-        VectorXd grad = VectorXd::Zero(n);
-        m_elastic->add_gradient(x0, 1.0, grad);
-        f -= grad;
-        if (!m_inertia->consistent()) {
-            for (Index i = 0; i < n; ++i)
-                a0[i] = m_constrained[size_t(i)] ? 0.0 : f[i] / masses[i / d];
-        } else {
-            SparseMatrixd M = m_inertia->consistent_matrix();
-            for (Index k = 0; k < M.outerSize(); ++k)
-                for (SparseMatrixd::InnerIterator it(M, k); it; ++it)
-                    if (m_constrained[size_t(it.row())] || m_constrained[size_t(it.col())])
-                        it.valueRef() = it.row() == it.col() ? 1.0 : 0.0;
-            for (Index i = 0; i < n; ++i)
-                if (m_constrained[size_t(i)])
-                    f[i] = 0;
-            Eigen::SimplicialLDLT<SparseMatrixd> ldlt(M);
-            a0 = ldlt.solve(f);
-        }
+    if (m_scene.time.integrator != IntegratorType::NEWMARK || !std::isfinite(m_elastic->value(x0)))
+        return a0;
+    // a0 = M^-1 (f_ext(0) - grad Psi(x0)) on free dofs, 0 on Dirichlet dofs.
+    VectorXd f = external_forces(0.0);
+    VectorXd grad = VectorXd::Zero(n);
+    m_elastic->add_gradient(x0, 1.0, grad);
+    f -= grad;
+    if (!m_inertia->consistent()) {
+        const VectorXd& masses = m_inertia->lumped_masses();
+        for (Index i = 0; i < n; ++i)
+            a0[i] = m_constrained[size_t(i)] ? 0.0 : f[i] / masses[i / m_scene.dim];
+        return a0;
     }
-    m_integrator->initialize(x0, v0, a0);
-    if (m_scene.device == DeviceType::GPU) {
-        // parse_scene refuses the scene's own friction across the boundary; this catches coefficients
-        // given as parameters (SimulationParameters::friction).
-        if (m_periodic && m_friction)
-            throw InputError("device",
-                "\"gpu\" does not support friction across a periodic cell's boundary yet; "
-                "use \"cpu\"");
-        m_device = std::make_unique<DeviceSolver>(
-            *m_elastic, m_integrator->dynamic() ? m_inertia.get() : nullptr, m_constrained, m_contact.get());
-        if (m_periodic)
-            m_device->set_periodic(*m_periodic, m_image_classes);
-        m_device->set_adjoint_multigrid(m_scene.solver.gpu_adjoint_multigrid);
-    }
-    m_trajectory.initial_time = 0;
-    m_trajectory.initial_positions = x0;
-    m_trajectory.initial_velocities = v0;
-    m_trajectory.initial_accelerations = a0;
+    SparseMatrixd M = m_inertia->consistent_matrix();
+    for (Index k = 0; k < M.outerSize(); ++k)
+        for (SparseMatrixd::InnerIterator it(M, k); it; ++it)
+            if (m_constrained[size_t(it.row())] || m_constrained[size_t(it.col())])
+                it.valueRef() = it.row() == it.col() ? 1.0 : 0.0;
+    for (Index i = 0; i < n; ++i)
+        if (m_constrained[size_t(i)])
+            f[i] = 0;
+    Eigen::SimplicialLDLT<SparseMatrixd> ldlt(M);
+    return ldlt.solve(f);
+}
+
+void Simulator::setup_device()
+{
+    // parse_scene refuses the scene's own friction across the boundary; this catches coefficients
+    // given as parameters (SimulationParameters::friction).
+    if (m_periodic && m_friction)
+        throw InputError("device",
+            "\"gpu\" does not support friction across a periodic cell's boundary yet; "
+            "use \"cpu\"");
+    m_device = std::make_unique<DeviceSolver>(
+        *m_elastic, m_integrator->dynamic() ? m_inertia.get() : nullptr, m_constrained, m_contact.get());
+    if (m_periodic)
+        m_device->set_periodic(*m_periodic, m_image_classes);
+    m_device->set_adjoint_multigrid(m_scene.solver.gpu_adjoint_multigrid);
 }
 
 Simulator::~Simulator() = default;
@@ -613,40 +708,107 @@ void Simulator::set_element_materials(const VectorXd& youngs_modulus, const Vect
     m_elastic->set_lame_parameters(mu, lambda);
 }
 
+/// One call of step(): what its steps hand to each other.
+struct Simulator::StepContext {
+    int index = 0; ///< the step's number (1-based)
+    /// After restore_state(): a step committed before, recomputed to refill its record.
+    bool recompute = false;
+    double t_next = 0; ///< the step's end time
+    double w = 0; ///< the weight of the non-inertial potentials
+    VectorXd inertial_target;
+    VectorXd target; ///< the committed positions with the prescribed dofs at t_next
+    VectorXd x; ///< the solve's iterate, from the committed positions
+    double kappa_before = 0; ///< what a failed step restores
+    double step_scale = 0; ///< the Newton step is measured in this unit
+    /// Sub-steps given (a recomputed step repeats its own, SimulationParameters::substeps), else null.
+    const std::vector<double>* plan = nullptr;
+    std::string substep_note; ///< how far sub-stepping got, for a failure's message
+    StepRecord record;
+};
+
 StepStatus Simulator::step()
 {
     m_friction_at_last_step = false;
     Timer wall;
-    const int index = current_step() + 1;
-    // After restore_state(): a step committed before, recomputed to refill its record.
-    const bool recompute = index <= steps_done();
-    const double t_next = index * m_scene.time.dt;
-    const double w = m_integrator->potential_weight();
-    set_potential_weights(w); // a sub-stepped step leaves its last sub-step's
-    const VectorXd inertial_target = m_integrator->inertial_target();
-    m_inertia->set_target(inertial_target);
+    StepContext s = begin_step();
+    if (!set_step_loads(s))
+        return s.record.status;
+    const NewtonSolver newton(m_problem, m_assembler, *m_linear, step_settings(s.inertial_target));
+    s.x = m_integrator->positions();
+    s.kappa_before = m_contact ? m_contact->kappa() : 0.0;
+    if (!check_run_start(s))
+        return s.record.status;
+    begin_contact_step(s);
+    s.step_scale = m_integrator->dynamic() ? m_scene.time.dt : m_bbox_diagonal;
+    s.plan = substep_plan(s.index, s.recompute);
+    NewtonResult result = solve_step(s, newton);
+    if (m_friction && result.status == StepStatus::CONVERGED && !s.plan)
+        iterate_friction_lagging(s, newton, result);
+    if (result.status != StepStatus::CONVERGED && m_scene.time.adaptive.enabled && !s.plan)
+        result = solve_step_in_substeps(s, newton, result);
+    record_solve(s, result);
+    if (result.status == StepStatus::CONVERGED)
+        commit_step(s);
+    else {
+        if (m_contact)
+            m_contact->set_kappa(s.kappa_before); // a failed step leaves no trace, kappa included
+        s.record.min_volume_ratio = m_space->min_volume_ratio(m_integrator->positions());
+        if (s.recompute)
+            return result.status;
+        record_failure(s, result);
+    }
+    s.record.wall_time = wall.seconds();
+    if (s.recompute)
+        refill_record(s, result.status);
+    else
+        store_record(s, result.status);
+    return result.status;
+}
+
+Simulator::StepContext Simulator::begin_step()
+{
+    StepContext s;
+    s.index = current_step() + 1;
+    s.recompute = s.index <= steps_done();
+    s.t_next = s.index * m_scene.time.dt;
+    s.w = m_integrator->potential_weight();
+    set_potential_weights(s.w); // a sub-stepped step leaves its last sub-step's
+    s.inertial_target = m_integrator->inertial_target();
+    m_inertia->set_target(s.inertial_target);
     if (m_contact)
         m_contact->reset_times();
+    s.record.index = s.index;
+    s.record.time = s.t_next;
+    return s;
+}
 
-    StepRecord record;
-    record.index = index;
-    record.time = t_next;
-    VectorXd target = m_integrator->positions();
+void Simulator::refuse_step(StepContext& s, StepStatus status, const std::string& message)
+{
+    s.record.status = status;
+    if (s.recompute)
+        return;
+    m_last_attempt = s.record;
+    m_trajectory.final_status = status;
+    m_trajectory.failed_step = s.index;
+    m_trajectory.failure_message = message;
+}
+
+bool Simulator::set_step_loads(StepContext& s)
+{
+    s.target = m_integrator->positions();
     try {
-        m_external->set_force(external_forces(t_next));
-        prescribed_targets(index, target);
+        m_external->set_force(external_forces(s.t_next));
+        prescribed_targets(s.index, s.target);
     } catch (const InputError& e) {
         // A boundary expression that is not finite at this time: not committable.
-        record.status = StepStatus::NON_FINITE;
-        if (!recompute) {
-            m_last_attempt = record;
-            m_trajectory.final_status = record.status;
-            m_trajectory.failed_step = index;
-            m_trajectory.failure_message = e.what();
-        }
-        return record.status;
+        refuse_step(s, StepStatus::NON_FINITE, e.what());
+        return false;
     }
+    return true;
+}
 
+NewtonSettings Simulator::step_settings(const VectorXd& inertial_target) const
+{
     NewtonSettings settings;
     settings.residual_tolerance = m_scene.solver.residual_tolerance;
     settings.step_tolerance = m_scene.solver.step_tolerance;
@@ -667,25 +829,29 @@ StepStatus Simulator::step()
         }
         settings.max_displacement = m_bbox_diagonal + largest;
     }
-    const NewtonSolver newton(m_problem, m_assembler, *m_linear, settings);
+    return settings;
+}
 
-    VectorXd x = m_integrator->positions();
-    const double kappa_before = m_contact ? m_contact->kappa() : 0.0;
+bool Simulator::check_run_start(StepContext& s)
+{
     // The start of the run is checked as validate checks it: intersecting or too close contact
     // pairs, and inverted elements (whose energy is finite for linear elasticity and StVK, so
     // that Newton alone would fail later with a status that does not say why).
-    if (const std::string problem = index == 1 ? state_problem() : std::string(); !problem.empty()) {
-        record.status = StepStatus::INVALID_INITIAL_STATE;
-        if (!recompute) {
-            m_last_attempt = record;
-            m_trajectory.final_status = record.status;
-            m_trajectory.failed_step = index;
-            m_trajectory.failure_message
-                = "step 1 (t = 0) failed: INVALID_INITIAL_STATE: the initial state is invalid: " + problem;
-        }
-        return record.status;
-    }
-    if (m_contact && m_device) {
+    if (s.index != 1)
+        return true;
+    const std::string problem = state_problem();
+    if (problem.empty())
+        return true;
+    refuse_step(s, StepStatus::INVALID_INITIAL_STATE,
+        "step 1 (t = 0) failed: INVALID_INITIAL_STATE: the initial state is invalid: " + problem);
+    return false;
+}
+
+void Simulator::begin_contact_step(const StepContext& s)
+{
+    if (!m_contact)
+        return;
+    if (m_device) {
         DeviceSolver::AdaptiveKappa adaptive;
         adaptive.enabled = m_scene.contact.adaptive_kappa;
         adaptive.kappa_min = m_kappa_min;
@@ -693,114 +859,123 @@ StepStatus Simulator::step()
         adaptive.bbox_diagonal = m_bbox_diagonal;
         VectorXd q; // a periodic cell's contact balances in its unknowns
         if (m_periodic)
-            q = m_periodic->map().reduced(x, m_macro);
+            q = m_periodic->map().reduced(s.x, m_macro);
         m_device->begin_step(
-            m_contact->kappa(), adaptive, x, inertial_target, w, m_external->force(), m_periodic ? &q : nullptr);
-        if (m_friction) {
-            m_problem.set_weight(m_friction.get(), w);
-            m_friction->set_step(x, m_scene.time.dt);
-            lag_friction_at(x);
-        }
-    } else if (m_contact) {
-        update_kappa_for_step(x);
-        if (m_friction) {
-            m_problem.set_weight(m_friction.get(), w);
-            m_friction->set_step(x, m_scene.time.dt);
-            m_friction->lag(*m_contact, x);
-        }
+            m_contact->kappa(), adaptive, s.x, s.inertial_target, s.w, m_external->force(), m_periodic ? &q : nullptr);
+    } else
+        update_kappa_for_step(s.x);
+    if (m_friction) {
+        m_problem.set_weight(m_friction.get(), s.w);
+        m_friction->set_step(s.x, m_scene.time.dt);
+        if (m_device)
+            lag_friction_at(s.x);
+        else
+            m_friction->lag(*m_contact, s.x);
     }
-    const double step_scale = m_integrator->dynamic() ? m_scene.time.dt : m_bbox_diagonal;
-    // Sub-steps given (a recomputed step repeats its own, SimulationParameters::substeps): taken
-    // as they are, without a full solve first.
-    const std::vector<double>* plan = nullptr;
-    if (recompute && m_trajectory.has_record(index) && !m_trajectory.step(index).substep_times.empty())
-        plan = &m_trajectory.step(index).substep_times;
-    else if (size_t(index) <= m_overrides.substeps.size() && !m_overrides.substeps[size_t(index - 1)].empty())
-        plan = &m_overrides.substeps[size_t(index - 1)];
-    std::string substep_note;
-    NewtonResult result;
-    if (plan) {
-        result = solve_dynamic_substeps(index, newton, plan, kappa_before, x, record, substep_note);
-    } else if (m_periodic) {
-        record.macro_gradient = m_macro;
-        VectorXd given;
-        if (m_overrides.macro_gradient.rows() >= index)
-            given = m_overrides.macro_gradient.row(index - 1).transpose();
-        if (m_device) {
-            VectorXd q, target_q;
-            m_periodic->step_unknowns(x, record.macro_gradient, t_next, given.size() ? &given : nullptr, q, target_q);
-            result = m_device->solve_periodic(
-                q, target_q, inertial_target, w, m_external->force(), w * m_force_scale, step_scale, settings);
-            if (result.status == StepStatus::CONVERGED) {
-                x = m_periodic->map().positions(q);
-                record.macro_gradient = m_periodic->map().macro_gradient(q);
-            }
-        } else {
-            result = m_periodic->solve(x, record.macro_gradient, t_next, settings, w * m_force_scale, step_scale,
-                given.size() ? &given : nullptr);
-        }
-    } else if (m_device) {
-        result = m_device->solve(
-            x, inertial_target, w, m_external->force(), target, w * m_force_scale, step_scale, settings);
-    } else {
-        result = newton.solve(x, target, m_constrained, w * m_force_scale, step_scale);
-    }
-    const bool adaptive = m_scene.time.adaptive.enabled;
-    // Lagging: refresh normal forces, tangents and weights at the converged state and solve
-    // again, up to `iterations` solves; the residual of the re-lagged problem at the converged
-    // state says whether the lagged data describes it. With automatic load stepping a failed
-    // re-solve fails the step, which is then sub-stepped.
-    const auto lag_friction = [&](NewtonResult& r) {
-        record.friction_iterations = 1;
-        for (;;) {
-            std::vector<FrictionContact> used = m_friction->lagged();
-            lag_friction_at(x);
-            record.friction_residual = m_device
-                ? m_device->residual(x, inertial_target, w, m_external->force()) / (w * m_force_scale)
-                : force_residual(x);
-            record.friction_converged = record.friction_residual <= settings.residual_tolerance;
-            if (record.friction_converged || record.friction_iterations >= m_scene.friction.iterations) {
-                record.friction = std::move(used);
-                break;
-            }
-            // Solve a copy: if this re-solve fails, the last converged state (with the
-            // data it satisfies) is still there for the permissive policy.
-            VectorXd y = x;
-            NewtonResult again = m_device ? m_device->solve(y, inertial_target, w, m_external->force(), target,
-                                     w * m_force_scale, step_scale, settings)
-                                          : newton.solve(y, target, m_constrained, w * m_force_scale, step_scale);
-            ++record.friction_iterations;
-            r.add_costs(again);
-            if (again.status != StepStatus::CONVERGED) {
-                m_friction->set_lagged(used);
-                record.friction = std::move(used);
-                record.friction_converged = false;
-                if (m_scene.friction.strict || adaptive)
-                    r.status = again.status;
-                break;
-            }
-            r.residual = again.residual;
-            r.newton_step = again.newton_step;
-            r.roundoff_limited = again.roundoff_limited;
-            x = std::move(y);
-        }
-        if (r.status == StepStatus::CONVERGED && !record.friction_converged && m_scene.friction.strict)
-            r.status = StepStatus::FRICTION_EXHAUSTED;
-    };
-    if (m_friction && result.status == StepStatus::CONVERGED && !plan)
-        lag_friction(result);
-    if (result.status != StepStatus::CONVERGED && adaptive && !plan) {
-        const NewtonResult first = result;
-        if (m_integrator->dynamic()) {
-            result = solve_dynamic_substeps(index, newton, nullptr, kappa_before, x, record, substep_note);
-        } else {
-            result = solve_in_substeps(index, newton, step_scale, kappa_before, x, record, substep_note);
-            if (m_friction && result.status == StepStatus::CONVERGED)
-                lag_friction(result); // the last sub-step's friction, as lagged by the sub-stepping
-        }
-        result.add_costs(first);
-    }
+}
 
+const std::vector<double>* Simulator::substep_plan(int index, bool recompute) const
+{
+    // Taken as they are, without a full solve first.
+    if (recompute && m_trajectory.has_record(index) && !m_trajectory.step(index).substep_times.empty())
+        return &m_trajectory.step(index).substep_times;
+    if (size_t(index) <= m_overrides.substeps.size() && !m_overrides.substeps[size_t(index - 1)].empty())
+        return &m_overrides.substeps[size_t(index - 1)];
+    return nullptr;
+}
+
+NewtonResult Simulator::solve_step(StepContext& s, const NewtonSolver& newton)
+{
+    const NewtonSettings& settings = newton.settings();
+    const double force_scale = s.w * m_force_scale;
+    if (s.plan)
+        return solve_dynamic_substeps(s.index, newton, s.plan, s.kappa_before, s.x, s.record, s.substep_note);
+    if (!m_periodic) {
+        if (m_device)
+            return m_device->solve(
+                s.x, s.inertial_target, s.w, m_external->force(), s.target, force_scale, s.step_scale, settings);
+        return newton.solve(s.x, s.target, m_constrained, force_scale, s.step_scale);
+    }
+    s.record.macro_gradient = m_macro;
+    VectorXd given;
+    if (m_overrides.macro_gradient.rows() >= s.index)
+        given = m_overrides.macro_gradient.row(s.index - 1).transpose();
+    if (!m_device)
+        return m_periodic->solve(s.x, s.record.macro_gradient, s.t_next, settings, force_scale, s.step_scale,
+            given.size() ? &given : nullptr);
+    VectorXd q, target_q;
+    m_periodic->step_unknowns(s.x, s.record.macro_gradient, s.t_next, given.size() ? &given : nullptr, q, target_q);
+    const NewtonResult result = m_device->solve_periodic(
+        q, target_q, s.inertial_target, s.w, m_external->force(), force_scale, s.step_scale, settings);
+    if (result.status == StepStatus::CONVERGED) {
+        s.x = m_periodic->map().positions(q);
+        s.record.macro_gradient = m_periodic->map().macro_gradient(q);
+    }
+    return result;
+}
+
+void Simulator::iterate_friction_lagging(StepContext& s, const NewtonSolver& newton, NewtonResult& r)
+{
+    // Refresh normal forces, tangents and weights at the converged state and solve again, up to
+    // `iterations` solves; the residual of the re-lagged problem at the converged state says
+    // whether the lagged data describes it. With automatic load stepping a failed re-solve fails
+    // the step, which is then sub-stepped.
+    StepRecord& record = s.record;
+    const double force_scale = s.w * m_force_scale;
+    record.friction_iterations = 1;
+    for (;;) {
+        std::vector<FrictionContact> used = m_friction->lagged();
+        lag_friction_at(s.x);
+        record.friction_residual = m_device
+            ? m_device->residual(s.x, s.inertial_target, s.w, m_external->force()) / force_scale
+            : force_residual(s.x);
+        record.friction_converged = record.friction_residual <= newton.settings().residual_tolerance;
+        if (record.friction_converged || record.friction_iterations >= m_scene.friction.iterations) {
+            record.friction = std::move(used);
+            break;
+        }
+        // Solve a copy: if this re-solve fails, the last converged state (with the
+        // data it satisfies) is still there for the permissive policy.
+        VectorXd y = s.x;
+        NewtonResult again = m_device ? m_device->solve(y, s.inertial_target, s.w, m_external->force(), s.target,
+                                 force_scale, s.step_scale, newton.settings())
+                                      : newton.solve(y, s.target, m_constrained, force_scale, s.step_scale);
+        ++record.friction_iterations;
+        r.add_costs(again);
+        if (again.status != StepStatus::CONVERGED) {
+            m_friction->set_lagged(used);
+            record.friction = std::move(used);
+            record.friction_converged = false;
+            if (m_scene.friction.strict || m_scene.time.adaptive.enabled)
+                r.status = again.status;
+            break;
+        }
+        r.residual = again.residual;
+        r.newton_step = again.newton_step;
+        r.roundoff_limited = again.roundoff_limited;
+        s.x = std::move(y);
+    }
+    if (r.status == StepStatus::CONVERGED && !record.friction_converged && m_scene.friction.strict)
+        r.status = StepStatus::FRICTION_EXHAUSTED;
+}
+
+NewtonResult Simulator::solve_step_in_substeps(StepContext& s, const NewtonSolver& newton, const NewtonResult& first)
+{
+    NewtonResult result;
+    if (m_integrator->dynamic()) {
+        result = solve_dynamic_substeps(s.index, newton, nullptr, s.kappa_before, s.x, s.record, s.substep_note);
+    } else {
+        result = solve_in_substeps(s.index, newton, s.step_scale, s.kappa_before, s.x, s.record, s.substep_note);
+        if (m_friction && result.status == StepStatus::CONVERGED)
+            iterate_friction_lagging(s, newton, result); // the last sub-step's friction, as lagged by the sub-stepping
+    }
+    result.add_costs(first);
+    return result;
+}
+
+void Simulator::record_solve(StepContext& s, const NewtonResult& result)
+{
+    StepRecord& record = s.record;
     record.status = result.status;
     record.newton_iterations = result.iterations;
     record.residual = result.residual;
@@ -826,77 +1001,83 @@ StepStatus Simulator::step()
         if (result.status == StepStatus::CCD_UNRESOLVED)
             record.min_distance = m_contact->min_distance(m_integrator->positions(), 1e-2 * m_bbox_diagonal);
     }
-    if (!recompute) {
+    if (!s.recompute) {
         m_trajectory.phases += record.phases;
         m_trajectory.newton_iterations += result.iterations;
     }
-    if (result.status == StepStatus::CONVERGED) {
-        record.positions = x;
-        // A dynamic sub-stepped step has its velocities and accelerations from its last sub-step.
-        if (record.substep_times.empty())
-            m_integrator->update(x, record.velocities, record.accelerations);
-        record.min_volume_ratio = m_space->min_volume_ratio(x);
-        if (m_periodic) {
-            m_macro = record.macro_gradient;
-            record.macro_stress = macro_stress(x);
-        }
-        if (m_contact) {
-            record.contacts = m_device ? m_device->contacts(x) : m_contact->contacts(x);
-            record.active_contacts = int(record.contacts.size());
-            record.min_distance = m_device ? m_device->min_distance(x, 1e-2 * m_bbox_diagonal)
-                                           : m_contact->min_distance(x, 1e-2 * m_bbox_diagonal);
-        }
-        m_integrator->commit(record.positions, record.velocities, record.accelerations);
-    } else {
-        if (m_contact)
-            m_contact->set_kappa(kappa_before); // a failed step leaves no trace, kappa included
-        record.min_volume_ratio = m_space->min_volume_ratio(m_integrator->positions());
-        if (recompute)
-            return result.status;
-        m_trajectory.final_status = result.status;
-        m_trajectory.failed_step = index;
-        m_trajectory.failure_message = "step " + std::to_string(index) + " (t = " + format_number(t_next)
-            + " s) failed: " + to_string(result.status) + " after " + std::to_string(result.iterations)
-            + " Newton iterations, residual " + format_number(result.residual) + substep_note;
-        // x: the solve's last iterate; the hint only where it is in contact
-        if (result.status == StepStatus::NEWTON_EXHAUSTED && m_contact && !m_scene.contact.adaptive_kappa
-            && !m_scene.contact.penalty && m_scene.contact.kappa < 1e-2 * m_kappa_min && x.allFinite()
-            && m_contact->min_distance(x, m_scene.contact.dhat) < m_scene.contact.dhat)
-            m_trajectory.failure_message += "; the fixed contact.kappa " + format_number(m_scene.contact.kappa)
-                + " is below 1/100 of the adaptive rule's minimum " + format_number(m_kappa_min)
-                + " for this scene (docs/math.md): a barrier too soft for the contact stalls Newton; try a larger "
-                  "kappa or \"adaptive\"";
-        if (result.status == StepStatus::INVALID_INITIAL_STATE) {
-            const std::string problem = state_problem();
-            m_trajectory.failure_message += ": the incremental potential is not finite at the step's start"
-                + (problem.empty() ? std::string(" (an energy term overflows: check E, density and loads)")
-                                   : " (" + problem + ")");
-        }
+}
+
+void Simulator::commit_step(StepContext& s)
+{
+    StepRecord& record = s.record;
+    const VectorXd& x = s.x;
+    record.positions = x;
+    // A dynamic sub-stepped step has its velocities and accelerations from its last sub-step.
+    if (record.substep_times.empty())
+        m_integrator->update(x, record.velocities, record.accelerations);
+    record.min_volume_ratio = m_space->min_volume_ratio(x);
+    if (m_periodic) {
+        m_macro = record.macro_gradient;
+        record.macro_stress = macro_stress(x);
     }
-    record.wall_time = wall.seconds();
-    if (recompute) {
-        // Only the state is refilled: the record keeps the first run's diagnostics.
-        if (!m_trajectory.has_record(index))
-            throw std::logic_error(
-                "Simulator::step: recomputing step " + std::to_string(index) + ", whose record was forgotten");
-        StepRecord& kept = m_trajectory.step(index);
-        kept.positions = std::move(record.positions);
-        kept.velocities = std::move(record.velocities);
-        kept.accelerations = std::move(record.accelerations);
-        kept.contacts = std::move(record.contacts);
-        kept.friction = std::move(record.friction);
-        kept.path = std::move(record.path);
-        m_friction_at_last_step = result.status == StepStatus::CONVERGED && index == steps_done();
-        return result.status;
+    if (m_contact) {
+        record.contacts = m_device ? m_device->contacts(x) : m_contact->contacts(x);
+        record.active_contacts = int(record.contacts.size());
+        record.min_distance = m_device ? m_device->min_distance(x, 1e-2 * m_bbox_diagonal)
+                                       : m_contact->min_distance(x, 1e-2 * m_bbox_diagonal);
     }
-    m_trajectory.wall_time += record.wall_time;
-    m_last_attempt = record;
-    if (result.status == StepStatus::CONVERGED) {
-        m_trajectory.totals.add(record);
-        m_trajectory.steps.push_back(std::move(record));
+    m_integrator->commit(record.positions, record.velocities, record.accelerations);
+}
+
+void Simulator::record_failure(const StepContext& s, const NewtonResult& result)
+{
+    m_trajectory.final_status = result.status;
+    m_trajectory.failed_step = s.index;
+    std::string& message = m_trajectory.failure_message;
+    message = "step " + std::to_string(s.index) + " (t = " + format_number(s.t_next)
+        + " s) failed: " + to_string(result.status) + " after " + std::to_string(result.iterations)
+        + " Newton iterations, residual " + format_number(result.residual) + s.substep_note;
+    // x: the solve's last iterate; the hint only where it is in contact
+    if (result.status == StepStatus::NEWTON_EXHAUSTED && m_contact && !m_scene.contact.adaptive_kappa
+        && !m_scene.contact.penalty && m_scene.contact.kappa < 1e-2 * m_kappa_min && s.x.allFinite()
+        && m_contact->min_distance(s.x, m_scene.contact.dhat) < m_scene.contact.dhat)
+        message += "; the fixed contact.kappa " + format_number(m_scene.contact.kappa)
+            + " is below 1/100 of the adaptive rule's minimum " + format_number(m_kappa_min)
+            + " for this scene (docs/math.md): a barrier too soft for the contact stalls Newton; try a larger "
+              "kappa or \"adaptive\"";
+    if (result.status == StepStatus::INVALID_INITIAL_STATE) {
+        const std::string problem = state_problem();
+        message += ": the incremental potential is not finite at the step's start"
+            + (problem.empty() ? std::string(" (an energy term overflows: check E, density and loads)")
+                               : " (" + problem + ")");
+    }
+}
+
+void Simulator::refill_record(StepContext& s, StepStatus status)
+{
+    // Only the state is refilled: the record keeps the first run's diagnostics.
+    if (!m_trajectory.has_record(s.index))
+        throw std::logic_error(
+            "Simulator::step: recomputing step " + std::to_string(s.index) + ", whose record was forgotten");
+    StepRecord& kept = m_trajectory.step(s.index);
+    kept.positions = std::move(s.record.positions);
+    kept.velocities = std::move(s.record.velocities);
+    kept.accelerations = std::move(s.record.accelerations);
+    kept.contacts = std::move(s.record.contacts);
+    kept.friction = std::move(s.record.friction);
+    kept.path = std::move(s.record.path);
+    m_friction_at_last_step = status == StepStatus::CONVERGED && s.index == steps_done();
+}
+
+void Simulator::store_record(StepContext& s, StepStatus status)
+{
+    m_trajectory.wall_time += s.record.wall_time;
+    m_last_attempt = s.record;
+    if (status == StepStatus::CONVERGED) {
+        m_trajectory.totals.add(s.record);
+        m_trajectory.steps.push_back(std::move(s.record));
         m_friction_at_last_step = true;
     }
-    return result.status;
 }
 
 void Simulator::resume(const Trajectory& stored, bool stored_contact)

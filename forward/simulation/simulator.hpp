@@ -179,6 +179,73 @@ public:
     /// @}
 
 private:
+    /// @name The constructor's steps, in the order it takes them
+    /// @{
+    /// Rest positions given as a parameter replace the scene's (each element checked against its
+    /// `reference`, the scene's own rest shape).
+    void apply_rest_positions(const Positions& reference);
+    /// Each element's law and parameters (checked), the force and length scales, the elastic, inertia
+    /// and external-force potentials, the integrator and the problem's first terms.
+    void setup_potentials();
+    /// Dirichlet dofs: those in each condition's region (tested at the `reference` rest positions
+    /// within `tol`); later conditions override earlier ones on the same dof.
+    void setup_dirichlet(const Positions& reference, double tol);
+    /// Obstacle vertices are prescribed dofs that follow the obstacle's motion.
+    void setup_obstacle_motion(const Positions& reference);
+    /// Neumann conditions: the boundary facets whose vertices all lie in the region.
+    void setup_neumann(const Positions& reference, double tol);
+    void setup_gravity();
+    /// The integrator's and the trajectory's initial state, after checking the per-step parameters.
+    void setup_initial_state();
+    /// Rest positions (plus an initial displacement given as a parameter), Dirichlet values at t = 0.
+    VectorXd initial_positions() const;
+    /// The per-step parameters (prescribed values, sub-steps, macro gradients) against the scene.
+    void check_step_parameters() const;
+    /// Body velocities (or the parameter's), the prescribed rate on Dirichlet dofs.
+    VectorXd initial_velocities(const VectorXd& x0) const;
+    /// Newmark's a0 = M^-1 (f_ext(0) - grad Psi(x0)) on free dofs, 0 on Dirichlet dofs; else 0.
+    VectorXd initial_accelerations(const VectorXd& x0) const;
+    /// The GPU path's solver (scene "device": "gpu").
+    void setup_device();
+    /// @}
+
+    /// @name step()'s steps, in the order it takes them
+    /// @{
+    struct StepContext; ///< what one step() hands from one of its steps to the next (simulator.cpp)
+    /// The step's index, time, weights and inertial target.
+    StepContext begin_step();
+    /// External forces and prescribed targets at the step's end; false (NON_FINITE, refused) where a
+    /// boundary expression is not finite there.
+    bool set_step_loads(StepContext& s);
+    /// The scene's Newton settings, with the longest step a contact scene's solve may take.
+    NewtonSettings step_settings(const VectorXd& inertial_target) const;
+    /// The first step checks the initial state as validate does; false (refused) where it is invalid.
+    bool check_run_start(StepContext& s);
+    /// A step that cannot start: its status recorded (and, unless recomputed, the run's failure).
+    void refuse_step(StepContext& s, StepStatus status, const std::string& message);
+    /// Contact at the step's start: kappa (adaptive rule, or the device's step), friction lagged.
+    void begin_contact_step(const StepContext& s);
+    /// The sub-steps step `index` takes as given (its own when recomputed), or null.
+    const std::vector<double>* substep_plan(int index, bool recompute) const;
+    /// The step's solve: given sub-steps, a periodic cell's, the device's or the CPU's Newton.
+    NewtonResult solve_step(StepContext& s, const NewtonSolver& newton);
+    /// Friction lagging after a converged solve r: re-lagged at the solution and solved again, up
+    /// to friction.iterations solves (docs/math.md "Friction").
+    void iterate_friction_lagging(StepContext& s, const NewtonSolver& newton, NewtonResult& r);
+    /// Automatic step control after the full solve `first` failed: dynamic or load sub-steps.
+    NewtonResult solve_step_in_substeps(StepContext& s, const NewtonSolver& newton, const NewtonResult& first);
+    /// The solve's diagnostics and contact timings in the record and the run's totals.
+    void record_solve(StepContext& s, const NewtonResult& result);
+    /// A converged step's state: the record's positions, velocities, contacts; the integrator commits.
+    void commit_step(StepContext& s);
+    /// A failed step's message in the trajectory (with a hint where the fixed kappa is too soft).
+    void record_failure(const StepContext& s, const NewtonResult& result);
+    /// A recomputed step refills the state of its kept record.
+    void refill_record(StepContext& s, StepStatus status);
+    /// A new step's record: the last attempt, and the trajectory's if it converged.
+    void store_record(StepContext& s, StepStatus status);
+    /// @}
+
     /// Committed step k's record; std::logic_error naming `caller` if it was forgotten.
     StepRecord& record_of(int k, const char* caller);
 

@@ -21,7 +21,7 @@ struct NewtonSettings {
     /// Use the true Hessian once a full step was accepted, as long as it is
     /// positive definite (docs/math.md "Newton"); false: always project.
     bool adaptive_projection = true;
-    /// Lengthen a full step along which the energy fell almost linearly (NewtonSolver::extend;
+    /// Lengthen a full step along which the energy fell almost linearly (newton.cpp, NewtonSolver::Run::extend;
     /// docs/math.md "Step extension"); false: never.
     bool step_extension = true;
     /// Largest displacement (m, max norm over the free dofs) one line search tries; a longer
@@ -41,7 +41,7 @@ struct NewtonResult {
     int linear_fallbacks = 0; ///< factorizations that needed LDL^T
     int gradient_steps = 0; ///< iterations that fell back to the negative gradient
     int true_hessian_steps = 0; ///< iterations that used the unprojected (positive definite) Hessian
-    /// Full steps lengthened because the energy fell almost linearly along them (NewtonSolver::extend).
+    /// Full steps lengthened because the energy fell almost linearly along them (NewtonSolver::Run::extend).
     int extended_steps = 0;
     /// Line-search halvings of the accepted steps (a step that CCD or the inversion bound
     /// shortened first counts only the halvings after that).
@@ -116,13 +116,7 @@ public:
     }
 
 private:
-    /// @brief After an accepted full step x + p that decreased the energy by more than 0.9 of
-    /// -slope (= -g^T p): tries 2p, 4p, ... while each lowers the energy further, satisfies
-    /// Armijo and is admitted by max_step (and max_displacement). Returns the step length taken
-    /// (1 if none was better); `trial` and `new_energy` are then that step's. `longer`: a work
-    /// vector of x's size (the solve's, allocated once).
-    double extend(const VectorXd& x, const VectorXd& p, double slope, double length, double energy, double& new_energy,
-        VectorXd& trial, VectorXd& longer, NewtonResult& result) const;
+    struct Run; ///< one solve's state and steps (newton.cpp)
 
     const Problem& m_problem;
     SparseAssembler& m_assembler;

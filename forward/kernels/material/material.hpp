@@ -15,7 +15,8 @@
 /// not linear in them must change that too.
 ///
 /// Adding a law: its enumerator and name (material_model.hpp), a case in the three functions
-/// below, its closed-form eigensystem for the GPU's PSD projection (cuda/elastic/analytic_eigensystem.cuh)
+/// below, its closed-form eigensystem for the GPU's PSD projection (eigensystem.hpp;
+/// optional: without one, project_psd's numerical eigensystem is used)
 /// and tests/forward/materials/test_material.cpp; docs/scene_format.md lists the names.
 
 #include "forward/kernels/material/material_model.hpp"

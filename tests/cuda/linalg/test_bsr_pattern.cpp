@@ -2,8 +2,8 @@
 // pattern holds the CPU assembler's, and gathering element matrices and gradients through the
 // incidence lists (what the GPU kernels do) gives the CPU potential's Hessian and gradient.
 
-#include "cuda/elastic/element.cuh"
 #include "cuda/linalg/bsr_pattern.hpp"
+#include "forward/kernels/element.hpp"
 #include "tests/cuda/elastic_test_utils.hpp"
 
 #include <gtest/gtest.h>
@@ -31,9 +31,9 @@ template <int dim> void check_gathers(const std::vector<int>& cells)
                 xe[a * dim + i] = box.x[box.mesh.elements(e, a) * dim + i];
             }
         const MaterialModel model = box.models[size_t(e)];
-        gpu::element_hessian_from_rest<dim>(
+        kernels::element_hessian_from_rest<dim>(
             model, rest, xe, box.mu[e], box.lambda[e], true, Ke.data() + size_t(e) * L * L);
-        gpu::element_gradient_from_rest<dim>(model, rest, xe, box.mu[e], box.lambda[e], ge.data() + size_t(e) * L);
+        kernels::element_gradient_from_rest<dim>(model, rest, xe, box.mu[e], box.lambda[e], ge.data() + size_t(e) * L);
     }
 
     // Gather per slot and per vertex through the incidence lists.

@@ -1,4 +1,4 @@
-// The Newton solver's step extension (forward/solver/newton.hpp, NewtonSolver::extend) on a model
+// The Newton solver's step extension (forward/solver/newton.cpp, NewtonSolver::Run::extend) on a model
 // of a structure at a bifurcation: an energy whose true curvature is 1000 times smaller than that
 // of its search matrix (what a per-element PSD projection does where the true Hessian is
 // indefinite or nearly singular). Full steps then take almost the whole decrease the gradient

@@ -1,5 +1,5 @@
 #pragma once
-/// @file analytic_eigensystem.cuh
+/// @file eigensystem.hpp
 /// Closed-form eigensystems of dP/dF for the four material models of forward/kernels/material/material.hpp, and the
 /// positive semi-definite projection of dP/dF built from them (host and device).
 ///
@@ -19,11 +19,11 @@
 /// Layouts as in forward/kernels/material/material.hpp: F, U, V dim by dim row-major (U[a * dim + k] = component a of the
 /// k-th singular vector); dP/dF dim^2 by dim^2 row-major, row index i * dim + j for F_ij.
 
-#include "cuda/common/kernels.cuh"
-#include "cuda/elastic/project_psd.cuh"
 #include "forward/kernels/material/material.hpp"
+#include "forward/kernels/project_psd.hpp"
+#include "forward/kernels/small_matrix.hpp"
 
-namespace diffipc::gpu {
+namespace diffipc::kernels {
 
 /// @brief Signed singular value decomposition F = U diag(s) V^T with det U = det V = 1,
 /// |s_0| >= |s_1| >= ... and only the last s_i possibly negative (det F < 0).
@@ -265,4 +265,4 @@ DIFFIPC_HD inline bool project_stress_derivative(
     return true;
 }
 
-} // namespace diffipc::gpu
+} // namespace diffipc::kernels

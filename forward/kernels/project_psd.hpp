@@ -1,21 +1,20 @@
 #pragma once
-/// @file project_psd.cuh
-/// Projection of a small symmetric matrix onto the positive semi-definite cone, as the CPU's
+/// @file project_psd.hpp
+/// Projection of a small symmetric matrix onto the positive semi-definite cone, as the Eigen-based
 /// project_psd (forward/materials/material.cpp) does it: a matrix that admits a Cholesky
 /// factorization is returned unchanged; otherwise its negative eigenvalues are set to zero,
 /// A <- V max(D, 0) V^T. Like Eigen's LLT and SelfAdjointEigenSolver, only the lower
 /// triangle of the input is read. The eigensystem comes from a cyclic Jacobi iteration
 /// (Golub and Van Loan, "Matrix Computations", 4th ed., Algorithm 8.5.3), which works on
 /// the host and the device for any symmetric matrix. The elastic dP/dF uses the closed-form
-/// eigensystems of analytic_eigensystem.cuh instead (the same projection, far fewer operations);
+/// eigensystems of material/eigensystem.hpp instead (the same projection, far fewer operations);
 /// the contact barrier's pair Hessians use this one.
 ///
 /// Layout: an n by n matrix is row-major, A[r * n + c].
 
-#include "cuda/common/kernels.cuh"
-#include "forward/kernels/small_matrix.hpp"
+#include "forward/kernels/host_device.hpp"
 
-namespace diffipc::gpu {
+namespace diffipc::kernels {
 
 /// @brief True if the lower triangle of A admits a Cholesky factorization, decided as Eigen's
 /// unblocked LLT decides it (a pivot <= 0, or NaN, fails).
@@ -124,4 +123,4 @@ template <int n> DIFFIPC_HD inline bool project_psd(double* A)
     return true;
 }
 
-} // namespace diffipc::gpu
+} // namespace diffipc::kernels

@@ -1,9 +1,9 @@
-// The closed-form eigensystems of dP/dF (cuda/elastic/analytic_eigensystem.cuh), run here on the
-// CPU: the signed SVD against its definition, the eigensystem against the GPU's own dP/dF formulas
-// (forward/kernels/material/material.hpp, which the CPU runs too), and the
-// projection against the CPU's numerical project_psd (Eigen's SelfAdjointEigenSolver). No GPU needed.
+// The closed-form eigensystems of dP/dF (forward/kernels/material/eigensystem.hpp), with which the
+// GPU projects the elastic Hessian: the signed SVD against its definition, the eigensystem
+// against the kernels' dP/dF (forward/kernels/material/material.hpp), and the projection against
+// Eigen's numerical one (project_psd, SelfAdjointEigenSolver). No GPU needed.
 
-#include "cuda/elastic/analytic_eigensystem.cuh"
+#include "forward/kernels/material/eigensystem.hpp"
 #include "forward/materials/material.hpp"
 
 #include <Eigen/Dense>
@@ -98,7 +98,7 @@ template <int dim> void check_signed_svd()
         const RowMat<dim> F = make_F<dim>(rng, k, kind);
         RowMat<dim> U, V;
         Eigen::Matrix<double, dim, 1> s;
-        ASSERT_TRUE(gpu::signed_svd<dim>(F.data(), U.data(), s.data(), V.data())) << kind;
+        ASSERT_TRUE(kernels::signed_svd<dim>(F.data(), U.data(), s.data(), V.data())) << kind;
         const std::string where = "dim " + std::to_string(dim) + ", " + kind + " case " + std::to_string(k);
         EXPECT_LE((U * s.asDiagonal() * V.transpose() - F).norm(), 1e-14 * F.norm()) << where;
         EXPECT_LE((U.transpose() * U - RowMat<dim>::Identity()).norm(), 1e-14) << where;
@@ -116,24 +116,24 @@ template <int dim> void check_signed_svd()
     }
 }
 
-TEST(GpuSignedSvd, FactorsIntoRotationsAndSignedSingularValues)
+TEST(SignedSvd, FactorsIntoRotationsAndSignedSingularValues)
 {
     check_signed_svd<2>();
     check_signed_svd<3>();
 }
 
-TEST(GpuSignedSvd, RankDeficientMatricesAreRefused)
+TEST(SignedSvd, RankDeficientMatricesAreRefused)
 {
     // Rank 1 in 3D: U's second column is not determined, the caller falls back.
     const double F3[9] = { 1, 2, 3, 2, 4, 6, -1, -2, -3 };
     double U[9], s[3], V[9];
-    EXPECT_FALSE(gpu::signed_svd<3>(F3, U, s, V));
+    EXPECT_FALSE(kernels::signed_svd<3>(F3, U, s, V));
     const double zero[4] = { 0, 0, 0, 0 };
     double U2[4], s2[2], V2[4];
-    EXPECT_FALSE(gpu::signed_svd<2>(zero, U2, s2, V2));
+    EXPECT_FALSE(kernels::signed_svd<2>(zero, U2, s2, V2));
     // Rank 2 in 3D is fine (a flattened element): s = (.., .., 0).
     const double flat[9] = { 1, 0, 0, 0, 2, 0, 0, 0, 0 };
-    ASSERT_TRUE(gpu::signed_svd<3>(flat, U, s, V));
+    ASSERT_TRUE(kernels::signed_svd<3>(flat, U, s, V));
     EXPECT_EQ(s[0], 2.0);
     EXPECT_EQ(s[1], 1.0);
     EXPECT_LE(std::abs(s[2]), 1e-15);
@@ -155,7 +155,7 @@ template <int dim> void check_eigensystem()
         const double mu = std::pow(10.0, 3 + 3 * std::abs(u(rng))), lambda = mu * std::pow(10.0, 1.5 * u(rng));
         RowMat<dim> U, V;
         Eigen::Matrix<double, dim, 1> s;
-        ASSERT_TRUE(gpu::signed_svd<dim>(F.data(), U.data(), s.data(), V.data()));
+        ASSERT_TRUE(kernels::signed_svd<dim>(F.data(), U.data(), s.data(), V.data()));
         // Both dP/dF's formulas and the eigensystem lose accuracy with the conditioning of F (the
         // neo-Hookean F^{-T} = cof F / det F): round-off times cond F.
         const double tolerance = 1e-13 * std::max(1.0, s[0] / std::abs(s[dim - 1]));
@@ -165,10 +165,10 @@ template <int dim> void check_eigensystem()
             const std::string where = "dim " + std::to_string(dim) + ", model " + std::to_string(int(model)) + ", "
                 + kind + " case " + std::to_string(k);
             Big A;
-            gpu::stress_derivative<dim>(model, F.data(), mu, lambda, A.data());
+            kernels::stress_derivative<dim>(model, F.data(), mu, lambda, A.data());
             if (model != MaterialModel::LINEAR) {
                 Big back;
-                gpu::isotropic_stress_derivative_from_eigensystem<dim>(
+                kernels::isotropic_stress_derivative_from_eigensystem<dim>(
                     model, U.data(), s.data(), V.data(), mu, lambda, false, back.data());
                 const double d = (back - A).norm() / A.norm();
                 EXPECT_LE(d, tolerance) << where << ": the eigensystem does not sum to dP/dF";
@@ -176,12 +176,13 @@ template <int dim> void check_eigensystem()
             }
             const Eigen::Matrix<double, n, n> expected = project_psd<n>(Eigen::Matrix<double, n, n>(A));
             Big projected = A;
-            const bool changed = gpu::project_stress_derivative<dim>(model, F.data(), mu, lambda, projected.data());
+            const bool changed = kernels::project_stress_derivative<dim>(model, F.data(), mu, lambda, projected.data());
             const double d = (Eigen::Matrix<double, n, n>(projected) - expected).norm() / A.norm();
             EXPECT_LE(d, tolerance) << where << ": projection";
             worst_projection = std::max(worst_projection, d / tolerance * 1e-13);
-            if (!changed)
+            if (!changed) {
                 EXPECT_TRUE(projected == A) << where << ": reported unchanged but changed";
+            }
             changed_count += changed;
             ++total;
             const double min_eig
@@ -197,22 +198,22 @@ template <int dim> void check_eigensystem()
         dim, changed_count, total, worst_reconstruction, worst_projection);
 }
 
-TEST(GpuAnalyticEigensystem, SumsToStressDerivativeAndProjectsAsTheCpu2D) { check_eigensystem<2>(); }
-TEST(GpuAnalyticEigensystem, SumsToStressDerivativeAndProjectsAsTheCpu3D) { check_eigensystem<3>(); }
+TEST(ClosedFormEigensystem, SumsToStressDerivativeAndProjectsAsEigen2D) { check_eigensystem<2>(); }
+TEST(ClosedFormEigensystem, SumsToStressDerivativeAndProjectsAsEigen3D) { check_eigensystem<3>(); }
 
-TEST(GpuAnalyticEigensystem, LinearElasticityIsLeftUnchangedWhenPositiveSemiDefinite)
+TEST(ClosedFormEigensystem, LinearElasticityIsLeftUnchangedWhenPositiveSemiDefinite)
 {
     const double F[9] = { 1.1, 0.2, 0, -0.1, 0.9, 0.3, 0, 0.05, 1.0 };
     using Big = Eigen::Matrix<double, 9, 9, Eigen::RowMajor>;
     Big A;
-    gpu::stress_derivative<3>(MaterialModel::LINEAR, F, 2.0, 3.0, A.data());
+    kernels::stress_derivative<3>(MaterialModel::LINEAR, F, 2.0, 3.0, A.data());
     Big projected = A;
-    EXPECT_FALSE(gpu::project_stress_derivative<3>(MaterialModel::LINEAR, F, 2.0, 3.0, projected.data()));
+    EXPECT_FALSE(kernels::project_stress_derivative<3>(MaterialModel::LINEAR, F, 2.0, 3.0, projected.data()));
     EXPECT_TRUE(projected == A);
     // lambda < -2 mu / 3: the volumetric eigenvalue is negative and removed.
-    gpu::stress_derivative<3>(MaterialModel::LINEAR, F, 2.0, -3.0, A.data());
+    kernels::stress_derivative<3>(MaterialModel::LINEAR, F, 2.0, -3.0, A.data());
     projected = A;
-    EXPECT_TRUE(gpu::project_stress_derivative<3>(MaterialModel::LINEAR, F, 2.0, -3.0, projected.data()));
+    EXPECT_TRUE(kernels::project_stress_derivative<3>(MaterialModel::LINEAR, F, 2.0, -3.0, projected.data()));
     const Eigen::Matrix<double, 9, 9> expected = project_psd<9>(Eigen::Matrix<double, 9, 9>(A));
     EXPECT_LE((Eigen::Matrix<double, 9, 9>(projected) - expected).norm(), 1e-13 * A.norm());
 }

@@ -1,9 +1,8 @@
 #pragma once
-/// @file element.cuh
+/// @file element.hpp
 /// Energy |e| Psi(F), gradient and Hessian of one P1 element (a triangle in 2D plane strain,
 /// a tetrahedron in 3D) w.r.t. its deformed vertex positions, callable on the host and the
-/// device: the GPU twins of element_energy / element_gradient / element_hessian in
-/// forward/potentials/elastic_potential.hpp, with the same formulas.
+/// device.
 ///
 /// Layouts (dim = 2 or 3, L = dim (dim + 1) local dofs):
 /// - rest, xe: (dim+1) by dim vertex positions, row per vertex, row-major: xe[a * dim + i].
@@ -11,10 +10,13 @@
 ///   (rows 1..dim are Dm^{-1}, row 0 minus their sum; Dm's columns are X_a - X_0).
 /// - gradients: L values, vertex-major: g[a * dim + i].
 /// - Hessians: L by L row-major, H[(a * dim + i) * L + b * dim + k].
+///
+/// F, the energy, the gradient and the Hessian are templates over the scalar T (double today; dual
+/// numbers give their directional derivatives), the rest data and the `_from_rest` forms are on doubles.
 
-#include "cuda/elastic/analytic_eigensystem.cuh"
+#include "forward/kernels/material/eigensystem.hpp"
 
-namespace diffipc::gpu {
+namespace diffipc::kernels {
 
 /// @brief Rest data of one element from its rest vertex positions.
 /// @param rest   (dim+1) by dim rest positions (m)
@@ -41,11 +43,11 @@ template <int dim> DIFFIPC_HD inline double element_rest_data(const double* rest
 }
 
 /// @brief F = sum_a x_a G_a^T (dim by dim, row-major).
-template <int dim> DIFFIPC_HD inline void deformation_gradient(const double* G, const double* xe, double* F)
+template <int dim, class T> DIFFIPC_HD inline void deformation_gradient(const T* G, const T* xe, T* F)
 {
     for (int i = 0; i < dim; ++i)
         for (int j = 0; j < dim; ++j) {
-            double s = 0;
+            T s = 0;
             for (int a = 0; a <= dim; ++a)
                 s += xe[a * dim + i] * G[a * dim + j];
             F[i * dim + j] = s;
@@ -54,26 +56,26 @@ template <int dim> DIFFIPC_HD inline void deformation_gradient(const double* G, 
 
 /// @brief volume * Psi(F(xe)) (J); +inf for an inverted neo-Hookean element.
 /// @param volume rest volume, or any weight times it
-template <int dim>
-DIFFIPC_HD inline double element_energy(
-    MaterialModel model, const double* G, double volume, const double* xe, double mu, double lambda)
+template <int dim, class T>
+DIFFIPC_HD inline T element_energy(
+    MaterialModel model, const T* G, non_deduced<T> volume, const T* xe, non_deduced<T> mu, non_deduced<T> lambda)
 {
-    double F[dim * dim];
+    T F[dim * dim];
     deformation_gradient<dim>(G, xe, F);
     return volume * energy_density<dim>(model, F, mu, lambda);
 }
 
 /// @brief g_(a,i) = volume * sum_j P_ij G_aj (N), L values vertex-major.
-template <int dim>
+template <int dim, class T>
 DIFFIPC_HD inline void element_gradient(
-    MaterialModel model, const double* G, double volume, const double* xe, double mu, double lambda, double* g)
+    MaterialModel model, const T* G, non_deduced<T> volume, const T* xe, non_deduced<T> mu, non_deduced<T> lambda, T* g)
 {
-    double F[dim * dim], P[dim * dim];
+    T F[dim * dim], P[dim * dim];
     deformation_gradient<dim>(G, xe, F);
     stress<dim>(model, F, mu, lambda, P);
     for (int a = 0; a <= dim; ++a)
         for (int i = 0; i < dim; ++i) {
-            double s = 0;
+            T s = 0;
             for (int j = 0; j < dim; ++j)
                 s += P[i * dim + j] * G[a * dim + j];
             g[a * dim + i] = volume * s;
@@ -81,32 +83,33 @@ DIFFIPC_HD inline void element_gradient(
 }
 
 /// @brief H_(a,i),(b,k) = volume * sum_jl A_(ij),(kl) G_aj G_bl (N/m), A = dP/dF, made positive
-/// semi-definite first if `project` (project_stress_derivative: the CPU's project_psd on the
-/// dim^2 by dim^2 A, from the model's closed-form eigensystem).
+/// semi-definite first if `project` (project_stress_derivative: the closed-form eigensystem of
+/// the dim^2 by dim^2 A; for T = double only, the projection being a search direction's).
 /// @param H out: L by L row-major
-template <int dim>
-DIFFIPC_HD inline void element_hessian(MaterialModel model, const double* G, double volume, const double* xe, double mu,
-    double lambda, bool project, double* H)
+template <int dim, class T>
+DIFFIPC_HD inline void element_hessian(MaterialModel model, const T* G, non_deduced<T> volume, const T* xe,
+    non_deduced<T> mu, non_deduced<T> lambda, bool project, T* H)
 {
     constexpr int n = dim * dim, L = dim * (dim + 1);
-    double F[n], A[n * n];
+    T F[n], A[n * n];
     deformation_gradient<dim>(G, xe, F);
     stress_derivative<dim>(model, F, mu, lambda, A);
-    if (project)
-        project_stress_derivative<dim>(model, F, mu, lambda, A);
+    if constexpr (is_double<T>)
+        if (project)
+            project_stress_derivative<dim>(model, F, mu, lambda, A);
     // AG_(ij),(b,k) = sum_l A_(ij),(kl) G_bl, then H_(a,i),(b,k) = volume sum_j G_aj AG_(ij),(b,k).
     for (int b = 0; b <= dim; ++b)
         for (int k = 0; k < dim; ++k) {
-            double AG[n];
+            T AG[n];
             for (int r = 0; r < n; ++r) {
-                double s = 0;
+                T s = 0;
                 for (int l = 0; l < dim; ++l)
                     s += A[r * n + k * dim + l] * G[b * dim + l];
                 AG[r] = s;
             }
             for (int a = 0; a <= dim; ++a)
                 for (int i = 0; i < dim; ++i) {
-                    double s = 0;
+                    T s = 0;
                     for (int j = 0; j < dim; ++j)
                         s += G[a * dim + j] * AG[i * dim + j];
                     H[(a * dim + i) * L + b * dim + k] = volume * s;
@@ -143,4 +146,4 @@ DIFFIPC_HD inline void element_hessian_from_rest(
 }
 /// @}
 
-} // namespace diffipc::gpu
+} // namespace diffipc::kernels
