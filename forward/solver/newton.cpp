@@ -128,12 +128,11 @@ struct NewtonSolver::Run {
             return stop(StepStatus::NON_FINITE);
         // Under load control the multiplier's share lambda a of the gradient is the load the
         // constraint carries, not a residual.
-        double gap = 0;
+        control_gap = 0;
         if (control) {
             control->multiplier = control->direction.dot(g) / a_norm2;
-            gap = control->level - control->direction.dot(x);
+            control_gap = control->level - control->direction.dot(x);
         }
-        control_gap = gap;
         double dmax = 0;
         for (Index i = 0; i < n; ++i) {
             if (constrained[size_t(i)]) {
@@ -144,7 +143,7 @@ struct NewtonSolver::Run {
             }
         }
         gmax = free_residual(g);
-        lifting = dmax > 0 || (control && std::abs(gap) > control->tolerance);
+        lifting = dmax > 0 || (control && std::abs(control_gap) > control->tolerance);
         result.residual = gmax / force_scale;
         if (!std::isfinite(result.residual)) {
             // A force scale that underflowed or overflowed: no residual can be judged.
