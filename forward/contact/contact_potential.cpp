@@ -255,7 +255,7 @@ ContactPotential::LocalDistance ContactPotential::local_distance(
 
 ContactPotential::PairEnergy ContactPotential::pair_energy(double z, bool second) const
 {
-    const kernels::EnergyTerms e = kernels::pair_outer_energy(pair_model(), z, true, second);
+    const kernels::EnergyTerms<> e = kernels::pair_outer_energy(pair_model(), z, true, second);
     return { e.value, e.first, e.second };
 }
 

@@ -13,7 +13,7 @@ namespace diffipc {
 /// P and its first two derivatives with respect to the squared distance s = d^2 (the form the
 /// contact distances provide): P' = -(dhat - d) / (2 d), P'' = dhat / (4 d^3). The functions are
 /// the shared kernels' (forward/kernels/contact_pair.hpp), which both paths evaluate.
-using PenaltyValue = kernels::EnergyTerms;
+using PenaltyValue = kernels::EnergyTerms<>;
 using kernels::penalty_force;
 using kernels::penalty_of_squared_distance;
 

@@ -1,5 +1,6 @@
 #include "forward/fem/fe_space.hpp"
 
+#include "forward/kernels/element.hpp"
 #include "forward/kernels/inversion_bound.hpp"
 
 #include <Eigen/Dense>
@@ -20,24 +21,17 @@ FESpace::FESpace(const Mesh& mesh)
     const int d = m_dim;
     m_volumes.resize(size_t(ne));
     m_gradients.resize(size_t(ne) * size_t((d + 1) * d));
+    const size_t per_element = size_t((d + 1) * d);
     for (Index e = 0; e < ne; ++e) {
-        Eigen::MatrixXd Dm(d, d);
-        for (int a = 0; a < d; ++a)
-            Dm.col(a)
-                = (mesh.rest_positions.row(mesh.elements(e, a + 1)) - mesh.rest_positions.row(mesh.elements(e, 0)))
-                      .transpose();
-        const double det = Dm.determinant();
-        m_volumes[size_t(e)] = std::abs(det) / (d == 2 ? 2.0 : 6.0);
-        const Eigen::MatrixXd Dinv = Dm.inverse();
-        double* G = m_gradients.data() + size_t(e) * size_t((d + 1) * d);
-        for (int j = 0; j < d; ++j) {
-            double sum = 0;
-            for (int a = 1; a <= d; ++a) {
-                G[a * d + j] = Dinv(a - 1, j);
-                sum += Dinv(a - 1, j);
-            }
-            G[j] = -sum;
-        }
+        double rest[4 * 3];
+        for (int a = 0; a <= d; ++a)
+            for (int i = 0; i < d; ++i)
+                rest[a * d + i] = mesh.rest_positions(mesh.elements(e, a), i);
+        double* G = m_gradients.data() + size_t(e) * per_element;
+        if (d == 2)
+            kernels::element_rest_data<2>(rest, G, m_volumes[size_t(e)]);
+        else
+            kernels::element_rest_data<3>(rest, G, m_volumes[size_t(e)]);
     }
 }
 

@@ -14,6 +14,10 @@
 /// Layouts: a pair has contact_num_vertices(kind) vertices (vertex-edge: v, e0, e1; vertex-face:
 /// v, t0, t1, t2; edge-edge: ea0, ea1, eb0, eb1; vertex-plane: v, the plane's point); its local
 /// dofs are vertex-major, dim per vertex (n = #vertices * dim); Hessians are n by n, row-major.
+///
+/// The pair's distance, energy and derivatives are templates over the scalar T of the positions
+/// (double today; dual numbers give their directional derivatives); the pair model's settings
+/// (PairModel: dmin^2, shat, dhat) stay doubles.
 
 #include "forward/kernels/barrier.hpp"
 #include "forward/kernels/contact_kind.hpp"
@@ -34,27 +38,29 @@ namespace diffipc::kernels {
 /// @param eps_x   EDGE_EDGE: the mollifier threshold at rest (edge_edge_mollifier_threshold)
 /// @param type    the closest-feature type as int (Contact::distance_type), or -1 to classify at
 ///                these positions
-DIFFIPC_HD inline void pair_distance(ContactKind kind, const vec3* points, const vec3& normal, double eps_x, int type,
-    double& s, double& m, double* gs, double* Hs, double* gm, double* Hm)
+template <class T>
+DIFFIPC_HD inline void pair_distance(ContactKind kind, const Vec3<T>* points, const Vec3<T>& normal,
+    non_deduced<T> eps_x, int type, non_deduced<T>& s, non_deduced<T>& m, non_deduced<T>* gs, non_deduced<T>* Hs,
+    non_deduced<T>* gm, non_deduced<T>* Hm)
 {
-    const vec3* p = points;
+    const Vec3<T>* p = points;
     s = 0;
     m = 1;
     switch (kind) {
     case ContactKind::VERTEX_PLANE: {
-        const double h = dot(p[0] - p[1], normal);
+        const T h = dot(p[0] - p[1], normal);
         if (!(h > 0))
             return; // s = 0: intersecting (the caller sees s - dmin^2 <= 0)
         s = h * h;
         if (gs) {
-            const vec3 g = 2 * h * normal, minus = -2 * h * normal;
+            const Vec3<T> g = 2 * h * normal, minus = -2 * h * normal;
             store(g, gs);
             store(minus, gs + 3);
         }
         if (Hs)
             for (int i = 0; i < 3; ++i)
                 for (int j = 0; j < 3; ++j) {
-                    const double nn = (2 * component(normal, i)) * component(normal, j);
+                    const T nn = (2 * component(normal, i)) * component(normal, j);
                     Hs[i * 6 + j] = nn;
                     Hs[i * 6 + 3 + j] = -nn;
                     Hs[(3 + i) * 6 + j] = -nn;
@@ -103,7 +109,7 @@ DIFFIPC_HD inline void pair_distance(ContactKind kind, const vec3* points, const
 namespace pair_barrier_detail {
     /// In place: drops the z rows (and columns) of a 3D-padded gradient (Hessian) of nv vertices
     /// (each entry moves to a lower index, so the copy runs forward).
-    DIFFIPC_HD inline void compress_2d(int nv, double* g, double* H)
+    template <class T> DIFFIPC_HD inline void compress_2d(int nv, T* g, T* H)
     {
         const int n2 = 2 * nv, n3 = 3 * nv;
         if (g)
@@ -120,16 +126,16 @@ namespace pair_barrier_detail {
 /// first two derivatives in s, P' = -(dhat - d) / (2 d), P'' = dhat / (4 d^3) (docs/math.md
 /// "Penalty contact"). A distance below 1e-9 dhat is taken as 1e-9 dhat (surfaces that touch
 /// exactly: the force's direction is undefined there, its size is k dhat).
-struct EnergyTerms {
-    double value = 0, first = 0, second = 0; ///< a function of s or z and its first two derivatives
+template <class T = double> struct EnergyTerms {
+    T value = 0, first = 0, second = 0; ///< a function of s or z and its first two derivatives
 };
-DIFFIPC_HD inline EnergyTerms penalty_of_squared_distance(double s, double dhat)
+template <class T> DIFFIPC_HD inline EnergyTerms<T> penalty_of_squared_distance(T s, non_deduced<T> dhat)
 {
-    EnergyTerms p;
+    EnergyTerms<T> p;
     if (!(s < dhat * dhat))
         return p;
-    const double d = fmax(sqrt(fmax(s, 0.0)), 1e-9 * dhat);
-    const double gap = dhat - d;
+    const T d = fmax(sqrt(fmax(s, T(0))), T(1e-9) * dhat);
+    const T gap = dhat - d;
     p.value = 0.5 * gap * gap;
     p.first = -gap / (2 * d);
     p.second = dhat / (4 * d * d * d);
@@ -138,7 +144,7 @@ DIFFIPC_HD inline EnergyTerms penalty_of_squared_distance(double s, double dhat)
 
 /// @brief |dP/dd| = dhat - d for d < dhat, else 0: the penalty's normal force of one pair per unit
 /// stiffness.
-DIFFIPC_HD inline double penalty_force(double d, double dhat) { return d < dhat ? dhat - d : 0.0; }
+template <class T> DIFFIPC_HD inline T penalty_force(T d, non_deduced<T> dhat) { return d < dhat ? dhat - d : T(0); }
 
 /// The model of a pair's energy (ContactSettings): IPC's barrier m b(s - dmin^2, shat), or the
 /// penalty baseline (`"model": "penalty"`): m P(s - dmin^2) for the distance pairs and 1/2 (dhat - h)^2
@@ -164,16 +170,18 @@ DIFFIPC_HD inline PairModel pair_model(bool penalty, double dhat, double dmin)
 /// @brief The energy of a pair without kappa and the mollifier as a function of z = s - dmin^2, and
 /// its first and second derivatives in z where asked (0 otherwise): IPC's barrier b(z, shat), or
 /// the penalty P(sqrt(z)). For the barrier, z must be positive.
-DIFFIPC_HD inline EnergyTerms pair_outer_energy(const PairModel& model, double z, bool first, bool second)
+template <class T>
+DIFFIPC_HD inline EnergyTerms<T> pair_outer_energy(const PairModel& model, T z, bool first, bool second)
 {
     if (model.penalty)
-        return penalty_of_squared_distance(z, model.dhat);
-    EnergyTerms e;
-    e.value = barrier(z, model.shat);
+        return penalty_of_squared_distance(z, T(model.dhat));
+    const T shat = model.shat;
+    EnergyTerms<T> e;
+    e.value = barrier(z, shat);
     if (first)
-        e.first = barrier_first_derivative(z, model.shat);
+        e.first = barrier_first_derivative(z, shat);
     if (second)
-        e.second = barrier_second_derivative(z, model.shat);
+        e.second = barrier_second_derivative(z, shat);
     return e;
 }
 
@@ -181,8 +189,9 @@ namespace pair_barrier_detail {
 
     /// grad = m e1 gs (+ e gm), hess = m (e2 gs gs^T + e1 Hs) (+ e1 (gm gs^T + gs gm^T) + e Hm), with
     /// e, e1, e2 the outer function and its derivatives in s (local dofs, n of them).
-    DIFFIPC_HD inline void chain_rule(int n, bool mollified, double m, double e, double e1, double e2, const double* gs,
-        const double* Hs, const double* gm, const double* Hm, double* grad, double* hess)
+    template <class T>
+    DIFFIPC_HD inline void chain_rule(int n, bool mollified, T m, T e, T e1, T e2, const T* gs, const T* Hs,
+        const T* gm, const T* Hm, T* grad, T* hess)
     {
         if (grad)
             for (int k = 0; k < n; ++k) {
@@ -193,7 +202,7 @@ namespace pair_barrier_detail {
         if (hess)
             for (int i = 0; i < n; ++i)
                 for (int j = 0; j < n; ++j) {
-                    double v = m * ((e2 * gs[i]) * gs[j] + e1 * Hs[i * n + j]);
+                    T v = m * ((e2 * gs[i]) * gs[j] + e1 * Hs[i * n + j]);
                     if (mollified)
                         v += e1 * (gm[i] * gs[j] + gs[i] * gm[j]) + e * Hm[i * n + j];
                     hess[i * n + j] = v;
@@ -202,14 +211,15 @@ namespace pair_barrier_detail {
 
     /// A vertex-plane pair of penalty contact: 1/2 (dhat - h)^2 for h < dhat, h = (x_v - x_plane) . n, with
     /// dh/d(x_v, x_plane) = (n, -n) and the Hessian (dh)(dh)^T inside the layer.
-    DIFFIPC_HD inline double plane_penalty(
-        int dim, const vec3* points, const vec3& normal, double dhat, double* grad, double* hess)
+    template <class T>
+    DIFFIPC_HD inline T plane_penalty(
+        int dim, const Vec3<T>* points, const Vec3<T>& normal, non_deduced<T> dhat, T* grad, T* hess)
     {
-        const vec3 d = points[0] - points[1];
-        const double h = d.x * normal.x + d.y * normal.y + (dim == 3 ? d.z * normal.z : 0.0);
-        const double gap = h < dhat ? dhat - h : 0.0;
-        const double nc[3] = { normal.x, normal.y, normal.z };
-        double dh[6];
+        const Vec3<T> d = points[0] - points[1];
+        const T h = d.x * normal.x + d.y * normal.y + (dim == 3 ? d.z * normal.z : T(0));
+        const T gap = h < dhat ? dhat - h : T(0);
+        const T nc[3] = { normal.x, normal.y, normal.z };
+        T dh[6];
         for (int i = 0; i < dim; ++i) {
             dh[i] = nc[i];
             dh[dim + i] = -nc[i];
@@ -219,7 +229,7 @@ namespace pair_barrier_detail {
             grad[k] = -gap * dh[k];
         for (int i = 0; hess && i < n; ++i)
             for (int j = 0; j < n; ++j)
-                hess[i * n + j] = gap > 0 ? dh[i] * dh[j] : 0.0;
+                hess[i * n + j] = gap > 0 ? dh[i] * dh[j] : T(0);
         return 0.5 * gap * gap;
     }
 
@@ -232,29 +242,30 @@ namespace pair_barrier_detail {
 /// @param points, normal, eps_x, type  as in pair_distance
 /// @return the barrier: +inf for an intersecting pair (s - dmin^2 <= 0), grad and hess NaN then;
 ///         the penalty is finite everywhere
-DIFFIPC_HD inline double pair_energy(ContactKind kind, int dim, const vec3* points, const vec3& normal, double eps_x,
-    int type, const PairModel& model, double* grad, double* hess)
+template <class T>
+DIFFIPC_HD inline T pair_energy(ContactKind kind, int dim, const Vec3<T>* points, const Vec3<T>& normal,
+    non_deduced<T> eps_x, int type, const PairModel& model, non_deduced<T>* grad, non_deduced<T>* hess)
 {
     if (model.penalty && kind == ContactKind::VERTEX_PLANE)
         return pair_barrier_detail::plane_penalty(dim, points, normal, model.dhat, grad, hess);
     const int nv = contact_num_vertices(kind), n = nv * dim;
     const bool mollified = kind == ContactKind::EDGE_EDGE;
-    double s = 0, m = 1;
-    double gs[CONTACT_MAX_DOFS], gm[CONTACT_MAX_DOFS];
-    double Hs[CONTACT_MAX_DOFS * CONTACT_MAX_DOFS], Hm[CONTACT_MAX_DOFS * CONTACT_MAX_DOFS];
+    T s = 0, m = 1;
+    T gs[CONTACT_MAX_DOFS], gm[CONTACT_MAX_DOFS];
+    T Hs[CONTACT_MAX_DOFS * CONTACT_MAX_DOFS], Hm[CONTACT_MAX_DOFS * CONTACT_MAX_DOFS];
     const bool derivatives = grad || hess;
-    pair_distance(kind, points, normal, eps_x, type, s, m, derivatives ? gs : nullptr, hess ? Hs : nullptr,
+    pair_distance<T>(kind, points, normal, eps_x, type, s, m, derivatives ? gs : nullptr, hess ? Hs : nullptr,
         derivatives && mollified ? gm : nullptr, hess && mollified ? Hm : nullptr);
-    const double z = s - model.dmin2;
+    const T z = s - T(model.dmin2);
     if (!model.penalty && !(z > 0)) {
         for (int k = 0; grad && k < n; ++k)
             grad[k] = NAN;
         for (int k = 0; hess && k < n * n; ++k)
             hess[k] = NAN;
-        return INFINITY;
+        return infinity<T>();
     }
-    const EnergyTerms outer = pair_outer_energy(model, z, derivatives, hess != nullptr);
-    const double e = outer.value, e1 = outer.first, e2 = outer.second;
+    const EnergyTerms<T> outer = pair_outer_energy(model, z, derivatives, hess != nullptr);
+    const T e = outer.value, e1 = outer.first, e2 = outer.second;
     if (!derivatives)
         return m * e;
     if (dim == 2) {
@@ -262,19 +273,20 @@ DIFFIPC_HD inline double pair_energy(ContactKind kind, int dim, const vec3* poin
         if (mollified)
             pair_barrier_detail::compress_2d(nv, gm, hess ? Hm : nullptr);
     }
-    pair_barrier_detail::chain_rule(n, mollified, m, e, e1, e2, gs, Hs, gm, Hm, grad, hess);
+    pair_barrier_detail::chain_rule<T>(n, mollified, m, e, e1, e2, gs, Hs, gm, Hm, grad, hess);
     return m * e;
 }
 
 /// @brief pair_energy for the barrier model, m b(s - dmin^2, shat), the type classified at points.
 /// @param dmin2   dmin^2 (m^2), @param shat barrier_activation(dhat, dmin) (m^2)
-DIFFIPC_HD inline double pair_barrier(ContactKind kind, int dim, const vec3* points, const vec3& normal, double eps_x,
-    double dmin2, double shat, double* grad, double* hess)
+template <class T>
+DIFFIPC_HD inline T pair_barrier(ContactKind kind, int dim, const Vec3<T>* points, const Vec3<T>& normal,
+    non_deduced<T> eps_x, double dmin2, double shat, non_deduced<T>* grad, non_deduced<T>* hess)
 {
     PairModel model;
     model.dmin2 = dmin2;
     model.shat = shat;
-    return pair_energy(kind, dim, points, normal, eps_x, -1, model, grad, hess);
+    return pair_energy<T>(kind, dim, points, normal, eps_x, -1, model, grad, hess);
 }
 
 } // namespace diffipc::kernels

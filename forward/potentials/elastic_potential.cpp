@@ -1,6 +1,7 @@
 #include "forward/potentials/elastic_potential.hpp"
 
 #include "forward/common/error.hpp"
+#include "forward/kernels/element.hpp"
 #include "forward/solver/sparse_assembler.hpp"
 
 #include <Eigen/Dense>
@@ -20,36 +21,14 @@ namespace {
         static constexpr int L = dim * (dim + 1);
         using Mat = Eigen::Matrix<double, dim, dim>;
         using Tensor = Eigen::Matrix<double, dim * dim, dim * dim>;
-        using LocalVec = Eigen::Matrix<double, L, 1>;
-        using LocalMat = Eigen::Matrix<double, L, L>;
         using Grad = Eigen::Matrix<double, dim + 1, dim, Eigen::RowMajor>;
 
-        /// F = sum_a x_a G_a^T with xe (dim+1) x dim rows of vertex positions.
-        static Mat deformation(const Grad& G, const Grad& xe) { return xe.transpose() * G; }
-
-        /// Local gradient: f_(a,i) = vol * sum_j P_ij G_aj.
-        static LocalVec gradient(const Grad& G, const Mat& P, double vol)
+        /// F = sum_a x_a G_a^T with xe (dim+1) x dim rows of vertex positions (the kernel's, as on the GPU).
+        static Mat deformation(const Grad& G, const Grad& xe)
         {
-            LocalVec g;
-            for (int a = 0; a <= dim; ++a)
-                for (int i = 0; i < dim; ++i) {
-                    double s = 0;
-                    for (int j = 0; j < dim; ++j)
-                        s += P(i, j) * G(a, j);
-                    g[a * dim + i] = vol * s;
-                }
-            return g;
-        }
-
-        /// Local Hessian: H_(a,i),(b,k) = vol * sum_jl A_(ij),(kl) G_aj G_bl, i.e. vol B^T A B.
-        static LocalMat hessian(const Grad& G, const Tensor& A, double vol)
-        {
-            Eigen::Matrix<double, dim * dim, L> B = Eigen::Matrix<double, dim * dim, L>::Zero();
-            for (int a = 0; a <= dim; ++a)
-                for (int i = 0; i < dim; ++i)
-                    for (int j = 0; j < dim; ++j)
-                        B(i * dim + j, a * dim + i) = G(a, j);
-            return vol * B.transpose() * A * B;
+            Eigen::Matrix<double, dim, dim, Eigen::RowMajor> F;
+            kernels::deformation_gradient<dim>(G.data(), xe.data(), F.data());
+            return F;
         }
     };
 
@@ -58,19 +37,12 @@ namespace {
         double volume;
     };
 
-    template <int dim> ElementData<dim> element_data(const MatrixXd& rest)
+    template <int dim> ElementData<dim> element_data(const typename Kernel<dim>::Grad& rest)
     {
-        Eigen::Matrix<double, dim, dim> Dm;
-        for (int a = 0; a < dim; ++a)
-            Dm.col(a) = (rest.row(a + 1) - rest.row(0)).transpose();
-        const double det = Dm.determinant();
+        ElementData<dim> d;
+        const double det = kernels::element_rest_data<dim>(rest.data(), d.G.data(), d.volume);
         if (!(std::abs(det) > 0))
             throw InputError("rest", "degenerate rest element");
-        const Eigen::Matrix<double, dim, dim> Dinv = Dm.inverse();
-        ElementData<dim> d;
-        d.volume = std::abs(det) / (dim == 2 ? 2.0 : 6.0);
-        d.G.row(0) = -Dinv.colwise().sum();
-        d.G.bottomRows(dim) = Dinv;
         return d;
     }
 
@@ -158,17 +130,17 @@ namespace {
     // Fixed grain and deterministic reduce: the sum order does not depend on scheduling.
     constexpr Index GRAIN = 256;
 
-    template <int dim, typename MaterialOf>
+    template <int dim>
     double value_impl(const FESpace& space, const std::vector<MaterialModel>& models, const VectorXd& mu,
-        const VectorXd& lambda, const VectorXd& x, MaterialOf material)
+        const VectorXd& lambda, const VectorXd& x)
     {
         const Mesh& mesh = space.mesh();
         return tbb::parallel_deterministic_reduce(
             tbb::blocked_range<Index>(0, space.num_elements(), GRAIN), 0.0,
             [&](const tbb::blocked_range<Index>& r, double sum) {
                 for (Index e = r.begin(); e < r.end(); ++e) {
-                    const auto F = Kernel<dim>::deformation(shape<dim>(space, e), gather<dim>(mesh, e, x));
-                    sum += space.rest_volume(e) * material(models[size_t(e)]).energy_density(F, mu[e], lambda[e]);
+                    sum += kernels::element_energy<dim>(models[size_t(e)], space.shape_gradients(e),
+                        space.rest_volume(e), gather<dim>(mesh, e, x).data(), mu[e], lambda[e]);
                 }
                 return sum;
             },
@@ -180,18 +152,16 @@ namespace {
 double ElasticPotential::value(const VectorXd& x) const
 {
     if (m_space.dim() == 2)
-        return value_impl<2>(m_space, m_models, m_mu, m_lambda, x,
-            [this](MaterialModel m) -> const Material<2>& { return m_impl->material<2>(m); });
-    return value_impl<3>(m_space, m_models, m_mu, m_lambda, x,
-        [this](MaterialModel m) -> const Material<3>& { return m_impl->material<3>(m); });
+        return value_impl<2>(m_space, m_models, m_mu, m_lambda, x);
+    return value_impl<3>(m_space, m_models, m_mu, m_lambda, x);
 }
 
 namespace {
 
-    template <int dim, typename MaterialOf>
+    template <int dim>
     void gradient_impl(const FESpace& space, const std::vector<MaterialModel>& models, const VectorXd& mu,
         const VectorXd& lambda, const VectorXd& x, double weight, VectorXd& g, std::vector<double>& local,
-        const VertexScatter& scatter, MaterialOf material)
+        const VertexScatter& scatter)
     {
         constexpr int L = Kernel<dim>::L;
         const Mesh& mesh = space.mesh();
@@ -199,31 +169,29 @@ namespace {
         local.resize(size_t(ne) * L); // per-element gradients, kept between calls
         tbb::parallel_for(tbb::blocked_range<Index>(0, ne, GRAIN), [&](const tbb::blocked_range<Index>& r) {
             for (Index e = r.begin(); e < r.end(); ++e) {
-                const auto G = shape<dim>(space, e);
-                const auto F = Kernel<dim>::deformation(G, gather<dim>(mesh, e, x));
-                const auto P = material(models[size_t(e)]).stress(F, mu[e], lambda[e]);
-                Eigen::Map<typename Kernel<dim>::LocalVec>(local.data() + size_t(e) * L)
-                    = Kernel<dim>::gradient(G, P, weight * space.rest_volume(e));
+                kernels::element_gradient<dim>(models[size_t(e)], space.shape_gradients(e),
+                    weight * space.rest_volume(e), gather<dim>(mesh, e, x).data(), mu[e], lambda[e],
+                    local.data() + size_t(e) * L);
             }
         });
         scatter.add(local.data(), dim, 1.0, g);
     }
 
-    template <int dim, typename MaterialOf>
+    /// The kernel's element Hessian is row-major, add_element reads column-major: it adds the
+    /// transpose, the same symmetric matrix.
+    template <int dim>
     void hessian_impl(const FESpace& space, const std::vector<MaterialModel>& models, const VectorXd& mu,
-        const VectorXd& lambda, const VectorXd& x, double weight, bool project, SparseAssembler& H, MaterialOf material)
+        const VectorXd& lambda, const VectorXd& x, double weight, bool project, SparseAssembler& H)
     {
         const Mesh& mesh = space.mesh();
         for (const auto& color : H.colors())
             tbb::parallel_for(tbb::blocked_range<size_t>(0, color.size(), 8), [&](const tbb::blocked_range<size_t>& r) {
                 for (size_t k = r.begin(); k < r.end(); ++k) {
                     const Index e = color[k];
-                    const auto G = shape<dim>(space, e);
-                    const auto F = Kernel<dim>::deformation(G, gather<dim>(mesh, e, x));
-                    typename Kernel<dim>::Tensor A = material(models[size_t(e)]).stress_derivative(F, mu[e], lambda[e]);
-                    if (project)
-                        A = project_psd<dim * dim>(A);
-                    const typename Kernel<dim>::LocalMat Ke = Kernel<dim>::hessian(G, A, weight * space.rest_volume(e));
+                    std::array<double, Kernel<dim>::L * Kernel<dim>::L> Ke;
+                    kernels::element_hessian<dim>(models[size_t(e)], space.shape_gradients(e),
+                        weight * space.rest_volume(e), gather<dim>(mesh, e, x).data(), mu[e], lambda[e], project,
+                        Ke.data());
                     H.add_element(e, Ke.data());
                 }
             });
@@ -234,21 +202,17 @@ namespace {
 void ElasticPotential::add_gradient(const VectorXd& x, double weight, VectorXd& g) const
 {
     if (m_space.dim() == 2)
-        gradient_impl<2>(m_space, m_models, m_mu, m_lambda, x, weight, g, m_gradient_buffer, m_scatter,
-            [this](MaterialModel m) -> const Material<2>& { return m_impl->material<2>(m); });
+        gradient_impl<2>(m_space, m_models, m_mu, m_lambda, x, weight, g, m_gradient_buffer, m_scatter);
     else
-        gradient_impl<3>(m_space, m_models, m_mu, m_lambda, x, weight, g, m_gradient_buffer, m_scatter,
-            [this](MaterialModel m) -> const Material<3>& { return m_impl->material<3>(m); });
+        gradient_impl<3>(m_space, m_models, m_mu, m_lambda, x, weight, g, m_gradient_buffer, m_scatter);
 }
 
 void ElasticPotential::add_hessian(const VectorXd& x, double weight, bool project_to_psd, SparseAssembler& H) const
 {
     if (m_space.dim() == 2)
-        hessian_impl<2>(m_space, m_models, m_mu, m_lambda, x, weight, project_to_psd, H,
-            [this](MaterialModel m) -> const Material<2>& { return m_impl->material<2>(m); });
+        hessian_impl<2>(m_space, m_models, m_mu, m_lambda, x, weight, project_to_psd, H);
     else
-        hessian_impl<3>(m_space, m_models, m_mu, m_lambda, x, weight, project_to_psd, H,
-            [this](MaterialModel m) -> const Material<3>& { return m_impl->material<3>(m); });
+        hessian_impl<3>(m_space, m_models, m_mu, m_lambda, x, weight, project_to_psd, H);
 }
 
 double ElasticPotential::max_step(const VectorXd& x, const VectorXd& p) const
@@ -297,27 +261,28 @@ namespace {
         MaterialModel model, const MatrixXd& rest, const MatrixXd& deformed, double mu, double lambda)
     {
         const auto data = element_data<dim>(to_local<dim>(rest));
-        const auto F = Kernel<dim>::deformation(data.G, to_local<dim>(deformed));
-        return data.volume * make_material<dim>(model)->energy_density(F, mu, lambda);
+        return kernels::element_energy<dim>(
+            model, data.G.data(), data.volume, to_local<dim>(deformed).data(), mu, lambda);
     }
     template <int dim>
     VectorXd element_gradient_impl(
         MaterialModel model, const MatrixXd& rest, const MatrixXd& deformed, double mu, double lambda)
     {
         const auto data = element_data<dim>(to_local<dim>(rest));
-        const auto F = Kernel<dim>::deformation(data.G, to_local<dim>(deformed));
-        return Kernel<dim>::gradient(data.G, make_material<dim>(model)->stress(F, mu, lambda), data.volume);
+        VectorXd g(Kernel<dim>::L);
+        kernels::element_gradient<dim>(
+            model, data.G.data(), data.volume, to_local<dim>(deformed).data(), mu, lambda, g.data());
+        return g;
     }
     template <int dim>
     MatrixXd element_hessian_impl(
         MaterialModel model, const MatrixXd& rest, const MatrixXd& deformed, double mu, double lambda, bool project)
     {
         const auto data = element_data<dim>(to_local<dim>(rest));
-        const auto F = Kernel<dim>::deformation(data.G, to_local<dim>(deformed));
-        typename Kernel<dim>::Tensor A = make_material<dim>(model)->stress_derivative(F, mu, lambda);
-        if (project)
-            A = project_psd<dim * dim>(A);
-        return Kernel<dim>::hessian(data.G, A, data.volume);
+        Eigen::Matrix<double, Kernel<dim>::L, Kernel<dim>::L, Eigen::RowMajor> H;
+        kernels::element_hessian<dim>(
+            model, data.G.data(), data.volume, to_local<dim>(deformed).data(), mu, lambda, project, H.data());
+        return H;
     }
 
 } // namespace

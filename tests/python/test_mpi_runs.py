@@ -80,14 +80,17 @@ def hammered_bars(iterations=3):
 
 def rejecting_rings():
     """ring_walls pushed to bounce back far (L-BFGS-B, no constraint), with Newton's iterations per step capped
-    at 22 in case 1 and 20 in case 2: the start passes, faster trial points fail in those cases and are
-    rejected, and the run goes on (a failing case midway, as in serial)."""
+    at 30 in case 1 and 32 in case 2 (so that their failures read differently): the start needs at most 20 per
+    step in every case and the accepted iterates at most 17, while the line search's first trial point (about
+    2.0 m/s) needs 45 in case 2, so that trial point fails and is rejected, and the run goes on (a failing case
+    midway, as in serial). The margins of 10 iterations and more on either side keep round-off (another BLAS
+    kernel, another element kernel) from deciding it."""
     problem = ring_walls(algorithm="lbfgsb", iterations=15)
     del problem["constraints"]
     for case in problem["scenes"]:
         case["objective"] = dict(case["objective"], targets=[[[-0.1, 0.03], [-0.3, 0.03]]])
-    problem["scenes"][1]["scene"]["solver"]["max_iterations"] = 22
-    problem["scenes"][2]["scene"]["solver"]["max_iterations"] = 20
+    problem["scenes"][1]["scene"]["solver"]["max_iterations"] = 30
+    problem["scenes"][2]["scene"]["solver"]["max_iterations"] = 32
     return problem
 
 

@@ -1,7 +1,9 @@
-// The friction pair kernel (forward/kernels/friction_pair.hpp), one pair at a time, on the CPU: the
-// lagged friction pairs of 3D and 2D contact scenes summed over the pairs against FrictionPotential's
-// assembled value, gradient and Hessian, in the sticking (|u| < eps) and sliding regimes; and each
-// pair's gradient and Hessian against finite differences of its energy. Runs without a GPU.
+// The GPU path's friction pairs, one pair at a time, on the CPU: the lagged pairs of 3D and 2D contact
+// scenes as the GPU path converts them (forward/simulation/device_conversion.hpp, to_device), evaluated
+// by the shared kernel (forward/kernels/friction_pair.hpp) and summed, against FrictionPotential's
+// assembled value, gradient and Hessian, in the sticking (|u| < eps) and sliding regimes. Runs without
+// a GPU. The kernel's derivatives against finite differences are tested in every build
+// (tests/forward/kernels/test_friction_pair.cpp).
 
 #include "cuda/common/kernels.cuh"
 #include "forward/contact/friction/friction_potential.hpp"
@@ -103,59 +105,4 @@ TEST(GpuPairFriction, EqualsFrictionPotential2D)
         compare_with_cpu(test::boxes_on_plane_2d(6, 3e-4, 1e-5, { { "dhat", 1e-3 }, { "kappa", 3.0 } }), motion,
             "2D boxes, motion " + std::to_string(motion));
     }
-}
-
-TEST(GpuPairFriction, DerivativesMatchFiniteDifferences)
-{
-    // One 3D vertex-face-like pair of 4 vertices and one 2D pair of 3, in both regimes.
-    const double eps = 1e-5;
-    for (int dim : { 2, 3 })
-        for (double size : { 3e-6, 4e-5 }) {
-            gpu::FrictionPair f;
-            f.num_vertices = dim == 3 ? 4 : 3;
-            const double w[4] = { 1.0, -0.2, -0.5, -0.3 };
-            const double w2[3] = { 1.0, -0.4, -0.6 };
-            for (int i = 0; i < f.num_vertices; ++i)
-                f.weights[i] = dim == 3 ? w[i] : w2[i];
-            const double s = 1 / std::sqrt(2.0);
-            const double t3[6] = { s, 0, s, -0.5, s, 0.5 };
-            const double t2[6] = { 0, 1, 0, 0, 0, 0 };
-            for (int k = 0; k < 6; ++k)
-                f.tangent[k] = dim == 3 ? t3[k] : t2[k];
-            f.scale = 2.5;
-            const int n = f.num_vertices * dim;
-            const VectorXd base = size * test::random_vector(n, 5);
-            auto energy_at = [&](const VectorXd& q, double* grad, double* hess) {
-                gpu::vec3 dx[4];
-                for (int i = 0; i < f.num_vertices; ++i)
-                    dx[i] = gpu::vec3(q[i * dim], q[i * dim + 1], dim == 3 ? q[i * dim + 2] : 0.0);
-                return gpu::pair_friction(dim, f, dx, eps, grad, hess);
-            };
-            double grad[12], hess[144];
-            energy_at(base, grad, hess);
-            const double h = 1e-4 * size;
-            double worst_g = 0, worst_h = 0, gmax = 0, hmax = 0;
-            for (int k = 0; k < n; ++k) {
-                VectorXd p = base, m = base;
-                p[k] += h;
-                m[k] -= h;
-                double gp[12], gm[12];
-                const double fd = (energy_at(p, gp, nullptr) - energy_at(m, gm, nullptr)) / (2 * h);
-                worst_g = std::max(worst_g, std::abs(fd - grad[k]));
-                gmax = std::max(gmax, std::abs(grad[k]));
-                for (int l = 0; l < n; ++l) {
-                    worst_h = std::max(worst_h, std::abs((gp[l] - gm[l]) / (2 * h) - hess[l * n + k]));
-                    hmax = std::max(hmax, std::abs(hess[l * n + k]));
-                }
-            }
-            // The Hessian's scale: its largest entry, or the force over the displacement where the Hessian
-            // vanishes (2D sliding: a force of constant size along the one tangent, whose difference
-            // quotient is round-off of order eps_mach |g| / h).
-            const double h_scale = std::max(hmax, gmax / size);
-            EXPECT_LE(worst_g, 1e-6 * gmax) << dim << "D, size " << size;
-            EXPECT_LE(worst_h, 1e-6 * h_scale) << dim << "D, size " << size;
-            std::printf("  %dD pair, |dx| ~ %.0e (eps %.0e): gradient %.1e, Hessian %.1e relative to finite "
-                        "differences\n",
-                dim, size, eps, worst_g / gmax, worst_h / h_scale);
-        }
 }
