@@ -1,7 +1,5 @@
 #include "shape_opt/problem_parameters.hpp"
 
-#include "shape_opt/parametrization/free_form_deformation.hpp"
-
 #include "forward/common/error.hpp"
 #include "forward/scene/json_field.hpp"
 #include "shape_opt/parametrization/map_json.hpp"
@@ -608,13 +606,13 @@ void ProblemParameters::parse_maps(const json& params, const Scene& scene)
 }
 
 namespace {
-    /// The free-form deformation of a shape entry's chain and its index there (nullptr if none).
-    const FreeFormDeformation* find_ffd(const ParameterChain& chain, size_t& index)
+    /// The map of a shape entry's chain that follows a new mesh and its index there (nullptr if none).
+    const RemeshableShape* find_remeshable_shape(const ParameterChain& chain, size_t& index)
     {
         for (size_t i = 0; i < chain.size(); ++i)
-            if (const auto* ffd = dynamic_cast<const FreeFormDeformation*>(&chain.map(i))) {
+            if (const RemeshableShape* shape = chain.map(i).remeshable_shape()) {
                 index = i;
-                return ffd;
+                return shape;
             }
         return nullptr;
     }
@@ -626,11 +624,11 @@ std::string ProblemParameters::remesh_obstacle() const
     for (size_t k = 0; k < m_entries.size(); ++k) {
         if (m_entries[k].kind != Kind::SHAPE) {
             // Values per element, vertex or prescribed dof change in number with the mesh,
-            // unless a per_body map gathers them from one value per body.
-            bool per_body = false;
+            // unless a map gathers them from values a remesh keeps (a per_body map).
+            bool kept = false;
             for (size_t i = 0; i < m_chains[k]->size(); ++i)
-                per_body = per_body || m_chains[k]->map(i).name() == "per_body";
-            if (m_entries[k].per_mesh_item && !per_body)
+                kept = kept || m_chains[k]->map(i).input_survives_remesh();
+            if (m_entries[k].per_mesh_item && !kept)
                 return m_entries[k].field
                     + ": its design variables are one per element, vertex or prescribed value, which a remesh "
                       "changes (use \"per\": \"body\" or a per_body map)";
@@ -638,12 +636,13 @@ std::string ProblemParameters::remesh_obstacle() const
         }
         ++shapes;
         size_t at = 0;
-        if (!find_ffd(*m_chains[k], at))
+        if (!find_remeshable_shape(*m_chains[k], at))
             return m_entries[k].field
                 + ": a remesh keeps the design variables only with mesh-independent shape controls (a \"ffd\" map); "
                   "these depend on the mesh's vertices";
         if (at + 1 != m_chains[k]->size())
-            return m_entries[k].field + ".maps: a remesh needs the \"ffd\" map last (it gives the rest positions)";
+            return m_entries[k].field + ".maps: a remesh needs the \"" + m_chains[k]->map(at).name()
+                + "\" map last (it gives the rest positions)";
     }
     if (shapes == 0)
         return "the problem has no \"shape\" parameter (a remesh renews a moving rest mesh)";
@@ -664,7 +663,7 @@ ShapeLatticeInput ProblemParameters::shape_lattice_input(const VectorXd& x) cons
             const ParameterChain& chain = *m_chains[k];
             ShapeLatticeInput out;
             out.entry = k;
-            find_ffd(chain, out.map);
+            out.mesh_input_key = find_remeshable_shape(chain, out.map)->mesh_input_key();
             out.design = x.segment(at, m_design_sizes[k]);
             // The lattice's input: the maps before it applied to the entry's design values.
             out.lattice = out.design;
@@ -680,8 +679,7 @@ ShapeLatticeInput ProblemParameters::shape_lattice_input(const VectorXd& x) cons
 Positions ProblemParameters::pull_back_shape(const VectorXd& x, const Positions& current) const
 {
     const ShapeLatticeInput in = shape_lattice_input(x);
-    const auto& ffd = dynamic_cast<const FreeFormDeformation&>(m_chains[in.entry]->map(in.map));
-    return ffd.pull_back(current, in.lattice);
+    return m_chains[in.entry]->map(in.map).remeshable_shape()->pull_back(current, in.lattice);
 }
 
 std::vector<std::pair<std::string, Index>> ProblemParameters::design_layout() const

@@ -23,11 +23,13 @@
 
 namespace diffipc {
 
-/// Where a design puts the shape's free-form deformation (ProblemParameters::shape_lattice_input).
+/// Where a design puts the shape's remeshable map (a free-form deformation:
+/// ProblemParameters::shape_lattice_input).
 struct ShapeLatticeInput {
-    size_t entry = 0, map = 0; ///< parameters[entry].maps[map] is the "ffd"
+    size_t entry = 0, map = 0; ///< parameters[entry].maps[map] is the remeshable shape ("ffd")
     VectorXd design; ///< the entry's design values
-    VectorXd lattice; ///< the ffd's input
+    VectorXd lattice; ///< the map's input
+    std::string mesh_input_key; ///< the map spec's key for it (RemeshableShape::mesh_input_key)
 };
 
 /// One entry of the problem's "parameters" list.

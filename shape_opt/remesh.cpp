@@ -490,7 +490,7 @@ nlohmann::json remeshed_document(const ReducedFunctional& functional, const Vect
     try {
         const ShapeLatticeInput in = functional.shape_lattice_input(x);
         nlohmann::json& entry = doc["parameters"][in.entry];
-        entry["maps"][in.map]["mesh_at"]
+        entry["maps"][in.map][in.mesh_input_key]
             = std::vector<double>(in.lattice.data(), in.lattice.data() + in.lattice.size());
         entry["initial"] = std::vector<double>(in.design.data(), in.design.data() + in.design.size());
     } catch (const std::runtime_error& e) {

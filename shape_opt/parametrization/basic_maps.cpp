@@ -7,10 +7,12 @@
 
 namespace diffipc {
 
-GatherMap::GatherMap(Index in_size, std::vector<Index> index, const std::string& field, std::string name)
+GatherMap::GatherMap(
+    Index in_size, std::vector<Index> index, const std::string& field, std::string name, bool inputs_per_body)
     : m_in(in_size)
     , m_index(std::move(index))
     , m_name(std::move(name))
+    , m_per_body(inputs_per_body)
 {
     std::vector<char> used(size_t(std::max<Index>(in_size, 0)), 0);
     for (size_t j = 0; j < m_index.size(); ++j) {

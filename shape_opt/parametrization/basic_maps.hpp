@@ -16,8 +16,10 @@ class GatherMap : public ParameterMap {
 public:
     /// @param in_size number of inputs
     /// @param index out_size entries, each in [0, in_size)
+    /// @param inputs_per_body whether the inputs are one per body (a remesh keeps them)
     /// @throws InputError naming `field` for an index out of range
-    GatherMap(Index in_size, std::vector<Index> index, const std::string& field, std::string name = "gather");
+    GatherMap(Index in_size, std::vector<Index> index, const std::string& field, std::string name = "gather",
+        bool inputs_per_body = false);
     Index in_size() const override { return m_in; }
     Index out_size() const override { return Index(m_index.size()); }
     VectorXd apply(const VectorXd& x) const override;
@@ -26,11 +28,13 @@ public:
     bool invertible() const override { return m_covers; }
     VectorXd inverse(const VectorXd& y, const std::string& field) const override;
     std::string name() const override { return m_name; }
+    bool input_survives_remesh() const override { return m_per_body; }
 
 private:
     Index m_in;
     std::vector<Index> m_index;
     std::string m_name;
+    bool m_per_body = false;
     bool m_covers = false;
 };
 

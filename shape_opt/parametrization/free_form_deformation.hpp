@@ -36,7 +36,7 @@ struct FfdLattice {
     VectorXd mesh_at;
 };
 
-class FreeFormDeformation : public ParameterMap {
+class FreeFormDeformation : public ParameterMap, public RemeshableShape {
 public:
     /// @param rest #V by dim rest positions
     /// @throws InputError naming `field` for a box with upper <= lower, a degree below 1 or
@@ -47,6 +47,10 @@ public:
     VectorXd apply(const VectorXd& x) const override;
     VectorXd vjp(const VectorXd& x, const VectorXd& y_bar) const override;
     std::string name() const override { return "ffd"; }
+    /// The lattice and the shape it gives are the mesh's domain's, not its vertices'.
+    bool input_survives_remesh() const override { return true; }
+    const RemeshableShape* remeshable_shape() const override { return this; }
+    std::string mesh_input_key() const override { return "mesh_at"; }
     /// Number of control points that are variables, and the position (m) of control point c
     /// (lattice order: axis 0 fastest).
     Index variable_points() const { return Index(m_points.size()); }
@@ -56,7 +60,7 @@ public:
     /// box). A remesh of the domain at x uses it to find the new mesh's rest positions, so
     /// that the same x gives the same domain (shape_opt/remesh.hpp).
     /// @throws std::runtime_error naming the vertex where the deformation cannot be inverted
-    Positions pull_back(const Positions& current, const VectorXd& x) const;
+    Positions pull_back(const Positions& current, const VectorXd& x) const override;
 
 private:
     /// u_x(X) and du/dX (dim by dim) at any point X.

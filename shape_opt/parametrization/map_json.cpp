@@ -179,7 +179,7 @@ namespace {
             const auto [it, inserted] = slot.emplace(b, Index(slot.size()));
             index.push_back(it->second);
         }
-        return std::make_unique<GatherMap>(Index(slot.size()), index, f.path(), "per_body");
+        return std::make_unique<GatherMap>(Index(slot.size()), index, f.path(), "per_body", true);
     }
 
     /// boundary_extension and ffd give the rest positions of every body vertex.

@@ -17,6 +17,8 @@
 
 namespace diffipc {
 
+class RemeshableShape;
+
 class ParameterMap {
 public:
     virtual ~ParameterMap() = default;
@@ -40,6 +42,30 @@ public:
     virtual VectorXd inverse(const VectorXd& y, const std::string& field) const;
     /// What the map is, for messages and the docs ("exp", "scale", ...).
     virtual std::string name() const = 0;
+
+    /// @name Remeshing (shape_opt/remesh.hpp): whether and how the map follows a new mesh.
+    /// @{
+    /// Whether the map's input keeps its meaning on another mesh of the same domain, so that a
+    /// remesh keeps the design variables that reach it: values per body gathered onto elements,
+    /// a free-form deformation's lattice. False by default (values per element, vertex or dof).
+    virtual bool input_survives_remesh() const { return false; }
+    /// The map as rest positions that any mesh of its domain can follow, or nullptr.
+    virtual const RemeshableShape* remeshable_shape() const { return nullptr; }
+    /// @}
+};
+
+/// A map whose output is the rest positions of whatever mesh of its domain it was built on, so
+/// that a remesh rebuilds it on the new mesh and keeps its input (FreeFormDeformation).
+class RemeshableShape {
+public:
+    virtual ~RemeshableShape() = default;
+    /// @brief The rest positions that the input x moves onto `current` (#V by dim): the new
+    /// mesh's rest positions when `current` is a new mesh of the domain at x.
+    /// @throws std::runtime_error where the map cannot be inverted at a vertex
+    virtual Positions pull_back(const Positions& current, const VectorXd& x) const = 0;
+    /// The key of the map's JSON spec that says at which input its given mesh is the shape
+    /// (a remesh writes the input there, with the new mesh).
+    virtual std::string mesh_input_key() const = 0;
 };
 
 /// Maps applied one after the other: p = m_k(...m_2(m_1(x))).

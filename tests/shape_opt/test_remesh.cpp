@@ -333,6 +333,29 @@ TEST(Remesh, BadSettingsAndProblemsThatCannotBeRemeshed)
         EXPECT_EQ(e.field(), "remesh");
         EXPECT_NE(std::string(e.what()).find("ffd"), std::string::npos) << e.what();
     }
+    // The free-form deformation must give the rest positions: last in its chain.
+    doc = nlohmann::json::parse(beam_problem);
+    doc["parameters"][0]["maps"].push_back(nlohmann::json::parse(R"({"type": "scale", "scale": 1.0})"));
+    try {
+        ReducedFunctional bad(doc, ".", "t");
+        FAIL() << "expected an InputError";
+    } catch (const InputError& e) {
+        EXPECT_NE(std::string(e.what()).find("needs the \"ffd\" map last"), std::string::npos) << e.what();
+    }
+    // Values per element change in number with the mesh, unless a map takes them from values a
+    // remesh keeps (one per body).
+    doc = nlohmann::json::parse(beam_problem);
+    doc["parameters"].push_back(
+        nlohmann::json::parse(R"({"type": "density", "per": "element", "maps": [{"type": "exp"}]})"));
+    try {
+        ReducedFunctional bad(doc, ".", "t");
+        FAIL() << "expected an InputError";
+    } catch (const InputError& e) {
+        EXPECT_NE(std::string(e.what()).find("one per element, vertex or prescribed value"), std::string::npos)
+            << e.what();
+    }
+    doc["parameters"][1]["maps"].push_back(nlohmann::json::parse(R"({"type": "per_body"})"));
+    EXPECT_NO_THROW(ReducedFunctional(doc, ".", "t"));
     // Markers selected by vertex index would be renumbered.
     doc = nlohmann::json::parse(beam_problem);
     doc["objective"]

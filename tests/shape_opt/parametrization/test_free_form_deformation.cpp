@@ -4,6 +4,7 @@
 // the same way on two different meshes (the parameters do not depend on the mesh), and the
 // vector-Jacobian product matches central differences.
 
+#include "shape_opt/parametrization/basic_maps.hpp"
 #include "shape_opt/parametrization/free_form_deformation.hpp"
 #include "tests/shape_opt/parametrization/map_check.hpp"
 
@@ -135,4 +136,28 @@ TEST(FreeFormDeformation, BorderFixedAlongSomeAxesOnly)
     test::expect_vjp_matches_differences(ffd, x);
     l.fixed_border_axes = { 2 };
     EXPECT_THROW(FreeFormDeformation(mesh.rest_positions, l, "design"), InputError);
+}
+
+// Remeshing asks a map whether it follows a new mesh (ParameterMap::remeshable_shape,
+// input_survives_remesh): a free-form deformation does, through its pull-back, and its pull-back
+// is the inverse of its motion; plain maps do not.
+TEST(FreeFormDeformation, IsTheRemeshableShapeAndItsPullBackInvertsIt)
+{
+    const Mesh mesh = unit_box(2, 4);
+    const FreeFormDeformation ffd(mesh.rest_positions, lattice(2), "ffd");
+    const ParameterMap& map = ffd;
+    ASSERT_EQ(map.remeshable_shape(), &ffd);
+    EXPECT_TRUE(map.input_survives_remesh());
+    EXPECT_EQ(map.remeshable_shape()->mesh_input_key(), "mesh_at");
+    const VectorXd x = 0.02 * VectorXd::LinSpaced(ffd.in_size(), -1, 1);
+    const VectorXd moved = ffd.apply(x);
+    const Positions current = Eigen::Map<const Positions>(moved.data(), mesh.rest_positions.rows(), 2);
+    const Positions back = map.remeshable_shape()->pull_back(current, x);
+    EXPECT_LT((back - mesh.rest_positions).cwiseAbs().maxCoeff(), 1e-10);
+    const ExpMap exp(3);
+    EXPECT_EQ(exp.remeshable_shape(), nullptr);
+    EXPECT_FALSE(exp.input_survives_remesh());
+    const GatherMap per_element(2, { 0, 1, 1 }, "gather"), per_body(2, { 0, 1, 1 }, "per_body", "per_body", true);
+    EXPECT_FALSE(per_element.input_survives_remesh());
+    EXPECT_TRUE(per_body.input_survives_remesh());
 }
