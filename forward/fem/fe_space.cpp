@@ -19,9 +19,9 @@ FESpace::FESpace(const Mesh& mesh)
 {
     const Index ne = mesh.num_elements();
     const int d = m_dim;
-    m_volumes.resize(size_t(ne));
-    m_gradients.resize(size_t(ne) * size_t((d + 1) * d));
     const size_t per_element = size_t((d + 1) * d);
+    m_volumes.resize(size_t(ne));
+    m_gradients.resize(size_t(ne) * per_element);
     for (Index e = 0; e < ne; ++e) {
         double rest[4 * 3];
         for (int a = 0; a <= d; ++a)
